@@ -1,0 +1,3 @@
+from gyrocal.cli import main
+
+raise SystemExit(main())

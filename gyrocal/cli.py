@@ -1,0 +1,4 @@
+"""Placeholder CLI, replaced below."""
+
+def main() -> int:
+    return 0

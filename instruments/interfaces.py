@@ -1,0 +1,92 @@
+"""The three instrument roles the orchestrator needs, as small typed interfaces.
+
+The orchestrator only ever sees these; a new chamber or table model is a new
+driver class that satisfies one of them, nothing else changes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Identity:
+    """What an instrument says it is (for the manifest and the report)."""
+
+    role: str          # "chamber", "table" or "gyro"
+    driver: str        # e.g. "watlow_f4"
+    address: str       # e.g. "socket://127.0.0.1:5020"
+    description: str   # e.g. "*IDN?" reply or model register contents
+
+
+@dataclass(frozen=True)
+class ChamberStatus:
+    temperature_c: float
+    setpoint_c: float
+    alarm: bool
+    detail: str = ""
+
+
+@dataclass(frozen=True)
+class TableStatus:
+    rate_dps: float
+    position_deg: float
+    interlock_closed: bool
+
+
+@runtime_checkable
+class Chamber(Protocol):
+    def identify(self) -> Identity: ...
+    def read_temperature_c(self) -> float: ...
+    def read_setpoint_c(self) -> float: ...
+    def set_setpoint_c(self, setpoint_c: float) -> None: ...
+    def read_status(self) -> ChamberStatus: ...
+    def close(self) -> None: ...
+
+
+@runtime_checkable
+class RateTable(Protocol):
+    def identify(self) -> Identity: ...
+    def interlock_closed(self) -> bool: ...
+    def close_interlock(self) -> None: ...
+    def set_rate_mode(self) -> None: ...
+    def set_acceleration_limit_dps2(self, accel_dps2: float) -> None: ...
+    def set_rate_dps(self, rate_dps: float) -> None: ...
+    def read_rate_dps(self) -> float: ...
+    def read_position_deg(self) -> float: ...
+    def read_status(self) -> TableStatus: ...
+    def stop(self) -> None: ...
+    def close(self) -> None: ...
+
+
+@dataclass
+class GyroBlock:
+    """Decoded gyro samples: only frames whose CRC checked, in arrival order.
+
+    ``counter`` is the datagram counter (wraps at 256); gaps in it are lost
+    frames and are counted, never papered over.
+    """
+
+    rate: np.ndarray                 # gyro output in the unit's output units
+    counter: np.ndarray              # uint8 datagram counter
+    status: np.ndarray               # uint8 status byte (0 = OK)
+    temperature_c: np.ndarray | None = None
+    crc_errors: int = 0              # frames dropped because the CRC failed
+    lost_frames: int = 0             # counter gaps (frames never received)
+    garbage_bytes: int = 0           # bytes skipped while re-synchronising
+    extra: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.rate.shape[0])
+
+
+@runtime_checkable
+class GyroStream(Protocol):
+    def identify(self) -> Identity: ...
+    def flush(self) -> None:
+        """Discard everything buffered so the next samples are fresh."""
+    def read_samples(self, n: int, timeout_s: float) -> GyroBlock: ...
+    def close(self) -> None: ...

@@ -1,0 +1,34 @@
+import threading
+
+import pytest
+from gyrocal.models.clock import RealClock, SimClock, make_clock
+
+
+def test_sim_clock_moves_only_when_advanced_and_never_backwards():
+    clock = SimClock()
+    assert clock.now_s() == 0.0
+    clock.sleep(3600.0)
+    assert clock.now_s() == 3600.0
+    assert clock.advance_to(10.0) == 3600.0
+    assert clock.advance_to(7200.5) == 7200.5
+
+
+def test_sim_clock_wait_until_wakes_when_another_thread_advances():
+    clock = SimClock()
+    woke = []
+    t = threading.Thread(target=lambda: woke.append(clock.wait_until(50.0, timeout_s=5)))
+    t.start()
+    clock.advance_to(49.0)
+    clock.advance_to(50.0)
+    t.join(5)
+    assert woke == [True]
+    assert clock.wait_until(1e9, timeout_s=0.01) is False
+
+
+def test_make_clock_parses_speed():
+    assert isinstance(make_clock("max"), SimClock)
+    assert isinstance(make_clock("10"), RealClock)
+    with pytest.raises(ValueError, match="--speed"):
+        make_clock("fast")
+    with pytest.raises(ValueError):
+        RealClock(0)
