@@ -72,6 +72,7 @@ class GyroBlock:
 
     rate: np.ndarray                 # gyro output in the unit's output units
     counter: np.ndarray              # uint8 datagram counter
+    index: np.ndarray                # int64 frame index since the last flush, counter gaps unwrapped
     status: np.ndarray               # uint8 status byte (0 = OK)
     temperature_c: np.ndarray | None = None
     crc_errors: int = 0              # frames dropped because the CRC failed
