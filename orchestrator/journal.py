@@ -1,0 +1,123 @@
+"""Append-only run journal with a SHA-256 hash chain.
+
+QA must be able to prove that nothing in a run's history was edited or
+removed afterwards. Each line is one JSON event carrying ``prev_sha256``, the
+hash of the previous line's bytes (the first line chains to a fixed genesis
+value), and every line is flushed and fsynced before the call returns, so a
+crash loses at most the event being written. A torn last line (power cut mid
+write) is detected on reopen and set aside in ``journal.torn`` rather than
+silently dropped or silently trusted.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+GENESIS_SHA256 = "0" * 64
+
+
+def sha256_bytes(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def sha256_file(path: Path, chunk_bytes: int = 1 << 20) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        while block := handle.read(chunk_bytes):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+class JournalError(Exception):
+    """The journal on disk does not verify (names the line)."""
+
+
+@dataclass(frozen=True)
+class JournalEntry:
+    line_no: int
+    event: dict[str, Any]
+    raw: bytes
+
+
+def _encode(event: dict[str, Any]) -> bytes:
+    return json.dumps(event, sort_keys=True, separators=(",", ":"), allow_nan=False).encode() + b"\n"
+
+
+def read_journal(path: Path) -> Iterator[JournalEntry]:
+    """Yield entries, checking the hash chain; raises :class:`JournalError` naming the first bad line."""
+    prev = GENESIS_SHA256
+    with open(path, "rb") as handle:
+        for line_no, raw in enumerate(handle, start=1):
+            if not raw.endswith(b"\n"):
+                raise JournalError(f"{path}:{line_no}: incomplete last line (torn write)")
+            try:
+                event = json.loads(raw)
+            except json.JSONDecodeError as exc:
+                raise JournalError(f"{path}:{line_no}: not JSON: {exc.msg}") from None
+            if event.get("prev_sha256") != prev:
+                raise JournalError(
+                    f"{path}:{line_no}: hash chain broken: prev_sha256 is "
+                    f"{event.get('prev_sha256')!r}, the previous line hashes to {prev}"
+                )
+            prev = sha256_bytes(raw)
+            yield JournalEntry(line_no, event, raw)
+
+
+class Journal:
+    """Writer for ``journal.jsonl``; reopening continues the chain after the last good line."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self._last_sha256 = GENESIS_SHA256
+        self.count = 0
+        if self.path.exists():
+            self._recover()
+        self._handle = open(self.path, "ab", buffering=0)
+
+    def _recover(self) -> None:
+        data = self.path.read_bytes()
+        cut = data.rfind(b"\n") + 1
+        if cut < len(data):
+            # A torn tail: keep its bytes for the auditor, then truncate to the last full line.
+            torn_path = self.path.with_suffix(".torn")
+            with open(torn_path, "ab") as torn:
+                torn.write(data[cut:] + b"\n")
+                os.fsync(torn.fileno())
+            with open(self.path, "r+b") as handle:
+                handle.truncate(cut)
+                os.fsync(handle.fileno())
+        for entry in read_journal(self.path):
+            self._last_sha256 = sha256_bytes(entry.raw)
+            self.count = entry.line_no
+
+    @property
+    def last_sha256(self) -> str:
+        return self._last_sha256
+
+    def append(self, kind: str, **fields: Any) -> dict[str, Any]:
+        """Write one event durably and return it as written."""
+        event = {"seq": self.count + 1, "wall_time": time.time(), "event": kind, **fields}
+        event["prev_sha256"] = self._last_sha256
+        raw = _encode(event)
+        self._handle.write(raw)
+        os.fsync(self._handle.fileno())
+        self._last_sha256 = sha256_bytes(raw)
+        self.count += 1
+        return event
+
+    def close(self) -> None:
+        if not self._handle.closed:
+            self._handle.close()
+
+    def __enter__(self) -> Journal:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,170 @@
+"""The run folder: manifest, journal, sample chunks (see interfaces.md, "Run folder").
+
+Everything an auditor needs to re-derive the report lives here: copies of the
+procedure and station as they were run (with SHA-256), the hash-chained
+journal, and the gyro samples in Parquet chunks whose hashes the journal
+records. Chunks are written atomically, so a crash loses at most the chunk
+being written; the journal says which chunks belong to which completed step.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from gyrocal import __version__
+from gyrocal.orchestrator.atomic import write_atomic, write_bytes_atomic
+from gyrocal.orchestrator.journal import Journal, read_journal, sha256_file
+
+MANIFEST = "manifest.json"
+JOURNAL = "journal.jsonl"
+SAMPLES = "samples"
+
+#: Columns of every sample chunk; names and units follow gyro-model.md "Measured log".
+SAMPLE_COLUMNS = (
+    "t_s",
+    "table_rate_dps",
+    "chamber_temp_c",
+    "gyro",
+    "sensor_temp_c",
+    "table_angle_deg",
+)
+
+
+class RunFolderError(Exception):
+    """The folder is not a usable run folder (names the file)."""
+
+
+@dataclass(frozen=True)
+class ChunkRecord:
+    path: str          # relative to the run folder
+    sha256: str
+    rows: int
+
+
+def new_run_id() -> str:
+    return time.strftime("%Y%m%dT%H%M%S") + "-" + uuid.uuid4().hex[:6]
+
+
+class RunFolder:
+    """Owns one run folder on disk. Create with :meth:`create`, reopen with :meth:`open`."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        self.journal: Journal | None = None
+
+    # -- creation and reopening ------------------------------------------------------------
+    @classmethod
+    def create(
+        cls,
+        path: Path,
+        procedure_path: Path,
+        station_path: Path | None,
+        extra_files: dict[str, Path] | None = None,
+        manifest_fields: dict[str, Any] | None = None,
+    ) -> RunFolder:
+        path = Path(path)
+        if path.exists() and any(path.iterdir()):
+            raise RunFolderError(f"{path}: output folder exists and is not empty; choose another --out")
+        path.mkdir(parents=True, exist_ok=True)
+        (path / SAMPLES).mkdir()
+        folder = cls(path)
+        inputs: dict[str, dict[str, str]] = {}
+        copies = {"procedure": procedure_path}
+        if station_path is not None:
+            copies["station"] = station_path
+        copies.update(extra_files or {})
+        for role, source in copies.items():
+            target = path / "inputs" / f"{role}{Path(source).suffix or '.yaml'}"
+            target.parent.mkdir(exist_ok=True)
+            shutil.copyfile(source, target)
+            inputs[role] = {
+                "source": str(Path(source).resolve()),
+                "copy": str(target.relative_to(path)),
+                "sha256": sha256_file(target),
+            }
+        manifest = {
+            "run_id": new_run_id(),
+            "software": {"name": "gyrocal", "version": __version__},
+            "inputs": inputs,
+            "state": "created",
+            "started_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            "ended_at": None,
+            "instruments": {},
+        }
+        manifest.update(manifest_fields or {})
+        folder.write_manifest(manifest)
+        return folder
+
+    @classmethod
+    def open(cls, path: Path) -> RunFolder:
+        path = Path(path)
+        if not (path / MANIFEST).is_file():
+            raise RunFolderError(f"{path}: not a run folder ({MANIFEST} missing)")
+        return cls(path)
+
+    def open_journal(self) -> Journal:
+        if self.journal is None:
+            self.journal = Journal(self.path / JOURNAL)
+        return self.journal
+
+    def close(self) -> None:
+        if self.journal is not None:
+            self.journal.close()
+            self.journal = None
+
+    # -- manifest --------------------------------------------------------------------------
+    def read_manifest(self) -> dict[str, Any]:
+        try:
+            return json.loads((self.path / MANIFEST).read_text())
+        except json.JSONDecodeError as exc:
+            raise RunFolderError(f"{self.path / MANIFEST}: not valid JSON: {exc}") from None
+
+    def write_manifest(self, manifest: dict[str, Any]) -> None:
+        data = json.dumps(manifest, indent=2, sort_keys=True, allow_nan=False).encode() + b"\n"
+        write_bytes_atomic(self.path / MANIFEST, data)
+
+    def update_manifest(self, **fields: Any) -> dict[str, Any]:
+        manifest = self.read_manifest()
+        manifest.update(fields)
+        self.write_manifest(manifest)
+        return manifest
+
+    def input_path(self, role: str) -> Path:
+        return self.path / self.read_manifest()["inputs"][role]["copy"]
+
+    # -- samples ---------------------------------------------------------------------------
+    def write_chunk(
+        self, step_id: str, attempt: int, chunk_index: int, columns: dict[str, np.ndarray]
+    ) -> ChunkRecord:
+        missing = [name for name in SAMPLE_COLUMNS if name not in columns]
+        if missing:
+            raise ValueError(f"sample chunk lacks columns {missing}")
+        rows = len(columns["t_s"])
+        table = pa.table({name: pa.array(np.asarray(columns[name], dtype=np.float64)) for name in SAMPLE_COLUMNS})
+        rel = Path(SAMPLES) / step_id / f"attempt{attempt}-chunk{chunk_index:05d}.parquet"
+        write_atomic(self.path / rel, lambda tmp: pq.write_table(table, tmp, compression="zstd"))
+        return ChunkRecord(str(rel), sha256_file(self.path / rel), rows)
+
+    def read_chunks(self, records: list[str]) -> dict[str, np.ndarray]:
+        """Concatenate the named chunks (relative paths) column by column."""
+        if not records:
+            return {name: np.empty(0) for name in SAMPLE_COLUMNS}
+        tables = [pq.read_table(self.path / rel) for rel in records]
+        table = pa.concat_tables(tables)
+        return {name: table.column(name).to_numpy() for name in SAMPLE_COLUMNS}
+
+    def journal_events(self) -> list[dict[str, Any]]:
+        path = self.path / JOURNAL
+        if not path.exists():
+            return []
+        return [entry.event for entry in read_journal(path)]
