@@ -79,7 +79,7 @@ class Journal:
         self.count = 0
         if self.path.exists():
             self._recover()
-        self._handle = open(self.path, "ab", buffering=0)
+        self._handle = open(self.path, "ab", buffering=0)  # noqa: SIM115 - held for the run
 
     def _recover(self) -> None:
         data = self.path.read_bytes()

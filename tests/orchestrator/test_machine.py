@@ -1,7 +1,6 @@
 from pathlib import Path
 
 import pytest
-
 from gyrocal.orchestrator.machine import MachineError, RunStateMachine, mermaid_diagram
 
 
