@@ -1,4 +1,166 @@
-"""Placeholder CLI, replaced below."""
+"""The ``gyrocal`` command: argument parsing, exit codes, and error presentation.
 
-def main() -> int:
-    return 0
+Exit codes (interfaces.md): 0 success · 1 acceptance failed · 2 bad input ·
+3 instrument or run fault. Bad input and instrument faults print one clear
+message, never a traceback (``--debug`` shows it). Each sub-command's work
+lives in its own module; this file only routes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+
+EXIT_OK = 0
+EXIT_ACCEPTANCE_FAILED = 1
+EXIT_BAD_INPUT = 2
+EXIT_FAULT = 3
+
+
+class BadInput(Exception):
+    """Raised by commands for input problems the user must fix (exit 2)."""
+
+
+class RunFault(Exception):
+    """Raised by commands when a run stopped on an instrument or run fault (exit 3)."""
+
+
+def _bad_input_types() -> tuple[type[BaseException], ...]:
+    from gyrocal.models.gyro_model import ModelError
+    from gyrocal.orchestrator.run_folder import RunFolderError
+
+    types: list[type[BaseException]] = [BadInput, ModelError, RunFolderError, FileNotFoundError,
+                                        IsADirectoryError, NotADirectoryError]
+    for module, name in (
+        ("gyrocal.orchestrator.yaml_source", "ProcedureError"),
+        ("gyrocal.orchestrator.procedure", "ProcedureError"),
+        ("gyrocal.reports.measured_log", "LogFormatError"),
+    ):
+        try:
+            mod = __import__(module, fromlist=[name])
+            types.append(getattr(mod, name))
+        except (ImportError, AttributeError):
+            pass
+    return tuple(types)
+
+
+def _fault_types() -> tuple[type[BaseException], ...]:
+    from gyrocal.instruments.errors import InstrumentError
+
+    return (RunFault, InstrumentError)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="gyrocal", description=__doc__.splitlines()[0])
+    parser.add_argument("--debug", action="store_true", help="show tracebacks")
+    parser.add_argument("--version", action="version", version=f"gyrocal {_version()}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("validate", help="validate a procedure (and station) before anything moves")
+    p.add_argument("procedure")
+    p.add_argument("--station")
+    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_validate"))
+
+    p = sub.add_parser("plan", help="print the expanded steps, durations and ETA")
+    p.add_argument("procedure")
+    p.add_argument("--station")
+    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_plan"))
+
+    p = sub.add_parser("run", help="run a procedure on a station or against simulated instruments")
+    p.add_argument("procedure")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--station")
+    group.add_argument("--sim", action="store_true", help="start simulated instruments on loopback")
+    p.add_argument("--out", help="run folder (default runs/<run id>)")
+    p.add_argument("--speed", default=None, help="X (real time × X) or max (simulated time; default with --sim)")
+    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--operator", default=None)
+    p.add_argument("--sim-station", default=None, help="station file for --sim (default stations/sim.yaml)")
+    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_run"))
+
+    p = sub.add_parser("resume", help="continue a faulted or interrupted run")
+    p.add_argument("run_dir")
+    p.add_argument("--speed", default=None)
+    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_resume"))
+
+    p = sub.add_parser("status", help="where a run is")
+    p.add_argument("run_dir")
+    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_status"))
+
+    p = sub.add_parser("report", help="(re)build RUN_DIR/report/")
+    p.add_argument("run_dir")
+    p.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_report"))
+
+    p = sub.add_parser("verify", help="audit: recompute every hash")
+    p.add_argument("run_dir")
+    p.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_verify"))
+
+    p = sub.add_parser("analyze", help="analyse a measured log")
+    asub = p.add_subparsers(dest="analysis", required=True, metavar="ANALYSIS")
+    a = asub.add_parser("allan", help="Allan deviation and noise terms of a log")
+    a.add_argument("log")
+    a.add_argument("--column", default="gyro")
+    a.add_argument("--units", default="deg/s", choices=["deg/s", "deg/h", "rad/s"])
+    a.add_argument("--scale-factor", type=float, default=1.0)
+    a.add_argument("--json", dest="json_out")
+    a.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_analyze_allan"))
+
+    p = sub.add_parser("discrepancy", help="find what the model lacks to explain the measured data")
+    p.add_argument("--model", required=True)
+    p.add_argument("--measured", required=True)
+    p.add_argument("--out", default="discrepancy-out")
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(func=_lazy("gyrocal.reports.discrepancy_command", "cmd_discrepancy"))
+
+    p = sub.add_parser("sim", help="simulated instruments")
+    ssub = p.add_subparsers(dest="sim_command", required=True, metavar="SIM_COMMAND")
+    s = ssub.add_parser("serve", help="serve simulated instruments until Ctrl-C")
+    s.add_argument("--station", default=None)
+    s.add_argument("--speed", default="1", help="real time × X (default 1)")
+    s.add_argument("--seed", type=int, default=None)
+    s.set_defaults(func=_lazy("gyrocal.instruments.sim.serve", "cmd_sim_serve"))
+
+    p = sub.add_parser("demo", help="the dry run against simulated instruments")
+    p.add_argument("--out", default=None)
+    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_demo"))
+    return parser
+
+
+def _version() -> str:
+    from gyrocal import __version__
+
+    return __version__
+
+
+def _lazy(module: str, name: str) -> Callable[[argparse.Namespace], int]:
+    def call(args: argparse.Namespace) -> int:
+        mod = __import__(module, fromlist=[name])
+        return int(getattr(mod, name)(args) or 0)
+
+    call.__name__ = name
+    return call
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        print("gyrocal: interrupted", file=sys.stderr)
+        return EXIT_FAULT
+    except Exception as exc:
+        if args.debug:
+            raise
+        if isinstance(exc, _bad_input_types()):
+            print(f"gyrocal: error: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        if isinstance(exc, _fault_types()):
+            print(f"gyrocal: fault: {exc}", file=sys.stderr)
+            return EXIT_FAULT
+        raise
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,473 @@
+"""The engine that runs a plan on instruments: how, with pause, resume and cleanup.
+
+The plan (``orchestrator/plan.py``) says *what* to do, step by step; this
+module says *how*: it commands the chamber and the table, waits on the one
+clock, logs the gyro, journals every event, and whatever happens — a fault,
+Ctrl-C, a bug — leaves the instruments in the station's safe state before it
+returns. Completed steps are read back from the journal, so a resumed run
+continues at the first step not completed and never repeats one.
+
+The same code runs against hardware (``RealClock``) and against simulators
+(``SimClock``): there is no dry-run branch in here.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from gyrocal.instruments.errors import InstrumentError
+from gyrocal.instruments.interfaces import Chamber, GyroStream, Identity, RateTable
+from gyrocal.models.clock import Clock
+from gyrocal.orchestrator.machine import RunStateMachine
+from gyrocal.orchestrator.progress import Progress
+from gyrocal.orchestrator.run_folder import RunFolder
+
+
+class RunFaultError(Exception):
+    """A condition that ends the run in the safe state (exit code 3); the run is resumable."""
+
+
+class SoakTimeoutError(RunFaultError):
+    pass
+
+
+class StepQualityError(RunFaultError):
+    pass
+
+
+@dataclass
+class Instruments:
+    chamber: Chamber
+    table: RateTable
+    gyro: GyroStream
+    clock: Clock
+    sample_rate_hz: float
+
+    def close(self) -> None:
+        for inst in (self.gyro, self.table, self.chamber):
+            # Closing must never mask the run's real outcome.
+            with contextlib.suppress(Exception):
+                inst.close()
+
+
+@dataclass(frozen=True)
+class EnginePolicy:
+    """Tunables with lab-sensible defaults; procedures and stations may override them."""
+
+    poll_s: float = 5.0                 # chamber/table polling period while waiting (clock time)
+    chunk_s: float = 60.0               # seconds of samples per Parquet chunk
+    block_s: float = 5.0                # seconds of samples per driver read
+    read_timeout_margin_s: float = 5.0  # wall seconds beyond the block duration before a read times out
+    rate_tolerance_dps: float = 0.05    # table "at rate" band (plus 0.1 % of the rate)
+    spin_timeout_factor: float = 3.0    # × the acceleration time before "table never reached rate"
+    max_loss_fraction: float = 0.001    # lost + corrupt frames allowed per logged step
+    max_repeats: int = 2                # bad logged step repeated at most this many times
+    safe_setpoint_c: float | None = 25.0  # None = chamber standby is not supported: hold setpoint
+
+
+@dataclass
+class StepResult:
+    step_id: str
+    attempt: int
+    samples: int = 0
+    lost_frames: int = 0
+    crc_errors: int = 0
+    chunks: list[str] = field(default_factory=list)
+
+
+def completed_steps(events: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """step_id → its ``step_completed`` event, from the journal."""
+    return {e["step_id"]: e for e in events if e.get("event") == "step_completed"}
+
+
+@contextmanager
+def sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM (systemd stop, a killed terminal) gets the same safe handling as Ctrl-C."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+class RunEngine:
+    """Executes the steps of a plan that the journal does not list as completed."""
+
+    def __init__(
+        self,
+        folder: RunFolder,
+        steps: list[Any],
+        instruments: Instruments,
+        policy: EnginePolicy,
+        progress: Progress | None = None,
+        on_finished: Callable[[], None] | None = None,
+    ) -> None:
+        self.folder = folder
+        self.steps = steps
+        self.inst = instruments
+        self.clock = instruments.clock
+        self.policy = policy
+        self.journal = folder.open_journal()
+        self.machine = RunStateMachine()
+        self.progress = progress or Progress(enabled=False)
+        self.on_finished = on_finished
+        self._chamber_c: float | None = None
+        self._table_dps: float | None = None
+        self._t_run_start = self.clock.now_s()
+
+    # -- public ----------------------------------------------------------------------------
+    def run(self) -> str:
+        """Run to the end or to the safe state. Returns the final state ("done" or "faulted")."""
+        with sigterm_as_interrupt():
+            try:
+                self._connect_and_preflight()
+                done = completed_steps(self.folder.journal_events())
+                remaining = [s for s in self.steps if s.step_id not in done]
+                if done and remaining:
+                    self.journal.append("resumed", from_step=remaining[0].step_id,
+                                        completed=len(done))
+                    self._restore_conditions(remaining[0])
+                self.folder.update_manifest(state="running")
+                for index, step in enumerate(self.steps, start=1):
+                    if step.step_id in done:
+                        continue
+                    self.progress.update(step_id=step.step_id, step_index=index,
+                                         step_count=len(self.steps))
+                    self._execute(step)
+                self._finish()
+                return "done"
+            except KeyboardInterrupt as exc:
+                self._go_safe("interrupted", f"interrupted by the operator ({exc or 'Ctrl-C'})")
+                raise RunFaultError("run interrupted; instruments safe; continue with "
+                                    f"`gyrocal resume {self.folder.path}`") from None
+            except (InstrumentError, RunFaultError) as exc:
+                self._go_safe("fault", str(exc), **_fault_fields(exc))
+                raise RunFaultError(f"{exc}; instruments safe; continue with "
+                                    f"`gyrocal resume {self.folder.path}`") from exc
+            except BaseException as exc:
+                self._go_safe("fault", f"internal error: {exc!r}")
+                raise
+            finally:
+                self.progress.close()
+
+    # -- connection --------------------------------------------------------------------------
+    def _connect_and_preflight(self) -> None:
+        self.machine.connect()
+        identities: dict[str, dict[str, str]] = {}
+        for inst in (self.inst.chamber, self.inst.table, self.inst.gyro):
+            ident: Identity = inst.identify()
+            identities[ident.role] = {"driver": ident.driver, "address": ident.address,
+                                      "description": ident.description}
+            self.journal.append("instrument_identified", role=ident.role, driver=ident.driver,
+                                address=ident.address, description=ident.description)
+        self.folder.update_manifest(instruments=identities)
+        self.machine.identified()
+        status = self.inst.chamber.read_status()
+        if status.alarm:
+            raise RunFaultError(f"chamber: preflight: alarm active ({status.detail or 'no detail'})")
+        table = self.inst.table
+        if not table.interlock_closed():
+            table.close_interlock()
+            if not table.interlock_closed():
+                raise RunFaultError("table: preflight: interlock is open and did not close")
+        table.set_rate_mode()
+        probe = self.inst.gyro
+        probe.flush()
+        block = probe.read_samples(max(1, int(self.inst.sample_rate_hz * 0.1)),
+                                   timeout_s=self.policy.read_timeout_margin_s)
+        self._table_dps = table.read_rate_dps()
+        self._chamber_c = status.temperature_c
+        self.journal.append("preflight_ok", chamber_c=status.temperature_c,
+                            gyro_samples=len(block), table_rate_dps=self._table_dps)
+        self.machine.preflight_ok()
+
+    # -- step execution ----------------------------------------------------------------------
+    def _execute(self, step: Any) -> None:
+        kind = step.kind
+        if kind == "ramp":
+            self._ramp(step)
+        elif kind == "soak":
+            self._soak(step)
+        elif kind in ("static", "allan", "dwell"):
+            self._log_step(step)
+        else:
+            raise RunFaultError(f"plan step {step.step_id}: unknown kind {kind!r}")
+
+    def _restore_conditions(self, step: Any) -> None:
+        """On resume, bring chamber and table back to the conditions of ``step`` first."""
+        setpoint = getattr(step, "setpoint_c", None)
+        if setpoint is not None and step.kind not in ("ramp", "soak"):
+            self.journal.append("restore_conditions", step_id=step.step_id, setpoint_c=setpoint)
+            self._ramp(step, journal_done=False)
+            self._soak(step, journal_done=False)
+
+    def _ramp(self, step: Any, journal_done: bool = True) -> None:
+        self.machine.ramp()
+        self.journal.append("step_started", step_id=step.step_id, kind="ramp",
+                            setpoint_c=step.setpoint_c, attempt=1)
+        self._set_table_rate(0.0)
+        self.inst.chamber.set_setpoint_c(step.setpoint_c)
+        self.machine.soak()
+        self.machine.stable()
+        if journal_done:
+            self.journal.append("step_completed", step_id=step.step_id, attempt=1)
+
+    def _soak(self, step: Any, journal_done: bool = True) -> None:
+        """Wait until the chamber stays within ±tolerance for the hold time, or fault."""
+        self.machine.ramp()
+        self.journal.append("step_started", step_id=step.step_id, kind="soak",
+                            setpoint_c=step.setpoint_c, attempt=1)
+        self.machine.soak()
+        t_start = self.clock.now_s()
+        t_in_band: float | None = None
+        while True:
+            temp_c = self._poll_chamber()
+            now = self.clock.now_s()
+            if abs(temp_c - step.setpoint_c) <= step.tolerance_c:
+                t_in_band = now if t_in_band is None else t_in_band
+                if now - t_in_band >= step.hold_s:
+                    break
+            else:
+                t_in_band = None
+            if now - t_start > step.max_wait_s:
+                raise SoakTimeoutError(
+                    f"chamber: soak at {step.setpoint_c:g} °C did not stabilise within "
+                    f"±{step.tolerance_c:g} °C for {step.hold_s:g} s after waiting "
+                    f"{step.max_wait_s:g} s (last reading {temp_c:.2f} °C)")
+            self.clock.sleep(min(self.policy.poll_s, max(step.hold_s / 4, 0.1)))
+        self.machine.stable()
+        if journal_done:
+            self.journal.append("step_completed", step_id=step.step_id, attempt=1,
+                                soak_s=self.clock.now_s() - t_start)
+
+    def _poll_chamber(self) -> float:
+        status = self.inst.chamber.read_status()
+        if status.alarm:
+            raise RunFaultError(f"chamber: alarm at {status.temperature_c:.2f} °C "
+                                f"({status.detail or 'no detail'})")
+        self._chamber_c = status.temperature_c
+        self.progress.update(chamber_c=status.temperature_c, elapsed_s=self._elapsed())
+        return status.temperature_c
+
+    def _elapsed(self) -> float:
+        return self.clock.now_s() - self._t_run_start
+
+    def _set_table_rate(self, rate_dps: float, accel_dps2: float | None = None) -> None:
+        """Command a rate and wait (on the clock) until the table reads it back."""
+        table = self.inst.table
+        current = table.read_rate_dps()
+        if abs(current - rate_dps) <= self._rate_band(rate_dps) and abs(rate_dps) > 0:
+            return
+        if not table.interlock_closed():
+            raise RunFaultError("table: interlock open; refusing to command motion")
+        self.machine.spin()
+        if accel_dps2:
+            table.set_acceleration_limit_dps2(accel_dps2)
+        table.set_rate_dps(rate_dps)
+        accel = accel_dps2 or 10.0
+        expected_s = abs(rate_dps - current) / accel
+        deadline = self.clock.now_s() + self.policy.spin_timeout_factor * expected_s + 10.0
+        while True:
+            reading = table.read_rate_dps()
+            self._table_dps = reading
+            if abs(reading - rate_dps) <= self._rate_band(rate_dps):
+                break
+            if self.clock.now_s() > deadline:
+                raise RunFaultError(f"table: did not reach {rate_dps:g} deg/s "
+                                    f"(reads {reading:g} deg/s) in time")
+            if not table.interlock_closed():
+                raise RunFaultError("table: interlock opened while spinning")
+            self.clock.sleep(max(0.05, min(expected_s / 5, 1.0)))
+        self.progress.update(table_dps=reading, elapsed_s=self._elapsed())
+        self.machine.settled()
+
+    def _rate_band(self, rate_dps: float) -> float:
+        return self.policy.rate_tolerance_dps + 1e-3 * abs(rate_dps)
+
+    def _log_step(self, step: Any) -> None:
+        rate_dps = float(getattr(step, "rate_dps", 0.0) or 0.0)
+        settle_s = float(getattr(step, "settle_s", 0.0) or 0.0)
+        for attempt in range(1, self.policy.max_repeats + 2):
+            self.journal.append("step_started", step_id=step.step_id, kind=step.kind,
+                                rate_dps=rate_dps, attempt=attempt)
+            self._set_table_rate(rate_dps, getattr(step, "accel_dps2", None))
+            if settle_s > 0:
+                self.machine.spin()
+                self.machine.settle()
+                self.clock.sleep(settle_s)
+                self.machine.settled()
+            self.machine.log()
+            result = self._record(step, attempt, rate_dps)
+            self.machine.logged()
+            frames = result.samples + result.lost_frames + result.crc_errors
+            loss = (result.lost_frames + result.crc_errors) / max(frames, 1)
+            if loss <= self.policy.max_loss_fraction:
+                self.journal.append(
+                    "step_completed", step_id=step.step_id, attempt=attempt,
+                    samples=result.samples, lost_frames=result.lost_frames,
+                    crc_errors=result.crc_errors, chunks=result.chunks)
+                return
+            self.journal.append(
+                "step_bad", step_id=step.step_id, attempt=attempt, loss_fraction=loss,
+                lost_frames=result.lost_frames, crc_errors=result.crc_errors,
+                limit=self.policy.max_loss_fraction)
+        raise StepQualityError(
+            f"gyro: step {step.step_id} lost more than {self.policy.max_loss_fraction:.3%} of its "
+            f"frames in {self.policy.max_repeats + 1} attempts")
+
+    def _record(self, step: Any, attempt: int, rate_dps: float) -> StepResult:
+        """Log ``step.duration_s`` of gyro samples with chamber and table context, in chunks."""
+        fs = self.inst.sample_rate_hz
+        n_total = int(round(step.duration_s * fs))
+        chunk_n = max(1, int(self.policy.chunk_s * fs))
+        block_n = max(1, min(chunk_n, int(self.policy.block_s * fs)))
+        result = StepResult(step.step_id, attempt)
+        gyro = self.inst.gyro
+        gyro.flush()
+        t0 = self.clock.now_s()
+        angle_start = (t0, 0.0, self._safe_position())
+        context_t = [t0]
+        context_chamber = [self._poll_chamber()]
+        context_rate = [self.inst.table.read_rate_dps()]
+        angle_start = (t0, context_rate[0], angle_start[2])
+        pending: dict[str, list[np.ndarray]] = {"index": [], "gyro": [], "sensor": []}
+        pending_n = 0
+        chunk_index = 0
+        last_index = -1
+        timeout_s = self.policy.block_s + self.policy.read_timeout_margin_s
+        while result.samples < n_total:
+            want = min(block_n, n_total - result.samples)
+            block = gyro.read_samples(want, timeout_s=timeout_s)
+            result.samples += len(block)
+            result.lost_frames += block.lost_frames
+            result.crc_errors += block.crc_errors
+            index = np.asarray(block.index, dtype=np.int64)
+            if last_index >= 0 and len(index) and index[0] <= last_index:
+                index = index - index[0] + last_index + 1
+            if len(index):
+                last_index = int(index[-1])
+            pending["index"].append(index)
+            pending["gyro"].append(np.asarray(block.rate, dtype=np.float64))
+            temp = block.temperature_c
+            pending["sensor"].append(np.full(len(block), np.nan) if temp is None
+                                     else np.asarray(temp, dtype=np.float64))
+            pending_n += len(block)
+            context_t.append(t0 + (last_index + 1) / fs)
+            context_chamber.append(self._poll_chamber())
+            reading = self.inst.table.read_rate_dps()
+            context_rate.append(reading)
+            self.progress.update(table_dps=reading, elapsed_s=self._elapsed())
+            if pending_n >= chunk_n or result.samples >= n_total:
+                columns = self._assemble(pending, t0, fs, context_t, context_chamber,
+                                         context_rate, angle_start)
+                angle_start = (float(columns["t_s"][-1]), float(columns["table_rate_dps"][-1]),
+                               float(columns["table_angle_deg"][-1]))
+                record = self.folder.write_chunk(step.step_id, attempt, chunk_index, columns)
+                self.journal.append("chunk_written", step_id=step.step_id, attempt=attempt,
+                                    path=record.path, sha256=record.sha256, rows=record.rows)
+                result.chunks.append(record.path)
+                chunk_index += 1
+                pending = {"index": [], "gyro": [], "sensor": []}
+                pending_n = 0
+        return result
+
+    def _safe_position(self) -> float:
+        return float(self.inst.table.read_position_deg())
+
+    @staticmethod
+    def _assemble(pending: dict[str, list[np.ndarray]], t0: float, fs: float,
+                  context_t: list[float], context_chamber: list[float],
+                  context_rate: list[float], angle_start: tuple[float, float, float]
+                  ) -> dict[str, np.ndarray]:
+        """Per-sample columns: chamber temperature and table rate interpolated between polls.
+
+        The table angle is the angle read at the start of the step plus the
+        integral of the logged rate: a position readback modulo 360° cannot be
+        unwrapped between polls at high rates, the integral can.
+        """
+        index = np.concatenate(pending["index"])
+        t_s = t0 + index / fs
+        chamber = np.interp(t_s, context_t, context_chamber)
+        rate = np.interp(t_s, context_t, context_rate)
+        angle = integrate_angle(rate, t_s, angle_start)
+        return {
+            "t_s": t_s,
+            "table_rate_dps": rate,
+            "chamber_temp_c": chamber,
+            "gyro": np.concatenate(pending["gyro"]),
+            "sensor_temp_c": np.concatenate(pending["sensor"]),
+            "table_angle_deg": angle,
+        }
+
+    # -- the end -----------------------------------------------------------------------------
+    def _finish(self) -> None:
+        self._set_table_rate(0.0)
+        self.machine.analyse()
+        self.journal.append("steps_done", steps=len(self.steps))
+        self.machine.report()
+        if self.on_finished is not None:
+            self.on_finished()
+        self.machine.finish()
+        self.journal.append("run_completed")
+        self.folder.update_manifest(state="done", ended_at=_now_text())
+
+    def _go_safe(self, kind: str, message: str, **fields: Any) -> None:
+        """Safe state: table stopped, chamber to its safe setpoint. Every action is attempted."""
+        if self.machine.can("fault"):
+            self.machine.fault()
+        self.journal.append(kind, message=message, state=self.machine.state, **fields)
+        actions: dict[str, str] = {}
+        try:
+            self.inst.table.stop()
+            actions["table"] = "stopped"
+        except Exception as exc:  # noqa: BLE001 - try every safety action, report each
+            actions["table"] = f"stop FAILED: {exc}"
+        if self.policy.safe_setpoint_c is not None:
+            try:
+                self.inst.chamber.set_setpoint_c(self.policy.safe_setpoint_c)
+                actions["chamber"] = f"setpoint {self.policy.safe_setpoint_c:g} °C"
+            except Exception as exc:  # noqa: BLE001
+                actions["chamber"] = f"safe setpoint FAILED: {exc}"
+        self.journal.append("safe_state", actions=actions)
+        if self.machine.state == "safing":
+            self.machine.safed()
+        self.folder.update_manifest(state="faulted", ended_at=_now_text(), last_fault=message)
+
+
+def integrate_angle(rate_dps: np.ndarray, t_s: np.ndarray, start: tuple[float, float, float]
+                    ) -> np.ndarray:
+    """Trapezoidal integral of rate continuing from ``start = (t_s, rate_dps, angle_deg)``."""
+    if len(t_s) == 0:
+        return np.empty(0)
+    t_prev, rate_prev, angle_prev = start
+    dt = np.diff(np.concatenate(([t_prev], t_s)))
+    prev = np.concatenate(([rate_prev], rate_dps[:-1]))
+    return angle_prev + np.cumsum(0.5 * (rate_dps + prev) * dt)
+
+
+def _fault_fields(exc: BaseException) -> dict[str, Any]:
+    if isinstance(exc, InstrumentError):
+        reply = exc.reply.decode("latin-1") if isinstance(exc.reply, bytes) else exc.reply
+        return {"instrument": exc.instrument, "command": exc.command, "reply": reply}
+    return {}
+
+
+def _now_text() -> str:
+    import time
+
+    return time.strftime("%Y-%m-%dT%H:%M:%S%z")
+

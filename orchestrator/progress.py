@@ -1,0 +1,66 @@
+"""A live progress line for a person at a terminal; silence otherwise.
+
+Overnight runs are mostly watched through ``gyrocal status`` and the journal;
+the live line is for the engineer who starts the run, so it only appears when
+stderr is a terminal (CI logs and cron mails stay clean).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+
+
+@dataclass
+class ProgressState:
+    step_id: str = "-"
+    step_index: int = 0
+    step_count: int = 0
+    chamber_c: float | None = None
+    table_dps: float | None = None
+    elapsed_s: float = 0.0
+    eta_s: float | None = None
+
+
+def _hms(seconds: float | None) -> str:
+    if seconds is None:
+        return "--:--:--"
+    seconds = max(0, int(seconds))
+    return f"{seconds // 3600:02d}:{seconds % 3600 // 60:02d}:{seconds % 60:02d}"
+
+
+class Progress:
+    def __init__(self, enabled: bool | None = None, min_interval_s: float = 0.2) -> None:
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+        self.state = ProgressState()
+        self._last_wall = 0.0
+        self._min_interval_s = min_interval_s
+        self._console = None
+        if self.enabled:
+            from rich.console import Console
+
+            self._console = Console(stderr=True)
+
+    def line(self) -> str:
+        s = self.state
+        chamber = "--" if s.chamber_c is None else f"{s.chamber_c:7.2f} °C"
+        table = "--" if s.table_dps is None else f"{s.table_dps:8.2f} °/s"
+        return (f"[{s.step_index}/{s.step_count}] {s.step_id:<28} chamber {chamber}  table {table}  "
+                f"elapsed {_hms(s.elapsed_s)}  ETA {_hms(s.eta_s)}")
+
+    def update(self, **fields: object) -> None:
+        for key, value in fields.items():
+            setattr(self.state, key, value)
+        if not self.enabled:
+            return
+        now = time.monotonic()
+        if now - self._last_wall < self._min_interval_s:
+            return
+        self._last_wall = now
+        assert self._console is not None
+        self._console.print(self.line(), end="\r", highlight=False, soft_wrap=True)
+
+    def close(self) -> None:
+        if self.enabled and self._console is not None:
+            self._console.print()
