@@ -1,0 +1,172 @@
+"""Read a measured log (CSV or Parquet, gyro-model.md "Measured log") or a run folder.
+
+A QA number is only as good as the rows behind it, so nothing is dropped
+quietly: a missing column, a non-finite value or a time that does not
+increase is an error naming the file, the row (1-based data row, as a
+spreadsheet shows it counting the header as row 1) and the column.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+REQUIRED_COLUMNS = ("t_s", "table_rate_dps", "chamber_temp_c", "gyro")
+OPTIONAL_COLUMNS = ("sensor_temp_c", "table_angle_deg")
+
+
+class LogFormatError(ValueError):
+    """The measured log cannot be used as it is; the message names file, row and column."""
+
+
+@dataclass
+class MeasuredLog:
+    source: str
+    t_s: np.ndarray
+    table_rate_dps: np.ndarray
+    chamber_temp_c: np.ndarray
+    gyro: np.ndarray
+    sensor_temp_c: np.ndarray | None = None
+    table_angle_deg: np.ndarray | None = None
+    #: per-sample segment label (a run folder's step id), or None for a plain log
+    segment: np.ndarray | None = None
+    extra: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.t_s.shape[0])
+
+    @property
+    def sample_rate_hz(self) -> float:
+        """Read from ``t_s`` (median spacing, robust to gaps between run-folder steps)."""
+        if len(self) < 2:
+            raise LogFormatError(f"{self.source}: fewer than 2 rows; no sample rate")
+        return float(1.0 / np.median(np.diff(self.t_s)))
+
+
+def _read_columns(path: Path) -> tuple[dict[str, np.ndarray], int]:
+    """Columns as float arrays and the row offset of the first data row (for messages)."""
+    suffix = path.suffix.lower()
+    if suffix in (".parquet", ".pq"):
+        import pyarrow.parquet as pq
+
+        try:
+            table = pq.read_table(path)
+        except Exception as exc:  # noqa: BLE001 - pyarrow raises many types for bad files
+            raise LogFormatError(f"{path}: not a readable Parquet file: {exc}") from None
+        columns = {}
+        for name in table.column_names:
+            try:
+                columns[name] = table.column(name).to_numpy(zero_copy_only=False).astype(np.float64)
+            except (TypeError, ValueError):
+                columns[name] = None  # a non-numeric column: an error only if it is one we need
+        return columns, 1
+    if suffix in (".csv", ".txt"):
+        return _read_csv(path), 2
+    raise LogFormatError(f"{path}: unknown log format {suffix!r}; use .csv or .parquet")
+
+
+def _read_csv(path: Path) -> dict[str, np.ndarray]:
+    import csv
+
+    with open(path, newline="") as handle:
+        reader = csv.reader(handle)
+        try:
+            header = [name.strip() for name in next(reader)]
+        except StopIteration:
+            raise LogFormatError(f"{path}: empty file, expected a header row") from None
+        if len(set(header)) != len(header):
+            dupes = sorted({h for h in header if header.count(h) > 1})
+            raise LogFormatError(f"{path}: line 1: duplicate column(s) {', '.join(dupes)}")
+        wanted = [i for i, name in enumerate(header) if name in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
+        values: list[list[float]] = [[] for _ in wanted]
+        for line_no, row in enumerate(reader, start=2):
+            if not row or all(not cell.strip() for cell in row):
+                raise LogFormatError(f"{path}: line {line_no}: empty row")
+            if len(row) != len(header):
+                raise LogFormatError(
+                    f"{path}: line {line_no}: {len(row)} fields, the header has {len(header)}")
+            for slot, i in enumerate(wanted):
+                cell = row[i].strip()
+                try:
+                    values[slot].append(float(cell))
+                except ValueError:
+                    raise LogFormatError(
+                        f"{path}: line {line_no}: column {header[i]}: {cell!r} is not a number"
+                    ) from None
+    return {header[i]: np.asarray(values[slot]) for slot, i in enumerate(wanted)}
+
+
+def validate_columns(columns: dict[str, np.ndarray | None], source: str, first_row: int) -> None:
+    missing = [name for name in REQUIRED_COLUMNS if name not in columns]
+    if missing:
+        raise LogFormatError(f"{source}: missing required column(s) {', '.join(missing)}; "
+                             f"required: {', '.join(REQUIRED_COLUMNS)}")
+    for name in REQUIRED_COLUMNS + OPTIONAL_COLUMNS:
+        if name not in columns:
+            continue
+        data = columns[name]
+        if data is None:
+            raise LogFormatError(f"{source}: column {name}: not numeric")
+        bad = np.flatnonzero(~np.isfinite(data))
+        if bad.size:
+            raise LogFormatError(f"{source}: line {bad[0] + first_row}: column {name}: "
+                                 f"non-finite value {float(data[bad[0]])!r} ({bad.size} such rows)")
+    t = columns["t_s"]
+    if t.size < 2:
+        raise LogFormatError(f"{source}: {t.size} data row(s); at least 2 are needed")
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if bad.size:
+        row = bad[0] + 1
+        raise LogFormatError(f"{source}: line {row + first_row}: column t_s: time {float(t[row])!r} does "
+                             f"not increase (previous {float(t[row - 1])!r}); t_s must be strictly increasing")
+
+
+def read_measured_log(path: str | Path) -> MeasuredLog:
+    """A CSV/Parquet log, or a run folder (its completed steps, in order)."""
+    path = Path(path)
+    if path.is_dir():
+        return read_run_folder_log(path)
+    if not path.is_file():
+        raise LogFormatError(f"{path}: no such file")
+    columns, first_row = _read_columns(path)
+    validate_columns(columns, str(path), first_row)
+    return MeasuredLog(
+        source=str(path),
+        **{name: columns[name] for name in REQUIRED_COLUMNS},
+        **{name: columns.get(name) for name in OPTIONAL_COLUMNS},
+    )
+
+
+def read_run_folder_log(run_dir: Path) -> MeasuredLog:
+    """The samples of every completed logged step of a run folder, labelled by step id.
+
+    Only the chunks that the journal lists for a completed attempt are used;
+    chunks of bad or interrupted attempts stay on disk (nothing is deleted)
+    but do not enter the analysis.
+    """
+    from gyrocal.orchestrator.run_folder import RunFolder
+
+    folder = RunFolder.open(run_dir)
+    events = folder.journal_events()
+    parts: list[dict[str, np.ndarray]] = []
+    labels: list[np.ndarray] = []
+    for event in events:
+        if event.get("event") == "step_completed" and event.get("chunks"):
+            data = folder.read_chunks(event["chunks"])
+            parts.append(data)
+            labels.append(np.full(len(data["t_s"]), event["step_id"], dtype=object))
+    if not parts:
+        raise LogFormatError(f"{run_dir}: the run folder has no completed logged steps")
+    columns = {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
+    if np.all(np.isnan(columns["sensor_temp_c"])):
+        columns["sensor_temp_c"] = None
+    checked = {k: v for k, v in columns.items() if v is not None}
+    validate_columns(checked, f"{run_dir} (samples)", 1)
+    return MeasuredLog(
+        source=str(run_dir),
+        **{name: columns[name] for name in REQUIRED_COLUMNS},
+        **{name: columns.get(name) for name in OPTIONAL_COLUMNS},
+        segment=np.concatenate(labels),
+    )
