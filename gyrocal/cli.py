@@ -111,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--measured", required=True)
     p.add_argument("--out", default="discrepancy-out")
     p.add_argument("--seed", type=int, default=0)
-    p.set_defaults(func=_lazy("gyrocal.reports.discrepancy_command", "cmd_discrepancy"))
+    p.set_defaults(func=_lazy("gyrocal.reports.discrepancy.command", "cmd_discrepancy"))
 
     p = sub.add_parser("sim", help="simulated instruments")
     ssub = p.add_subparsers(dest="sim_command", required=True, metavar="SIM_COMMAND")

@@ -1,6 +1,7 @@
 import threading
 
 import pytest
+
 from gyrocal.models.clock import RealClock, SimClock, make_clock
 
 

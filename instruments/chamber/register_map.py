@@ -1,0 +1,96 @@
+"""One declaration per controller model of the registers the project uses.
+
+Driver and simulator read the same table, so an address or an encoding lives
+in exactly one place (the PyMeasure way: properties declared once, the
+plumbing generic). The simulator test then checks the table against
+hand-written addresses with an independent client, so a shared mistake is
+still caught.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import Enum
+
+from gyrocal.instruments.chamber import modbus_codec as codec
+
+
+class Encoding(Enum):
+    UINT16 = "uint16"
+    INT16_DECIMALS = "int16 with implied decimals"
+    FLOAT32_LWF = "float32, low word first"
+    INT32_LWF = "int32, low word first"
+    TEXT = "text, one character per register"
+
+
+_FIXED_COUNTS = {
+    Encoding.UINT16: 1,
+    Encoding.INT16_DECIMALS: 1,
+    Encoding.FLOAT32_LWF: 2,
+    Encoding.INT32_LWF: 2,
+}
+
+
+@dataclass(frozen=True)
+class Register:
+    """A holding register (or block) of a controller: where, how encoded, who may write."""
+
+    name: str
+    address: int
+    encoding: Encoding
+    writable: bool
+    description: str
+    text_count: int = 0           # only for Encoding.TEXT: number of registers
+
+    @property
+    def count(self) -> int:
+        return self.text_count if self.encoding is Encoding.TEXT else _FIXED_COUNTS[self.encoding]
+
+    @property
+    def label(self) -> str:
+        """How commands name it in errors, e.g. ``holding register 100 (process value)``."""
+        if self.count == 1:
+            return f"holding register {self.address} ({self.description})"
+        return f"holding registers {self.address}-{self.address + self.count - 1} ({self.description})"
+
+    def decode(self, registers: Sequence[int], decimals: int = 0) -> float | int | str:
+        if len(registers) != self.count:
+            raise ValueError(f"{self.label}: expected {self.count} register(s), got {len(registers)}")
+        if self.encoding is Encoding.UINT16:
+            return int(registers[0])
+        if self.encoding is Encoding.INT16_DECIMALS:
+            return codec.decode_int16_decimals(registers[0], decimals)
+        if self.encoding is Encoding.FLOAT32_LWF:
+            return codec.decode_float32_low_word_first(registers)
+        if self.encoding is Encoding.INT32_LWF:
+            return codec.decode_int32_low_word_first(registers)
+        return codec.decode_text_one_char_per_register(registers)
+
+    def encode(self, value: float | int | str, decimals: int = 0) -> list[int]:
+        if self.encoding is Encoding.UINT16:
+            if not 0 <= int(value) <= 0xFFFF:
+                raise ValueError(f"{self.label}: {value!r} outside 0..65535")
+            return [int(value)]
+        if self.encoding is Encoding.INT16_DECIMALS:
+            return [codec.encode_int16_decimals(float(value), decimals)]
+        if self.encoding is Encoding.FLOAT32_LWF:
+            return codec.encode_float32_low_word_first(float(value))
+        if self.encoding is Encoding.INT32_LWF:
+            return codec.encode_int32_low_word_first(int(value))
+        return codec.encode_text_one_char_per_register(str(value), self.count)
+
+
+def register_table(*registers: Register) -> dict[str, Register]:
+    """Name -> register, refusing duplicate names or overlapping addresses."""
+    table: dict[str, Register] = {}
+    used: dict[int, str] = {}
+    for reg in registers:
+        if reg.name in table:
+            raise ValueError(f"register name {reg.name!r} declared twice")
+        for address in range(reg.address, reg.address + reg.count):
+            if address in used:
+                raise ValueError(f"register {address} of {reg.name!r} overlaps {used[address]!r}")
+            used[address] = reg.name
+        table[reg.name] = reg
+    return table

@@ -1,0 +1,144 @@
+"""Watlow F4T touch-screen controller over Modbus TCP.
+
+Register map (holding registers, 0-based protocol addresses, control loop 1,
+alarm 1). Sources: the F4T "Setup and Operations User's Guide"
+(0600-0093-0000, chapter 6 appendix, as reproduced on easymanua.ls pages 225
+and 231) for 0/4/12/16-30/90/1330+ and the loop block at 2774+; Espec North
+America's open-source F4T controller class (``get_loop_sp`` 2782,
+``get_loop_pv`` 2820, ``get_alarm_status`` 1356, ``process_controller`` part
+number at 16, 15 registers) for the loop addresses and the alarm state.
+
+- float32 and int32 values span two registers, **low word first**;
+- strings hold one character per register (low byte);
+- alarm state 1356: 61 "none", 88 "startup" and 12 "blocked" mean no alarm,
+  every other value (e.g. alarm high / alarm low / error) is an active alarm,
+  which is how the Espec driver reads it (28 "error" is in its value table;
+  the codes 7 "alarm high" and 8 "alarm low" used by the simulator are this
+  project's assumption, and any non-quiet code is reported as an alarm anyway);
+- device status 90: 138 "OK", 32 "Fail".
+
+``address`` is ``host:port`` or ``host`` (port 502). One driver instance per
+thread (see :mod:`modbus_link`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from pymodbus.client import ModbusTcpClient
+from pymodbus.framer import FramerType
+
+from gyrocal.instruments.chamber.modbus_link import ModbusLink
+from gyrocal.instruments.chamber.register_map import Encoding, Register, register_table
+from gyrocal.instruments.errors import InstrumentError
+from gyrocal.instruments.interfaces import ChamberStatus, Identity
+from gyrocal.instruments.retry import RetryPolicy
+
+F4T_REGISTERS: dict[str, Register] = register_table(
+    Register("software_release", 4, Encoding.INT32_LWF, False, "software release version"),
+    Register("serial_number", 12, Encoding.INT32_LWF, False, "serial number"),
+    Register("part_number", 16, Encoding.TEXT, False, "F4T part number", text_count=15),
+    Register("device_status", 90, Encoding.UINT16, False, "device status"),
+    Register("alarm1_state", 1356, Encoding.UINT16, False, "alarm 1 state"),
+    Register("setpoint", 2782, Encoding.FLOAT32_LWF, True, "control loop 1 set point"),
+    Register("process_value", 2820, Encoding.FLOAT32_LWF, False, "control loop 1 process value"),
+)
+
+DEVICE_STATUS_OK = 138
+DEVICE_STATUS_FAIL = 32
+ALARM_STATE_NONE = 61
+ALARM_STATE_STARTUP = 88
+ALARM_STATE_BLOCKED = 12
+ALARM_STATE_HIGH = 7
+ALARM_STATE_LOW = 8
+ALARM_STATE_ERROR = 28
+ALARM_QUIET_STATES = frozenset({ALARM_STATE_NONE, ALARM_STATE_STARTUP, ALARM_STATE_BLOCKED})
+ALARM_STATE_TEXT = {
+    ALARM_STATE_NONE: "none", ALARM_STATE_STARTUP: "startup", ALARM_STATE_BLOCKED: "blocked",
+    ALARM_STATE_HIGH: "alarm high", ALARM_STATE_LOW: "alarm low", ALARM_STATE_ERROR: "error",
+}
+
+
+def parse_tcp_address(address: str, default_port: int = 502) -> tuple[str, int]:
+    """``"host:port"`` or ``"host"`` -> (host, port); a clear error for anything else."""
+    host, sep, port_text = address.rpartition(":")
+    if not sep:
+        return address, default_port
+    if not host or not port_text.isdigit() or not 0 < int(port_text) < 65536:
+        raise ValueError(f"F4T address must be 'host:port' or 'host', got {address!r}")
+    return host, int(port_text)
+
+
+class WatlowF4T:
+    """Chamber driver for a Watlow F4T (satisfies ``interfaces.Chamber``)."""
+
+    DRIVER = "watlow_f4t"
+
+    def __init__(
+        self,
+        address: str,
+        *,
+        unit_id: int = 1,
+        timeout_s: float = 1.0,
+        retry: RetryPolicy | None = None,
+        name: str = "chamber (Watlow F4T)",
+        on_retry: Callable[[int, InstrumentError], None] | None = None,
+    ) -> None:
+        if not timeout_s > 0:
+            raise ValueError(f"timeout_s must be > 0, got {timeout_s!r}")
+        self.address = address
+        host, port = parse_tcp_address(address)
+
+        def make_client(trace: Callable[[bool, bytes], bytes]) -> ModbusTcpClient:
+            return ModbusTcpClient(
+                host, port=port, framer=FramerType.SOCKET, timeout=timeout_s, retries=0,
+                trace_packet=trace,
+            )
+
+        self._link = ModbusLink(name, make_client, unit_id, timeout_s, retry or RetryPolicy(), on_retry)
+
+    @property
+    def name(self) -> str:
+        return self._link.instrument
+
+    def identify(self) -> Identity:
+        part = self._link.read(F4T_REGISTERS["part_number"])
+        serial = self._link.read(F4T_REGISTERS["serial_number"])
+        release = self._link.read(F4T_REGISTERS["software_release"])
+        description = f"Watlow F4T part {part or '?'}, serial {serial}, software release {release}"
+        return Identity(role="chamber", driver=self.DRIVER, address=self.address, description=description)
+
+    def read_temperature_c(self) -> float:
+        return float(self._link.read(F4T_REGISTERS["process_value"]))
+
+    def read_setpoint_c(self) -> float:
+        return float(self._link.read(F4T_REGISTERS["setpoint"]))
+
+    def set_setpoint_c(self, setpoint_c: float) -> None:
+        self._link.write(F4T_REGISTERS["setpoint"], setpoint_c)
+
+    def read_status(self) -> ChamberStatus:
+        alarm_state = int(self._link.read(F4T_REGISTERS["alarm1_state"]))
+        device_status = int(self._link.read(F4T_REGISTERS["device_status"]))
+        problems = []
+        if alarm_state not in ALARM_QUIET_STATES:
+            problems.append(f"alarm 1 {ALARM_STATE_TEXT.get(alarm_state, f'state {alarm_state}')}")
+        if device_status != DEVICE_STATUS_OK:
+            problems.append(
+                "device status fail" if device_status == DEVICE_STATUS_FAIL else f"device status {device_status}"
+            )
+        return ChamberStatus(
+            temperature_c=self.read_temperature_c(),
+            setpoint_c=self.read_setpoint_c(),
+            alarm=bool(problems),
+            detail="; ".join(problems),
+        )
+
+    def close(self) -> None:
+        self._link.close()
+
+    def __enter__(self) -> WatlowF4T:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()

@@ -1,0 +1,199 @@
+"""Simulated gyro output from a :class:`GyroModel`: the equation plus noise plus output stage.
+
+The simulated instruments read it block by block as simulated time moves, so
+:class:`GyroSimulator` is stateful: each ``generate`` continues where the
+previous one ended (time, thermal lag, hysteresis branch, table angle, noise
+filters, pulse accumulator). :func:`simulate` is the whole-record
+convenience for tests and the workflow. The output keeps the parts apart
+(noise-free indicated rate, noise, quantization error) because the analysis
+needs to know what truth it is looking at.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from gyrocal.models.gyro_model import GyroModel
+from gyrocal.models.indicated import ModelInputs, ModelState, indicated_rate
+from gyrocal.models.noise import NoiseGenerator
+from gyrocal.models.pulse_counting import PulseCounter
+
+
+class AliasingWarning(UserWarning):
+    """A periodic effect sits above the Nyquist frequency of the chosen sample rate."""
+
+
+@dataclass(frozen=True)
+class GyroSamples:
+    """One block of simulated gyro samples.
+
+    gyro = scale_factor · (rate_ideal_dps + noise_dph/3600 + quantization_dps)
+    """
+
+    t_s: np.ndarray
+    table_rate_dps: np.ndarray
+    chamber_temp_c: np.ndarray
+    sensor_temp_c: np.ndarray
+    table_angle_deg: np.ndarray
+    rate_ideal_dps: np.ndarray    # noise-free indicated rate ω_ind, deg/s
+    noise_dph: np.ndarray         # w(t), deg/h
+    quantization_dps: np.ndarray  # output-stage (pulse counting) error, deg/s; zeros without it
+    gyro: np.ndarray              # output units
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+    def log_columns(self) -> dict[str, np.ndarray]:
+        """The columns of a measured log (``gyro-model.md``), for writing CSV/Parquet."""
+        return {
+            "t_s": self.t_s,
+            "table_rate_dps": self.table_rate_dps,
+            "chamber_temp_c": self.chamber_temp_c,
+            "gyro": self.gyro,
+            "sensor_temp_c": self.sensor_temp_c,
+            "table_angle_deg": self.table_angle_deg,
+        }
+
+
+def _markov(model: GyroModel) -> tuple[float, float] | None:
+    effect = model.effect("markov_bias")
+    return None if effect is None else (effect["sigma_dph"], effect["tau_s"])
+
+
+def _check_sample_rate(model: GyroModel, fs_hz: float) -> None:
+    if not fs_hz > 0:
+        raise ValueError(f"sample rate must be > 0 Hz, got {fs_hz!r}")
+    effect = model.effect("periodic_interference")
+    if effect is not None and fs_hz < 2.0 * effect["freq_hz"]:
+        warnings.warn(
+            f"model {model.name!r}: periodic_interference at {effect['freq_hz']:g} Hz is above the"
+            f" Nyquist frequency {fs_hz / 2:g} Hz of fs = {fs_hz:g} Hz; it will alias"
+            f" (use fs > {2 * effect['freq_hz']:g} Hz)",
+            AliasingWarning,
+            stacklevel=3,
+        )
+
+
+class GyroSimulator:
+    """A gyro that emits the model's output for given table rate and chamber temperature.
+
+    ``seed`` makes the noise reproducible (None: fresh entropy); the same seed
+    gives the same record however it is cut into blocks.
+    """
+
+    def __init__(self, model: GyroModel, fs_hz: float, seed: int | None = None, t0_s: float = 0.0) -> None:
+        _check_sample_rate(model, fs_hz)
+        self.model = model
+        self.fs_hz = float(fs_hz)
+        self.t0_s = float(t0_s)
+        self._noise = NoiseGenerator(model.noise, self.fs_hz, seed, _markov(model))
+        quantization = model.effect("quantization")
+        self._counter = None if quantization is None else PulseCounter(quantization["pulse_arcsec"])
+        self._index = 0
+        self._state: ModelState | None = None
+
+    @property
+    def samples_emitted(self) -> int:
+        return self._index
+
+    @property
+    def t_next_s(self) -> float:
+        """Time stamp of the next sample ``generate`` will emit."""
+        return self.t0_s + self._index / self.fs_hz
+
+    def generate(
+        self,
+        table_rate_dps,
+        chamber_temp_c,
+        table_angle_deg=None,
+        *,
+        sensor_temp_c=None,
+        n: int | None = None,
+    ) -> GyroSamples:
+        """The next block of samples, one per input sample.
+
+        Inputs are arrays of one length, or scalars held over ``n`` samples
+        (``n`` is needed only when every input is a scalar). Measured
+        ``table_angle_deg`` / ``sensor_temp_c`` replace ∫ω_t dt / the thermal lag.
+        """
+        if n is None:
+            lengths = {np.size(x) for x in (table_rate_dps, chamber_temp_c, table_angle_deg, sensor_temp_c)
+                       if x is not None and np.ndim(x) > 0}
+            if len(lengths) > 1:
+                raise ValueError(f"input arrays differ in length: {sorted(lengths)}")
+            n = lengths.pop() if lengths else 1
+        t_s = self.t0_s + (self._index + np.arange(n)) / self.fs_hz
+        if n == 0:
+            empty = np.zeros(0)
+            return GyroSamples(t_s, *([empty] * 8))
+        inputs = ModelInputs.of(t_s, table_rate_dps, chamber_temp_c, table_angle_deg, sensor_temp_c)
+        result = _emit(self.model, inputs, self._state, 1.0 / self.fs_hz, self._noise, self._counter)
+        self._state = result[1]
+        self._index += n
+        return result[0]
+
+
+def _emit(
+    model: GyroModel,
+    inputs: ModelInputs,
+    state: ModelState | None,
+    dt_s,
+    noise: NoiseGenerator,
+    counter: PulseCounter | None,
+) -> tuple[GyroSamples, ModelState]:
+    """Equation + noise + output stage for one block; shared by the simulator and simulate()."""
+    n = len(inputs)
+    ideal = indicated_rate(model, inputs, state, dt_s if np.ndim(dt_s) == 0 else None)
+    noise_dph = noise.generate(n)
+    rate_dps = ideal.rate_dps + noise_dph / 3600.0
+    if counter is not None:
+        counted_dps = counter.quantize(rate_dps, dt_s)
+        quantization_dps = counted_dps - rate_dps
+        rate_dps = counted_dps
+    else:
+        quantization_dps = np.zeros(n)
+    samples = GyroSamples(
+        t_s=inputs.t_s,
+        table_rate_dps=inputs.table_rate_dps,
+        chamber_temp_c=inputs.chamber_temp_c,
+        sensor_temp_c=ideal.sensor_temp_c,
+        table_angle_deg=ideal.table_angle_deg,
+        rate_ideal_dps=ideal.rate_dps,
+        noise_dph=noise_dph,
+        quantization_dps=quantization_dps,
+        gyro=model.scale_factor * rate_dps,
+    )
+    return samples, ideal.state
+
+
+def simulate(
+    model: GyroModel,
+    t_s,
+    table_rate_dps,
+    chamber_temp_c,
+    seed: int | None = None,
+    table_angle_deg=None,
+    sensor_temp_c=None,
+) -> GyroSamples:
+    """Simulate a whole record at the given time stamps (strictly increasing).
+
+    The noise is generated at fs = 1/median(Δt); the equation and the pulse
+    counter use the actual intervals, so slightly irregular logs are fine.
+    """
+    inputs = ModelInputs.of(t_s, table_rate_dps, chamber_temp_c, table_angle_deg, sensor_temp_c)
+    n = len(inputs)
+    if n < 2:
+        raise ValueError("simulate needs at least 2 time stamps to know the sample rate")
+    dt = np.empty(n)
+    dt[1:] = np.diff(inputs.t_s)
+    dt[0] = dt[1]
+    fs_hz = 1.0 / float(np.median(dt))
+    _check_sample_rate(model, fs_hz)
+    noise = NoiseGenerator(model.noise, fs_hz, seed, _markov(model))
+    quantization = model.effect("quantization")
+    counter = None if quantization is None else PulseCounter(quantization["pulse_arcsec"])
+    samples, _ = _emit(model, inputs, None, dt, noise, counter)
+    return samples

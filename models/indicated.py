@@ -1,0 +1,290 @@
+"""The deterministic part of the measurement equation, as a pure function of inputs.
+
+ω_ind = (1 + 1e-6·s(T_s))·ω_t + NL(ω_t) + [b(T_s) + Σ bias effects] / 3600
+
+The simulator adds noise and the output stage to this; the analysis and the
+discrepancy workflow call it directly on measured inputs, and
+:func:`effect_contribution_dph` isolates one catalogue effect's signature
+(the model with the effect minus the model without it), so the workflow can
+score each effect against a residual with exactly the physics the simulator
+used. History-dependent inputs (thermal lag, hysteresis branch, integrated
+table angle, temperature rate) are carried in a :class:`ModelState`, so
+evaluating a record block by block equals evaluating it at once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gyrocal.models.effects import EFFECTS
+from gyrocal.models.gyro_model import GyroModel
+from gyrocal.models.temperature import (
+    HYSTERESIS_BAND_C,
+    hysteresis_sign,
+    temperature_rate_c_per_min,
+    thermal_lag_c,
+)
+
+
+@dataclass(frozen=True)
+class ModelInputs:
+    """The signals the equation reads, one value per sample (spec units).
+
+    ``table_angle_deg`` and ``sensor_temp_c`` are optional measured columns;
+    when given they are used as they are instead of ∫ω_t dt and the
+    thermal-lag model.
+    """
+
+    t_s: np.ndarray
+    table_rate_dps: np.ndarray
+    chamber_temp_c: np.ndarray
+    table_angle_deg: np.ndarray | None = None
+    sensor_temp_c: np.ndarray | None = None
+
+    @classmethod
+    def of(
+        cls,
+        t_s,
+        table_rate_dps,
+        chamber_temp_c,
+        table_angle_deg=None,
+        sensor_temp_c=None,
+    ) -> ModelInputs:
+        """Arrays from array-likes; scalars are broadcast to the length of ``t_s``."""
+        t = np.asarray(t_s, dtype=float).reshape(-1)
+        n = len(t)
+
+        def column(name: str, value) -> np.ndarray | None:
+            if value is None:
+                return None
+            arr = np.asarray(value, dtype=float)
+            if arr.ndim == 0:
+                arr = np.full(n, float(arr))
+            if arr.shape != (n,):
+                raise ValueError(f"{name}: expected {n} samples (as t_s), got shape {arr.shape}")
+            bad = np.flatnonzero(~np.isfinite(arr))
+            if bad.size:
+                raise ValueError(f"{name}: non-finite value {float(arr[bad[0]])!r} at sample {int(bad[0])}")
+            return arr
+
+        column("t_s", t)
+        if n > 1 and not np.all(np.diff(t) > 0):
+            k = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
+            raise ValueError(f"t_s: not strictly increasing at sample {k} ({t[k - 1]!r} -> {t[k]!r})")
+        return cls(
+            t,
+            column("table_rate_dps", table_rate_dps),
+            column("chamber_temp_c", chamber_temp_c),
+            column("table_angle_deg", table_angle_deg),
+            column("sensor_temp_c", sensor_temp_c),
+        )
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+
+@dataclass(frozen=True)
+class ModelState:
+    """What the equation remembers between blocks: the last sample's history."""
+
+    t_s: float
+    chamber_temp_c: float
+    sensor_temp_c: float
+    table_rate_dps: float
+    table_angle_deg: float
+    hysteresis_sign: int
+    hysteresis_extreme_c: float
+
+
+@dataclass(frozen=True)
+class Indicated:
+    """The noise-free indicated rate and the intermediate signals it was built from."""
+
+    rate_dps: np.ndarray                     # ω_ind without w(t), deg/s
+    sensor_temp_c: np.ndarray                # T_s used by every temperature term
+    sensor_temp_rate_c_per_min: np.ndarray   # dT_s/dt
+    table_angle_deg: np.ndarray              # θ used by table_angle_harmonic
+    hysteresis_sign: np.ndarray              # h(t), +1/-1
+    effective_rate_dps: np.ndarray           # ω_t after the dead zone
+    scale_factor_error_ppm: np.ndarray       # s(T_s) incl. sf_temp_quadratic
+    bias_dph: np.ndarray                     # b(T_s) + Σ bias effects
+    state: ModelState
+
+
+def _sample_intervals(t: np.ndarray, state: ModelState | None, dt_s: float | None):
+    """dt[k] = t[k] − t[k−1] (the first from the state, else the next interval)."""
+    if dt_s is not None:
+        return float(dt_s)
+    n = len(t)
+    dt = np.empty(n)
+    dt[1:] = np.diff(t)
+    if state is not None:
+        dt[0] = t[0] - state.t_s
+    else:
+        # no history: the first sample's interval is never used for a difference
+        # (T_s(0) = T_c(0), dT_s/dt = 0, θ(0) = 0), any finite value will do
+        dt[0] = dt[1] if n > 1 else 1.0
+    return dt
+
+
+def _integrated_angle_deg(
+    rate_dps: np.ndarray, dt, state: ModelState | None
+) -> np.ndarray:
+    """θ = ∫ω_t dt by the trapezoid rule, from θ(0) = 0 or the state's angle."""
+    n = len(rate_dps)
+    step = np.empty(n)
+    dt_arr = np.broadcast_to(np.asarray(dt, dtype=float), (n,))
+    step[1:] = 0.5 * (rate_dps[1:] + rate_dps[:-1]) * dt_arr[1:]
+    if state is None:
+        step[0] = 0.0
+        start = 0.0
+    else:
+        step[0] = 0.5 * (rate_dps[0] + state.table_rate_dps) * dt_arr[0]
+        start = state.table_angle_deg
+    return start + np.cumsum(step)
+
+
+def indicated_rate(
+    model: GyroModel,
+    inputs: ModelInputs,
+    state: ModelState | None = None,
+    dt_s: float | None = None,
+) -> Indicated:
+    """Evaluate the deterministic equation on ``inputs``, continuing from ``state``.
+
+    ``dt_s`` declares uniform sampling (the simulator passes 1/fs); without it
+    the intervals are read from ``inputs.t_s``. Stochastic effects
+    (``markov_bias``) and the output stage (``quantization``) are not part of
+    this; see :mod:`gyrocal.models.noise` and :mod:`gyrocal.models.pulse_counting`.
+    """
+    n = len(inputs)
+    if n == 0:
+        raise ValueError("no samples to evaluate")
+    t = inputs.t_s
+    dt = _sample_intervals(t, state, dt_s)
+    omega = inputs.table_rate_dps
+    chamber = inputs.chamber_temp_c
+    fx = {e.name: e.params for e in model.effects}
+
+    # --- sensor temperature and its rate
+    if inputs.sensor_temp_c is not None:
+        sensor = inputs.sensor_temp_c
+    elif "thermal_lag" in fx:
+        sensor = thermal_lag_c(
+            chamber,
+            dt,
+            fx["thermal_lag"]["tau_s"],
+            None if state is None else state.sensor_temp_c,
+            None if state is None else state.chamber_temp_c,
+        )
+    else:
+        sensor = chamber
+    sensor_rate = temperature_rate_c_per_min(
+        sensor, dt, None if state is None else state.sensor_temp_c
+    )
+    delta_t = sensor - model.reference_temp_c
+
+    # --- table angle and hysteresis branch (history of the inputs)
+    if inputs.table_angle_deg is not None:
+        angle = inputs.table_angle_deg
+    else:
+        angle = _integrated_angle_deg(omega, dt, state)
+    branch, branch_end, extreme_end = hysteresis_sign(
+        chamber,
+        1 if state is None else state.hysteresis_sign,
+        None if state is None else state.hysteresis_extreme_c,
+        HYSTERESIS_BAND_C,
+    )
+
+    # --- rate terms: dead zone first, it replaces ω_t in every one of them
+    omega_eff = omega
+    if "dead_zone" in fx:
+        omega_eff = np.where(np.abs(omega) < fx["dead_zone"]["threshold_dps"], 0.0, omega)
+    sf_ppm = model.sf_error_ppm + model.sf_tempco_ppm_per_c * delta_t
+    if "sf_temp_quadratic" in fx:
+        sf_ppm = sf_ppm + fx["sf_temp_quadratic"]["ppm_per_c2"] * delta_t**2
+    sf_ppm = np.broadcast_to(sf_ppm, (n,))
+    rate = (1.0 + 1e-6 * sf_ppm) * omega_eff
+    if "sf_nonlinearity_quadratic" in fx:
+        rate = rate + fx["sf_nonlinearity_quadratic"]["k2_per_dps"] * omega_eff**2
+    if "sf_nonlinearity_cubic" in fx:
+        rate = rate + fx["sf_nonlinearity_cubic"]["k3_per_dps2"] * omega_eff**3
+    if "sf_asymmetry" in fx:
+        rate = rate + 0.5e-6 * fx["sf_asymmetry"]["ppm"] * np.abs(omega_eff)
+
+    # --- bias bracket, deg/h
+    bias = model.bias_dph + model.bias_tempco_dph_per_c * delta_t + model.earth_rate_dph
+    if "temp_rate_bias" in fx:
+        bias = bias + fx["temp_rate_bias"]["dph_per_c_per_min"] * sensor_rate
+    if "temp_hysteresis" in fx:
+        bias = bias + fx["temp_hysteresis"]["dph"] * branch
+    if "bias_temp_quadratic" in fx:
+        bias = bias + fx["bias_temp_quadratic"]["dph_per_c2"] * delta_t**2
+    if "warmup_transient" in fx:
+        p = fx["warmup_transient"]
+        bias = bias + p["amplitude_dph"] * np.exp(-t / p["tau_s"])
+    if "bias_ramp" in fx:
+        bias = bias + fx["bias_ramp"]["dph_per_h"] * t / 3600.0
+    if "table_angle_harmonic" in fx:
+        p = fx["table_angle_harmonic"]
+        bias = bias + p["amplitude_dph"] * np.cos(np.deg2rad(angle - p["phase_deg"]))
+    if "periodic_interference" in fx:
+        p = fx["periodic_interference"]
+        bias = bias + p["amplitude_dph"] * np.sin(2.0 * np.pi * p["freq_hz"] * t)
+    bias = np.broadcast_to(bias, (n,))
+
+    end = ModelState(
+        t_s=float(t[-1]),
+        chamber_temp_c=float(chamber[-1]),
+        sensor_temp_c=float(sensor[-1]),
+        table_rate_dps=float(omega[-1]),
+        table_angle_deg=float(angle[-1]),
+        hysteresis_sign=int(branch_end),
+        hysteresis_extreme_c=float(extreme_end),
+    )
+    return Indicated(
+        rate_dps=rate + bias / 3600.0,
+        sensor_temp_c=np.asarray(sensor),
+        sensor_temp_rate_c_per_min=sensor_rate,
+        table_angle_deg=np.asarray(angle),
+        hysteresis_sign=branch,
+        effective_rate_dps=np.asarray(omega_eff),
+        scale_factor_error_ppm=sf_ppm,
+        bias_dph=bias,
+        state=end,
+    )
+
+
+def indicated_rate_dps(model: GyroModel, inputs: ModelInputs, state: ModelState | None = None) -> np.ndarray:
+    """The noise-free indicated rate ω_ind (deg/s) on ``inputs``."""
+    return indicated_rate(model, inputs, state).rate_dps
+
+
+def effect_contribution_dph(
+    model: GyroModel, name: str, inputs: ModelInputs, state: ModelState | None = None
+) -> np.ndarray:
+    """What catalogue effect ``name`` (as parametrised in ``model``) adds to ω_ind, in deg/h.
+
+    Computed as ω_ind(model) − ω_ind(model without the effect), input-referred
+    and ×3600, so effects that act through other terms (thermal_lag through
+    every temperature term, dead_zone through every rate term) get their true
+    signature, interactions included. For an effect linear in one amplitude,
+    the signature at amplitude 1 is the least-squares regressor of that
+    amplitude. ``markov_bias`` (stochastic) and ``quantization`` (output stage)
+    have no deterministic signature here and are refused.
+    """
+    definition = EFFECTS.get(name)
+    if definition is None:
+        raise KeyError(f"unknown effect {name!r}; known effects: {', '.join(EFFECTS)}")
+    if definition.target in ("noise", "output"):
+        raise ValueError(
+            f"effect {name!r} acts on the {'noise' if definition.target == 'noise' else 'output stage'}"
+            " and has no deterministic rate signature"
+        )
+    if not model.has_effect(name):
+        raise ValueError(f"model {model.name!r} has no effect {name!r}; add it with with_effect()")
+    with_it = indicated_rate(model, inputs, state).rate_dps
+    without = indicated_rate(model.without_effect(name), inputs, state).rate_dps
+    return (with_it - without) * 3600.0

@@ -1,0 +1,96 @@
+"""Watlow F4 driver: exact RTU byte pairs on a real socket, then F4 specifics.
+
+Request frames are the documented ones (register 100 read: ``01 03 00 64 00 01
+C5 D5``); reply CRCs were computed with pymodbus' CRC, independent of this
+project's code.
+"""
+
+import pytest
+
+from gyrocal.instruments.chamber.watlow_f4 import WatlowF4, f4_model_text
+from gyrocal.instruments.errors import InstrumentProtocolError
+from gyrocal.instruments.retry import RetryPolicy
+
+pytestmark = pytest.mark.timeout(20)
+
+NO_RETRY = RetryPolicy(attempts=1)
+
+
+def f4_on(peer, **kwargs):
+    return WatlowF4(f"socket://127.0.0.1:{peer.port}", timeout_s=0.5, retry=NO_RETRY, **kwargs)
+
+
+def test_read_process_value_bytes(scripted_peer):
+    peer = scripted_peer([("01 03 00 64 00 01 C5 D5", "01 03 02 00 E7 F8 0E")])   # 231 -> 23.1 °C
+    with f4_on(peer) as f4:
+        assert f4.read_temperature_c() == pytest.approx(23.1)
+    assert peer.error is None and len(peer.received) == 1
+
+
+def test_write_negative_setpoint_bytes(scripted_peer):
+    frame = "01 06 01 2C FE 70 08 7B"                                # register 300 = -400 -> -40.0 °C
+    peer = scripted_peer([(frame, frame)])                           # FC 06 replies with an echo
+    with f4_on(peer) as f4:
+        f4.set_setpoint_c(-40.0)
+    assert peer.error is None and len(peer.received) == 1
+
+
+def test_read_status_bytes(scripted_peer):
+    peer = scripted_peer([
+        ("01 03 00 C8 00 01 05 F4", "01 03 02 00 01 79 84"),         # register 200: alarm 1 bit
+        ("01 03 00 64 00 01 C5 D5", "01 03 02 00 E7 F8 0E"),
+        ("01 03 01 2C 00 01 44 3F", "01 03 02 02 58 B8 DE"),         # register 300: 600 -> 60.0 °C
+    ])
+    with f4_on(peer) as f4:
+        status = f4.read_status()
+    assert peer.error is None
+    assert (status.temperature_c, status.setpoint_c, status.alarm) == (pytest.approx(23.1), 60.0, True)
+    assert status.detail == "alarm 1 active"
+
+
+def test_identify_bytes(scripted_peer):
+    peer = scripted_peer([("01 03 00 00 00 03 05 CB", "01 03 06 14 96 00 0C 0D 80 AF 4F")])
+    with f4_on(peer) as f4:
+        identity = f4.identify()
+    assert identity.driver == "watlow_f4"
+    assert identity.description == "Watlow F4 (model register 5270), serial 12-3456"
+
+
+def test_modbus_exception_bytes_are_shown_in_the_error(scripted_peer):
+    peer = scripted_peer([("01 03 00 64 00 01 C5 D5", "01 83 02 C0 F1")])
+    with f4_on(peer, name="chamber A") as f4, pytest.raises(InstrumentProtocolError) as info:
+        f4.read_temperature_c()
+    text = str(info.value)
+    assert text.startswith("chamber A: read holding register 100 (input 1 process value)")
+    assert "Modbus exception 2 (illegal data address)" in text
+    assert "01 83 02 c0 f1" in text
+
+
+def test_identify_refuses_a_device_that_is_not_an_f4(scripted_peer):
+    # model register 1234: some other controller answering at unit 1
+    peer = scripted_peer([("01 03 00 00 00 03 05 CB", "01 03 06 04 D2 00 0C 0D 80 5D D0")])
+    with f4_on(peer) as f4, pytest.raises(InstrumentProtocolError, match="a Series F4 reports 5270"):
+        f4.identify()
+
+
+def test_decimals_are_configurable():
+    # 0 decimals: a register of 23 is 23 °C; 2 decimals: 2310 is 23.1 °C
+    from gyrocal.instruments.chamber.watlow_f4 import F4_REGISTERS
+    pv = F4_REGISTERS["process_value"]
+    assert pv.decode([23], 0) == 23.0
+    assert pv.decode([2310], 2) == pytest.approx(23.1)
+    with pytest.raises(ValueError):
+        WatlowF4("socket://127.0.0.1:1", decimals=5)
+
+
+def test_model_register_decodes_to_its_name():
+    assert f4_model_text(5270) == "F4"
+
+
+def test_setpoint_with_more_decimals_than_the_controller_is_rounded(clock, physics):
+    from gyrocal.instruments.sim.chamber_server import SimulatedWatlowF4
+
+    with SimulatedWatlowF4(physics) as sim, WatlowF4(sim.address, timeout_s=0.5) as f4:
+        f4.set_setpoint_c(23.14)
+        assert f4.read_setpoint_c() == 23.1
+        assert physics.setpoint_c == pytest.approx(23.1)
