@@ -49,3 +49,11 @@ class ProcedureError(Exception):
 
     def __str__(self) -> str:
         return "\n".join(str(problem) for problem in self.problems)
+
+
+def sort_problems(problems: list[Problem]) -> list[Problem]:
+    """By file (in order of first appearance), then line: the order an editor walks them."""
+    file_order: dict[str, int] = {}
+    for problem in problems:
+        file_order.setdefault(problem.file, len(file_order))
+    return sorted(problems, key=lambda p: (file_order[p.file], p.line or 0))

@@ -1,4 +1,5 @@
 import pytest
+
 from gyrocal.instruments.errors import InstrumentProtocolError, InstrumentTimeout
 from gyrocal.instruments.retry import RetryPolicy, call_with_retry
 

@@ -1,6 +1,7 @@
 import json
 
 import pytest
+
 from gyrocal.orchestrator.journal import GENESIS_SHA256, Journal, JournalError, read_journal
 
 

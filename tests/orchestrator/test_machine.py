@@ -1,6 +1,7 @@
 from pathlib import Path
 
 import pytest
+
 from gyrocal.orchestrator.machine import MachineError, RunStateMachine, mermaid_diagram
 
 

@@ -1,0 +1,273 @@
+"""A simulated STIM300-style gyro streaming datagrams into a pseudo-terminal.
+
+The driver opens ``port_name`` exactly as it would open ``/dev/ttyUSB0``, so
+the same serial code path (pyserial, termios, select, partial reads) is
+exercised in dry runs and tests.
+
+Frames lie on an absolute grid ``t_k = k / sample_rate_hz`` with
+``counter = k mod 256``. Time follows the shared clock:
+
+* ``RealClock``: the stream starts at the current time; a block is written
+  once the clock has reached its end time (paced like the real instrument).
+* ``SimClock``: time moves as fast as the consumer reads. Before producing a
+  block the writer jumps forward if someone else advanced the clock past it
+  (those frames were never read by anybody, so they appear as a counter
+  gap), writes the block — blocking while the pty buffer is full, which is
+  the back-pressure that keeps the gyro from running ahead of its reader —
+  and then advances the clock to the end of the block.
+
+Faults (armed on the :class:`FaultInjector`; see :data:`FAULTS`):
+
+* ``corrupt_frames``: each firing flips one payload byte of one frame (CRC fails).
+* ``lose_frames``: each firing omits one frame (counter gap).
+* ``saturate``: each firing sends one frame at positive full scale, flagged
+  :data:`STATUS_RATE_SATURATED`.
+* ``garbage``: each firing inserts ``n_bytes`` (param, default 32) random
+  bytes before the next block.
+* ``stall``: stop sending for ``duration_s`` wall seconds (param), or while
+  it stays armed when no duration is given.
+
+What was injected is tallied in :attr:`SimulatedGyroPort.injected` so tests
+can compare it with what the driver counted.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import math
+import os
+import select
+import threading
+import tty
+from collections.abc import Callable
+
+import numpy as np
+
+from gyrocal.instruments.gyro.datagram import (
+    DEFAULT_LSB,
+    RATE_OFFSET,
+    RAW_FULL_SCALE,
+    encode_frame_array,
+    layout_for,
+)
+from gyrocal.instruments.sim.faults import FaultInjector
+from gyrocal.models.clock import RealClock, SimClock
+
+FAULTS = ("corrupt_frames", "lose_frames", "garbage", "stall", "saturate")
+
+GyroSource = Callable[[np.ndarray], tuple[np.ndarray, "np.ndarray | None"]]
+
+_POLL_S = 0.05          # how often blocking waits look at the stop flag
+_EPS_FRAMES = 1e-6      # tolerance when converting clock time to a frame number
+
+
+class SimulatedGyroPort:
+    """Streams datagrams from ``source`` into a pty; the driver opens :attr:`port_name`."""
+
+    def __init__(
+        self,
+        source: GyroSource,
+        clock: RealClock | SimClock,
+        sample_rate_hz: float = 2000.0,
+        with_temperature: bool = False,
+        lsb: float = DEFAULT_LSB,
+        faults: FaultInjector | None = None,
+        block_frames: int = 256,
+        latency_us: int = 250,
+        seed: int = 0,
+    ) -> None:
+        if not sample_rate_hz > 0:
+            raise ValueError(f"sample_rate_hz must be > 0, got {sample_rate_hz!r}")
+        if block_frames < 1:
+            raise ValueError(f"block_frames must be >= 1, got {block_frames!r}")
+        self.source = source
+        self.clock = clock
+        self.sample_rate_hz = float(sample_rate_hz)
+        self.with_temperature = bool(with_temperature)
+        self.layout = layout_for(with_temperature)
+        self.lsb = float(lsb)
+        self.faults = faults if faults is not None else FaultInjector(FAULTS, owner="simulated gyro")
+        self.block_frames = int(block_frames)
+        self.latency_us = int(latency_us)
+        self._rng = np.random.default_rng(seed)
+        self.injected = {
+            "corrupt_frames": 0, "lose_frames": 0, "garbage_bytes": 0, "saturate": 0, "stalls": 0,
+        }
+        self.frames_written = 0         # frames fully handed to the pty
+        self.next_frame = 0             # k of the next frame to produce
+        self.error: BaseException | None = None   # what ended the writer thread, if anything
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._master_fd, self._slave_fd = os.openpty()
+        tty.setraw(self._slave_fd)
+        os.set_blocking(self._master_fd, False)
+        self.port_name = os.ttyname(self._slave_fd)
+        self._closed = False
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def start(self) -> SimulatedGyroPort:
+        if self._closed:
+            raise RuntimeError("simulated gyro: cannot start after stop()")
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="sim-gyro-pty", daemon=True)
+            self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop the writer, join it and close both pty ends (safe to call twice)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        if not self._closed:
+            self._closed = True
+            for fd in (self._master_fd, self._slave_fd):
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+
+    @property
+    def running(self) -> bool:
+        """True while the writer thread is alive (it ends on stop() or on an error)."""
+        return self._thread is not None and self._thread.is_alive()
+
+    def __enter__(self) -> SimulatedGyroPort:
+        return self.start()
+
+    def __exit__(self, *exc_info) -> None:
+        self.stop()
+
+    # ------------------------------------------------------------------ writer
+
+    def _run(self) -> None:
+        # Start at the current time: a session clock may have run for hours,
+        # and a real gyro does not replay the frames from before it was on.
+        k_now = math.floor(self.clock.now_s() * self.sample_rate_hz + _EPS_FRAMES)
+        self.next_frame = max(self.next_frame, k_now)
+        try:
+            while not self._stop.is_set():
+                if self._stalled():
+                    continue
+                self._produce_block()
+        except BaseException as exc:  # noqa: BLE001 - reported through .error, thread must end
+            if not self._stop.is_set():
+                self.error = exc
+
+    def _stalled(self) -> bool:
+        """Honour an armed ``stall``; True if the writer waited (loop again)."""
+        params = self.faults.params("stall")
+        if params is None:
+            return False
+        if "duration_s" in params:
+            self.faults.take("stall")
+            self.injected["stalls"] += 1
+            self._stop.wait(float(params["duration_s"]))
+        else:
+            self._stop.wait(_POLL_S)
+        return True
+
+    def _produce_block(self) -> None:
+        fs = self.sample_rate_hz
+        if isinstance(self.clock, SimClock):
+            k_now = math.floor(self.clock.now_s() * fs + _EPS_FRAMES)
+            self.next_frame = max(self.next_frame, k_now)
+        k0 = self.next_frame
+        k = np.arange(k0, k0 + self.block_frames, dtype=np.int64)
+        t_end_s = (k0 + self.block_frames) / fs
+        if not isinstance(self.clock, SimClock) and not self._wait_real_time(t_end_s):
+            return
+        data, n_garbage = self._encode_block(k)
+        self.next_frame = k0 + self.block_frames
+        written = self._write_all(data, n_garbage, t_end_s)
+        if written is None:
+            return
+        self.frames_written += written
+        if isinstance(self.clock, SimClock):
+            self.clock.advance_to(t_end_s)
+
+    def _encode_block(self, k: np.ndarray) -> tuple[bytes, int]:
+        """Frames for grid indices ``k`` with the armed faults applied; (bytes, garbage prefix length)."""
+        t_s = k / self.sample_rate_hz
+        rate, temp_c = self.source(t_s)
+        rate = np.array(rate, dtype=np.float64, copy=True).reshape(k.shape)
+        if self.with_temperature:
+            if temp_c is None:
+                raise ValueError("simulated gyro: with_temperature=True but the source gave no temperature")
+            temp_c = np.broadcast_to(np.asarray(temp_c, dtype=np.float64), k.shape)
+        else:
+            temp_c = None
+
+        n_lost = self._take_up_to("lose_frames", k.size)
+        n_corrupt = self._take_up_to("corrupt_frames", k.size - n_lost)
+        n_saturate = self._take_up_to("saturate", k.size - n_lost - n_corrupt)
+        saturated = slice(n_lost + n_corrupt, n_lost + n_corrupt + n_saturate)
+        rate[saturated] = 2.0 * RAW_FULL_SCALE * self.lsb
+
+        frames = encode_frame_array(rate, k, temp_c=temp_c, latency_us=self.latency_us, lsb=self.lsb)
+        # Flip the middle rate byte: never the identifier, so the span still
+        # looks like a frame and must be caught by the CRC.
+        frames[n_lost : n_lost + n_corrupt, RATE_OFFSET + 1] ^= 0xFF
+        frames = frames[n_lost:]
+        self.injected["lose_frames"] += n_lost
+        self.injected["corrupt_frames"] += n_corrupt
+        self.injected["saturate"] += n_saturate
+
+        garbage = b""
+        params = self.faults.take("garbage")
+        if params is not None:
+            n_bytes = int(params.get("n_bytes", 32))
+            garbage = self._rng.integers(0, 256, n_bytes, dtype=np.uint8).tobytes()
+            self.injected["garbage_bytes"] += n_bytes
+        return garbage + frames.tobytes(), len(garbage)
+
+    def _take_up_to(self, name: str, limit: int) -> int:
+        """Consume up to ``limit`` firings of a per-frame fault (no work when not armed)."""
+        taken = 0
+        while taken < limit and self.faults.is_armed(name) and self.faults.take(name) is not None:
+            taken += 1
+        return taken
+
+    def _wait_real_time(self, t_s: float) -> bool:
+        """Pace on a real clock; False if stopped while waiting."""
+        speed = getattr(self.clock, "speed", 1.0)
+        while True:
+            remaining_s = t_s - self.clock.now_s()
+            if remaining_s <= 0:
+                return True
+            if self._stop.wait(min(remaining_s / speed, _POLL_S)):
+                return False
+
+    def _write_all(self, data: bytes, frames_from: int, t_end_s: float) -> int | None:
+        """Blocking write into the master, with ``select`` so that stop() is prompt.
+
+        Returns the number of frames written, None if stopped. On a SimClock,
+        if someone else moves time past this block while the writer waits
+        for the reader, the rest of the block is stale: the frame in progress
+        is completed (so no garbage is made) and the remainder is dropped.
+        """
+        length = self.layout.length
+        view = memoryview(data)
+        position = 0
+        simulated = isinstance(self.clock, SimClock)
+        while position < len(data):
+            if self._stop.is_set():
+                return None
+            _, writable, _ = select.select([], [self._master_fd], [], _POLL_S)
+            if not writable:
+                continue
+            if simulated and position >= frames_from and self.clock.now_s() > t_end_s:
+                next_boundary = frames_from + -(-(position - frames_from) // length) * length
+                if next_boundary < len(data):
+                    data = data[:next_boundary]
+                    view = view[:next_boundary]
+                    if position >= len(data):
+                        break
+            try:
+                position += os.write(self._master_fd, view[position:])
+            except BlockingIOError:
+                continue
+            except OSError as exc:
+                if exc.errno == errno.EIO and self._stop.is_set():
+                    return None
+                raise
+        return (len(data) - frames_from) // length

@@ -1,0 +1,67 @@
+"""The results.json metrics a procedure's acceptance limits may name, and what each needs.
+
+Acceptance limits are checked by QA the morning after; a misspelt metric or a
+limit on something the procedure never measures must fail at ``gyrocal
+validate``, not after sixteen hours on the table. Names are the key paths of
+``report/results.json`` in ``/work/shared/spec/interfaces.md``.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Metric:
+    key: str               # key path in results.json
+    unit: str | None       # canonical unit; None when it is the unit under test's own output unit
+    needs: str             # what the sequence must contain: "sweep", "sweep_temps", "bias_temps", "allan"
+
+
+_SWEEP, _SWEEP_TEMPS, _BIAS_TEMPS, _ALLAN = "sweep", "sweep_temps", "bias_temps", "allan"
+
+METRICS: dict[str, Metric] = {
+    m.key: m
+    for m in (
+        Metric("nonlinearity.rms_pct", "%", _SWEEP),
+        Metric("nonlinearity.max_ppm_fs", "ppm", _SWEEP),
+        Metric("asymmetry_ppm", "ppm", _SWEEP),
+        Metric("scale_factor_ls.sf", None, _SWEEP),
+        Metric("scale_factor_ls.bias", None, _SWEEP),
+        Metric("sf_temperature.instability_pct", "%", _SWEEP_TEMPS),
+        Metric("sf_temperature.sensitivity_ppm_per_c", "ppm/°C", _SWEEP_TEMPS),
+        Metric("bias_temperature.sensitivity_dph_per_c", "deg/h/°C", _BIAS_TEMPS),
+        Metric("allan.fit.Q_arcsec", "arcsec", _ALLAN),
+        Metric("allan.fit.N_deg_per_rth", "deg/√h", _ALLAN),
+        Metric("allan.fit.B_dph", "deg/h", _ALLAN),
+        Metric("allan.fit.K_dph_per_rth", "deg/h/√h", _ALLAN),
+        Metric("allan.fit.R_dph_per_h", "deg/h/h", _ALLAN),
+        Metric("allan.fit.markov.sigma_dph", "deg/h", _ALLAN),
+        Metric("allan.fit.markov.tau_s", "s", _ALLAN),
+    )
+}
+
+NEEDS_TEXT = {
+    _SWEEP: "an sf_sweep test",
+    _SWEEP_TEMPS: "sf_sweep tests at two or more temperatures",
+    _BIAS_TEMPS: "static or allan tests at two or more temperatures",
+    _ALLAN: "an allan test",
+}
+
+
+def normalise_unit(unit: str) -> str:
+    """Spelling-insensitive unit for comparison: ``°/√h`` == ``deg/sqrt(h)`` == ``deg/rt(h)``."""
+    text = unit.strip().replace(" ", "").lower()
+    for old, new in (
+        ("percent", "%"), ("pct", "%"), ("℃", "c"), ("°c", "c"), ("degc", "c"),
+        ("°", "deg"), ("dph", "deg/h"), ("√h", "rth"), ("sqrt(h)", "rth"), ("rt(h)", "rth"),
+        ("^0.5", ""), ("″", "arcsec"), ('"', "arcsec"), ("^2", "2"),
+    ):
+        text = text.replace(old, new)
+    text = re.sub(r"h/h$", "h2", text)     # deg/h/h == deg/h2
+    return text
+
+
+def units_match(given: str, metric: Metric) -> bool:
+    return metric.unit is None or normalise_unit(given) == normalise_unit(metric.unit)

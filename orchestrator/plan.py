@@ -1,0 +1,271 @@
+"""The expanded plan: a procedure flattened into the ordered steps a run executes.
+
+The run engine executes these steps one by one and its journal records each
+``step_id`` as completed, so ids must be stable: the same procedure always
+expands to the same ids, and a resumed run skips exactly the completed ones.
+Each step also carries the labels the analysis needs (temperature step, test,
+signed rate, direction, revolutions) and an expected duration, so ``gyrocal
+plan`` can print an ETA before anything moves.
+
+Durations are estimates: a ramp takes |ΔT| / ramp rate, a table rate change
+|Δω| / acceleration, a soak its hold time (its worst case is ``max_wait``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from gyrocal.orchestrator.procedure import (
+    AllanTest,
+    Procedure,
+    StaticTest,
+    SweepTest,
+    TemperatureStep,
+)
+from gyrocal.orchestrator.units import format_duration, format_number
+
+ASSUMED_START_TEMP_C = 25.0   # chamber temperature at the start when the station does not say
+
+
+@dataclass(frozen=True)
+class PlanStep:
+    step_id: str                # e.g. "T03.sf.+100dps"; stable across expansions
+    kind: str                   # ramp | soak | static | dwell | allan
+    source: str                 # where it comes from in the procedure, e.g. "sequence[2].tests[1]"
+    temp_index: int             # index into the procedure's sequence (T03 is temp_index 2)
+    test_index: int | None      # index into that step's tests; None for ramp and soak
+    repeat: int                 # 1-based repeat of the test
+    setpoint_c: float           # chamber setpoint during the step
+    rate_dps: float             # signed table rate during the step; 0 at rest
+    direction: str              # "+" or "-" for dwells, "" at rest
+    accel_dps2: float | None    # table acceleration used to reach rate_dps
+    settle_s: float             # wait after reaching rate_dps, before logging
+    duration_s: float           # ramp: estimated ramp time; soak: hold time; others: logged time
+    transition_s: float         # estimated table acceleration/deceleration before the step
+    expected_s: float           # transition + settle + duration: what the ETA adds up
+    max_s: float                # worst case (a soak may wait up to max_wait)
+    start_s: float              # expected start, seconds after the run starts
+    ramp_c_per_min: float | None = None
+    # The soak criterion of the temperature step: stable within ±tolerance_c for hold_s,
+    # else fault after max_wait_s. Every step carries it, so a resumed run can re-soak.
+    tolerance_c: float | None = None
+    hold_s: float | None = None
+    max_wait_s: float | None = None
+    revolutions: float | None = None    # table revolutions during the dwell (whole with min_revolutions)
+    label: str | None = None
+
+
+@dataclass(frozen=True)
+class Plan:
+    procedure_name: str
+    procedure_file: str
+    station_name: str
+    start_temp_c: float
+    steps: tuple[PlanStep, ...]
+    total_s: float              # expected time from start to the end of the last step
+    max_total_s: float          # if every soak waits its maximum
+    finish_s: float             # afterwards: table stop and chamber back to its safe setpoint
+
+    def index_of(self, step_id: str) -> int:
+        for index, step in enumerate(self.steps):
+            if step.step_id == step_id:
+                return index
+        raise KeyError(f"no step {step_id!r} in the plan of {self.procedure_file}")
+
+    def remaining_s(self, step_id: str) -> float:
+        """Expected time from the start of ``step_id`` to the end of the plan (resume ETA)."""
+        return self.total_s - self.steps[self.index_of(step_id)].start_s
+
+    def logged_s(self) -> float:
+        """Total gyro data logged for analysis (static, allan and dwell steps)."""
+        return sum(s.duration_s for s in self.steps if s.kind in ("static", "allan", "dwell"))
+
+
+def _rate_tag(rate_dps: float) -> str:
+    return f"{rate_dps:+g}dps"
+
+
+def _test_tags(step: TemperatureStep) -> list[str]:
+    """``sf``, ``static``, ``allan``; numbered (``sf1``, ``sf2``) when a kind repeats in a step."""
+    base = {"sf_sweep": "sf", "static": "static", "allan": "allan"}
+    kinds = [base[test.kind] for test in step.tests]
+    seen: dict[str, int] = {}
+    tags = []
+    for kind in kinds:
+        seen[kind] = seen.get(kind, 0) + 1
+        tags.append(f"{kind}{seen[kind]}" if kinds.count(kind) > 1 else kind)
+    return tags
+
+
+def dwell_for_rate(test: SweepTest, rate_dps: float) -> tuple[float, float]:
+    """(dwell_s, revolutions) at ``rate_dps``.
+
+    With ``min_revolutions`` the dwell is the first whole number of revolutions
+    that lasts at least ``dwell_s`` and is at least ``min_revolutions``, so
+    orientation-dependent errors (Earth rate, unbalance) average out.
+    """
+    period_s = 360.0 / abs(rate_dps)
+    turns = test.dwell_s / period_s
+    if test.min_revolutions is None:
+        return test.dwell_s, turns
+    whole = max(test.min_revolutions, math.ceil(turns - 1e-9))
+    return whole * period_s, float(whole)
+
+
+class _Expander:
+    def __init__(self, procedure: Procedure, start_temp_c: float) -> None:
+        self.procedure = procedure
+        self.steps: list[PlanStep] = []
+        self.clock_s = 0.0
+        self.max_clock_s = 0.0
+        self.chamber_c = start_temp_c
+        self.table_dps = 0.0
+        self.last_accel_dps2 = self._stop_accel()
+
+    def _stop_accel(self) -> float:
+        proc = self.procedure
+        return proc.defaults.accel_dps2 or proc.safety.table.max_accel_dps2
+
+    def add(
+        self,
+        *,
+        duration_s: float,
+        rate_dps: float = 0.0,
+        accel_dps2: float | None = None,
+        settle_s: float = 0.0,
+        max_duration_s: float | None = None,
+        **labels: object,
+    ) -> None:
+        """Append a step, timing the table's move from the previous step's rate."""
+        accel = accel_dps2 or self.last_accel_dps2
+        transition = abs(rate_dps - self.table_dps) / accel
+        expected = transition + settle_s + duration_s
+        worst = transition + settle_s + (duration_s if max_duration_s is None else max_duration_s)
+        step = PlanStep(
+            rate_dps=rate_dps, accel_dps2=accel, settle_s=settle_s, duration_s=duration_s,
+            transition_s=transition, expected_s=expected, max_s=worst, start_s=self.clock_s,
+            **labels,  # type: ignore[arg-type]
+        )
+        self.steps.append(step)
+        self.clock_s += expected
+        self.max_clock_s += worst
+        self.table_dps = rate_dps
+        self.last_accel_dps2 = accel
+
+    def temperature_step(self, index: int, step: TemperatureStep) -> None:
+        prefix = f"T{index + 1:02d}"
+        source = f"sequence[{index}]"
+        soak = step.soak
+        criterion = dict(tolerance_c=soak.tolerance_c, hold_s=soak.hold_s, max_wait_s=soak.max_wait_s)
+        common = dict(temp_index=index, setpoint_c=step.setpoint_c, label=step.label, **criterion)
+        ramp_s = abs(step.setpoint_c - self.chamber_c) / step.ramp_c_per_min * 60.0
+        self.add(step_id=f"{prefix}.ramp", kind="ramp", source=source, test_index=None, repeat=1,
+                 direction="",
+                 duration_s=ramp_s, ramp_c_per_min=step.ramp_c_per_min, **common)
+        self.chamber_c = step.setpoint_c
+        self.add(step_id=f"{prefix}.soak", kind="soak", source=f"{source}.soak", test_index=None,
+                 repeat=1, direction="", duration_s=soak.hold_s, max_duration_s=soak.max_wait_s,
+                 **common)
+        for test_index, (test, tag) in enumerate(zip(step.tests, _test_tags(step), strict=True)):
+            for repeat in range(1, test.repeats + 1):
+                suffix = f".r{repeat}" if test.repeats > 1 else ""
+                base = dict(common, source=f"{source}.tests[{test_index}]",
+                            test_index=test_index, repeat=repeat, label=test.label or step.label)
+                if isinstance(test, StaticTest | AllanTest):
+                    self.add(step_id=f"{prefix}.{tag}{suffix}", kind=test.kind, direction="",
+                             duration_s=test.duration_s, settle_s=test.settle_s, **base)
+                    continue
+                self.sweep(prefix, tag, suffix, test, base)
+
+    def sweep(self, prefix: str, tag: str, suffix: str, test: SweepTest, base: dict) -> None:
+        signs = {"both": (1.0, -1.0), "positive": (1.0,), "negative": (-1.0,)}[test.directions]
+        for magnitude in test.rates_dps:
+            dwell_s, turns = dwell_for_rate(test, magnitude)
+            for sign in signs:
+                rate = sign * magnitude
+                self.add(step_id=f"{prefix}.{tag}.{_rate_tag(rate)}{suffix}", kind="dwell",
+                         rate_dps=rate, direction="+" if sign > 0 else "-",
+                         accel_dps2=test.accel_dps2, settle_s=test.settle_s, duration_s=dwell_s,
+                         revolutions=turns, **base)
+
+    def finish(self) -> float:
+        """Stop the table, then bring the chamber to its safe setpoint (if it has one)."""
+        proc = self.procedure
+        stop_s = abs(self.table_dps) / self.last_accel_dps2
+        safe = proc.station.chamber.safe_state
+        if safe.action != "setpoint" or safe.setpoint_c is None:
+            return stop_s
+        ramp = proc.defaults.ramp_c_per_min or proc.safety.chamber.max_ramp_c_per_min
+        return stop_s + abs(safe.setpoint_c - self.chamber_c) / ramp * 60.0
+
+
+def expand_plan(procedure: Procedure, start_temp_c: float | None = None) -> Plan:
+    """Flatten ``procedure`` into executable steps with expected durations and ETA.
+
+    ``start_temp_c`` is where the chamber starts (for the first ramp); by
+    default the simulated ambient, else :data:`ASSUMED_START_TEMP_C`.
+    """
+    if start_temp_c is None:
+        sim = procedure.station.simulation
+        start_temp_c = sim.chamber.ambient_c if sim is not None else ASSUMED_START_TEMP_C
+    expander = _Expander(procedure, start_temp_c)
+    for index, step in enumerate(procedure.sequence):
+        expander.temperature_step(index, step)
+    ids = [s.step_id for s in expander.steps]
+    if len(set(ids)) != len(ids):   # cannot happen for a validated procedure; journals depend on it
+        raise AssertionError(f"duplicate step ids in the plan of {procedure.file}")
+    return Plan(
+        procedure_name=procedure.name,
+        procedure_file=procedure.file,
+        station_name=procedure.station.name,
+        start_temp_c=start_temp_c,
+        steps=tuple(expander.steps),
+        total_s=expander.clock_s,
+        max_total_s=expander.max_clock_s,
+        finish_s=expander.finish(),
+    )
+
+
+def _clock(seconds: float) -> str:
+    total = round(seconds)
+    hours, rest = divmod(total, 3600)
+    return f"{hours:d}:{rest // 60:02d}:{rest % 60:02d}"
+
+
+def format_plan(plan: Plan) -> str:
+    """The plan as a fixed-width table an operator can check before starting the night."""
+    header = ("#", "step", "kind", "setpoint", "rate", "move+settle", "logged/hold", "expected",
+              "starts at")
+    rows = []
+    for number, step in enumerate(plan.steps, start=1):
+        if step.kind == "ramp":
+            move = f"{format_number(step.ramp_c_per_min)} °C/min"
+            logged = "-"
+        else:
+            move = format_duration(step.transition_s + step.settle_s)
+            logged = format_duration(step.duration_s)
+        rate = "-" if step.kind in ("ramp", "soak") else (
+            f"{step.rate_dps:+g} deg/s" if step.rate_dps else "0 deg/s")
+        if step.kind == "dwell" and step.revolutions is not None:
+            rate += f" ({step.revolutions:.3g} rev)"
+        rows.append((str(number), step.step_id, step.kind, f"{step.setpoint_c:g} °C", rate, move,
+                     logged, format_duration(step.expected_s), _clock(step.start_s)))
+    widths = [max(len(row[i]) for row in [header, *rows]) for i in range(len(header))]
+    lines = [
+        f"Procedure: {plan.procedure_name} ({plan.procedure_file})",
+        f"Station:   {plan.station_name}",
+        f"Start:     chamber at {plan.start_temp_c:g} °C",
+        "",
+        "  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)).rstrip(),
+        "  ".join("-" * w for w in widths),
+    ]
+    lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip() for row in rows]
+    lines += [
+        "",
+        f"{len(plan.steps)} steps; gyro data logged {format_duration(plan.logged_s())}",
+        f"ETA {format_duration(plan.total_s)} (worst case {format_duration(plan.max_total_s)} "
+        "if every soak waits its maximum), then "
+        f"{format_duration(plan.finish_s)} to return to the safe state",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,737 @@
+"""The procedure file: what to measure, at which temperatures and rates, and what passes.
+
+Everything is checked here, before anything moves: the schema, the units,
+and every setpoint, rate, ramp rate and acceleration against both the
+procedure's own safety limits and the station's hard limits. A wrong value at
+hour 14 of an overnight run costs a night; here it costs one edit. Every
+problem is collected and raised together as one :class:`ProcedureError`.
+
+Values left out of a test or a temperature step come from ``defaults``; a
+value that is in neither place is an error naming both, so no duration is
+ever silently made up.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from gyrocal.orchestrator.metrics import METRICS, NEEDS_TEXT, units_match
+from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
+from gyrocal.orchestrator.schema import (
+    Context,
+    Fields,
+    choice,
+    duration,
+    integer,
+    number,
+    quantity,
+    serial_number,
+    text,
+)
+from gyrocal.orchestrator.station import Station, load_station, parse_station
+from gyrocal.orchestrator.units import (
+    ACCELERATION,
+    FREQUENCY,
+    RATE,
+    TEMPERATURE,
+    TEMPERATURE_RATE,
+    UnitError,
+    describe,
+    format_number,
+)
+from gyrocal.orchestrator.yaml_source import YamlDocument, load_yaml
+
+PROCEDURE_VERSION = 1
+OUTPUT_UNITS = ("deg/s", "deg/h", "rad/s", "V", "LSB")
+DIRECTIONS = ("both", "positive", "negative")
+SPACINGS = ("linear", "log")
+TEST_KINDS = ("static", "sf_sweep", "allan")
+MAX_LIST = 1000           # rates per sweep, steps per sequence: beyond this it is a typo
+MAX_DURATION_S = 7 * 86400.0
+
+
+# -- the typed result -------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class UnitUnderTest:
+    model: str
+    serial: str
+    output_units: str
+    nominal_scale_factor: float   # output units per deg/s
+
+
+@dataclass(frozen=True)
+class ChamberSafety:
+    min_temp_c: float
+    max_temp_c: float
+    max_ramp_c_per_min: float
+
+
+@dataclass(frozen=True)
+class TableSafety:
+    max_rate_dps: float
+    max_accel_dps2: float
+
+
+@dataclass(frozen=True)
+class Safety:
+    chamber: ChamberSafety
+    table: TableSafety
+
+
+@dataclass(frozen=True)
+class SoakCriterion:
+    """Stable = within ±tolerance_c of the setpoint for hold_s; give up after max_wait_s."""
+
+    tolerance_c: float
+    hold_s: float
+    max_wait_s: float
+
+
+@dataclass(frozen=True)
+class DataQuality:
+    max_lost_frame_fraction: float   # lost + CRC-failed frames per logged step
+    max_step_repeats: int            # a bad step is repeated at most this many times
+
+
+@dataclass(frozen=True)
+class Defaults:
+    """What tests and steps inherit; None where the procedure gave no default."""
+
+    ramp_c_per_min: float | None
+    soak: SoakCriterion | None
+    dwell_s: float | None
+    settle_s: float | None
+    accel_dps2: float | None
+    sample_rate_hz: float
+
+
+@dataclass(frozen=True)
+class RateSchedule:
+    spacing: str        # linear | log
+    start_dps: float
+    stop_dps: float
+    count: int
+
+
+@dataclass(frozen=True)
+class StaticTest:
+    """Table at rest for duration_s: the bias at this temperature."""
+
+    duration_s: float
+    settle_s: float
+    repeats: int
+    label: str | None
+    kind: str = "static"
+
+
+@dataclass(frozen=True)
+class AllanTest:
+    """A long static hold for the Allan variance (noise terms Q, N, B, K, R)."""
+
+    duration_s: float
+    settle_s: float
+    repeats: int
+    label: str | None
+    kind: str = "allan"
+
+
+@dataclass(frozen=True)
+class SweepTest:
+    """Scale factor: dwell at +rate then -rate for each rate (SF = (V+ - V-) / 2Ω)."""
+
+    rates_dps: tuple[float, ...]       # magnitudes, > 0, in order of execution
+    schedule: RateSchedule | None      # how rates_dps was generated, if it was
+    directions: str                    # both | positive | negative
+    dwell_s: float
+    settle_s: float
+    accel_dps2: float
+    min_revolutions: int | None        # dwell rounded up to whole table revolutions, at least this many
+    repeats: int
+    label: str | None
+    kind: str = "sf_sweep"
+
+
+Test = StaticTest | AllanTest | SweepTest
+
+
+@dataclass(frozen=True)
+class TemperatureStep:
+    setpoint_c: float
+    ramp_c_per_min: float
+    soak: SoakCriterion
+    tests: tuple[Test, ...]
+    label: str | None
+
+
+@dataclass(frozen=True)
+class AcceptanceLimit:
+    name: str
+    metric: str        # key path in results.json
+    max: float | None
+    min: float | None
+    unit: str | None
+
+    def passes(self, value: float) -> bool:
+        if self.max is not None and not value <= self.max:
+            return False
+        return not (self.min is not None and not value >= self.min)
+
+
+@dataclass(frozen=True)
+class Procedure:
+    version: int
+    name: str
+    description: str | None
+    unit_under_test: UnitUnderTest
+    station: Station
+    safety: Safety
+    defaults: Defaults
+    data_quality: DataQuality
+    sequence: tuple[TemperatureStep, ...]
+    acceptance: tuple[AcceptanceLimit, ...]
+    file: str                  # as given, for messages
+    path: Path                 # resolved
+    files: tuple[Path, ...]    # the procedure, its includes and the station file (for the manifest)
+
+
+# -- loading ----------------------------------------------------------------------------
+
+def load_procedure(
+    path: str | os.PathLike[str], station_path: str | os.PathLike[str] | None = None
+) -> Procedure:
+    """Read and validate a procedure; ``station_path`` overrides its ``station:`` key.
+
+    Raises :class:`ProcedureError` with every problem found in the procedure,
+    its includes and its station.
+    """
+    document = load_yaml(path)
+    ctx = Context(document)
+    procedure = _Parser(ctx, station_path).procedure(document.data)
+    if ctx.problems:
+        raise ProcedureError(sort_problems(ctx.problems))
+    assert procedure is not None
+    return procedure
+
+
+def _duration(positive: bool = True) -> Callable[[object], float]:
+    base = duration(positive=positive)
+
+    def convert(value: object) -> float:
+        seconds = base(value)
+        if seconds > MAX_DURATION_S:
+            raise UnitError(f"{value!r} is longer than 7 days; a typo?")
+        return seconds
+    return convert
+
+
+def _list(ctx: Context, path: KeyPath, value: object, what: str, *, allow_empty: bool = False) -> list:
+    if not isinstance(value, list):
+        ctx.report(path, f"{what} must be a list, got {describe(value)}")
+        return []
+    if not value and not allow_empty:
+        ctx.report(path, f"{what} must not be empty")
+    if len(value) > MAX_LIST:
+        ctx.report(path, f"{what} has {len(value)} entries; at most {MAX_LIST} are allowed")
+        return []
+    return value
+
+
+@dataclass(frozen=True)
+class _Limit:
+    value: float
+    what: str         # "table limit"
+    where: str        # "procedure safety.table.max_rate_dps"
+
+
+class _Parser:
+    def __init__(self, ctx: Context, station_path: str | os.PathLike[str] | None) -> None:
+        self.ctx = ctx
+        self.document: YamlDocument = ctx.document
+        self.station_path = station_path
+        self.station: Station | None = None
+        self.station_files: list[Path] = []
+        self.safety: Safety | None = None
+        # defaults that were given but invalid: already reported, so a test that
+        # inherits them is not also told the key is missing
+        self.broken_defaults: set[str] = set()
+
+    # -- top level ------------------------------------------------------------------------
+    def procedure(self, data: object) -> Procedure | None:
+        ctx = self.ctx
+        fields = Fields(ctx, (), data, "a procedure")
+        if not fields.valid:
+            return None
+        version = fields.take("version", integer())
+        if version is not None and version != PROCEDURE_VERSION:
+            ctx.report(("version",), f"unsupported procedure version {version}; "
+                       f"this gyrocal reads version {PROCEDURE_VERSION}")
+        name = fields.take("name", text)
+        description = fields.take("description", text, required=False)
+        uut = self.unit_under_test(fields)
+        self.station = self.load_station(fields)
+        self.safety = self.safety_limits(fields)
+        defaults = self.defaults(fields)
+        quality = self.data_quality(fields)
+        present, raw = fields.raw("sequence")
+        if not present:
+            ctx.report(("sequence",), "required key is missing")
+        sequence = tuple(
+            self.temperature_step(("sequence", index), item, defaults)
+            for index, item in enumerate(_list(ctx, ("sequence",), raw, "sequence"))
+        ) if present else ()
+        acceptance = self.acceptance(fields, sequence)
+        fields.raw("templates")   # free-form: a home for YAML anchors (&sweep) used elsewhere
+        fields.finish()
+        files = tuple(self.document.files) + tuple(self.station_files)
+        return Procedure(version, name, description, uut, self.station, self.safety, defaults,
+                         quality, sequence, acceptance, self.document.file, self.document.path,
+                         files)
+
+    def section(self, parent: Fields, key: str, *, required: bool = True) -> Fields:
+        present, raw = parent.raw(key)
+        if not present:
+            if required and parent.valid:
+                self.ctx.report(parent.child(key), "required key is missing")
+            return Fields(self.ctx, parent.child(key), {}, key)
+        return Fields(self.ctx, parent.child(key), raw, key)
+
+    def unit_under_test(self, parent: Fields) -> UnitUnderTest:
+        fields = self.section(parent, "unit_under_test")
+        uut = UnitUnderTest(
+            fields.take("model", text),
+            fields.take("serial", serial_number),
+            fields.take("output_units", choice(OUTPUT_UNITS)),
+            fields.take("nominal_scale_factor", number(above=0.0)),
+        )
+        fields.finish()
+        return uut
+
+    def load_station(self, fields: Fields) -> Station | None:
+        present, raw = fields.raw("station")
+        if self.station_path is not None:
+            try:
+                station = load_station(self.station_path)
+            except ProcedureError as error:
+                self.ctx.problems.extend(error.problems)
+                return None
+            if station.path is not None:
+                self.station_files.append(station.path)
+            return station
+        if not present:
+            self.ctx.report(("station",), "required key is missing (or give --station)")
+            return None
+        if isinstance(raw, dict):
+            before = len(self.ctx.problems)
+            station = parse_station(self.ctx, ("station",), raw, base_dir=self.document.path.parent,
+                                    file=self.document.file, path=None)
+            return station if len(self.ctx.problems) == before else None
+        try:
+            relative = text(raw)
+        except UnitError:
+            self.ctx.report(("station",), "expected the path of a station file (relative to "
+                            f"this procedure) or a station mapping, got {describe(raw)}")
+            return None
+        target = self.document.path.parent / relative
+        display = os.path.normpath(os.path.join(os.path.dirname(self.document.file), relative))
+        same_file = Path(display).resolve() == target.resolve()
+        try:
+            station = load_station(display if same_file else target)
+        except ProcedureError as error:
+            self.ctx.problems.extend(error.problems)
+            return None
+        if station.path is not None:
+            self.station_files.append(station.path)
+        return station
+
+    def safety_limits(self, parent: Fields) -> Safety:
+        fields = self.section(parent, "safety")
+        ch = self.section(fields, "chamber")
+        chamber = ChamberSafety(
+            ch.take("min_temp_c", quantity(TEMPERATURE, -273.15)),
+            ch.take("max_temp_c", quantity(TEMPERATURE, -273.15)),
+            ch.take("max_ramp_c_per_min", quantity(TEMPERATURE_RATE, above=0.0)),
+        )
+        ch.finish()
+        tb = self.section(fields, "table")
+        table = TableSafety(
+            tb.take("max_rate_dps", quantity(RATE, above=0.0)),
+            tb.take("max_accel_dps2", quantity(ACCELERATION, above=0.0)),
+        )
+        tb.finish()
+        fields.finish()
+        if None not in (chamber.min_temp_c, chamber.max_temp_c) and \
+                chamber.min_temp_c >= chamber.max_temp_c:
+            self.ctx.report(ch.child("max_temp_c"),
+                            f"{format_number(chamber.max_temp_c)} °C must be above min_temp_c "
+                            f"{format_number(chamber.min_temp_c)} °C")
+        station = self.station
+        if station is not None:
+            # The procedure's own limits must sit inside what the station can do.
+            def station_limit(value: float, what: str, key: str) -> list[_Limit]:
+                return [_Limit(value, f"station {what}", f"{station.file}: {key}")]
+
+            lim, tlim = station.chamber.limits, station.table.limits
+            self.check_bounds(ch.child("min_temp_c"), chamber.min_temp_c, "°C", lows=station_limit(
+                lim.min_temp_c, "chamber limit", "chamber.limits.min_temp_c"))
+            self.check_bounds(ch.child("max_temp_c"), chamber.max_temp_c, "°C", highs=station_limit(
+                lim.max_temp_c, "chamber limit", "chamber.limits.max_temp_c"))
+            self.check_bounds(ch.child("max_ramp_c_per_min"), chamber.max_ramp_c_per_min, "°C/min",
+                              highs=station_limit(lim.max_ramp_c_per_min, "chamber limit",
+                                                  "chamber.limits.max_ramp_c_per_min"))
+            self.check_bounds(tb.child("max_rate_dps"), table.max_rate_dps, "deg/s",
+                              highs=station_limit(tlim.max_rate_dps, "table limit",
+                                                  "table.limits.max_rate_dps"))
+            self.check_bounds(tb.child("max_accel_dps2"), table.max_accel_dps2, "deg/s²",
+                              highs=station_limit(tlim.max_accel_dps2, "table limit",
+                                                  "table.limits.max_accel_dps2"))
+        return Safety(chamber, table)
+
+    # -- limits -----------------------------------------------------------------------------
+    def check_bounds(
+        self,
+        path: KeyPath,
+        value: float | None,
+        unit: str,
+        *,
+        lows: list[_Limit] = (),  # type: ignore[assignment]
+        highs: list[_Limit] = (),  # type: ignore[assignment]
+    ) -> None:
+        """Report ``value`` against the tightest limit it violates (if any)."""
+        if value is None:
+            return
+        below = [lim for lim in lows if lim.value is not None and value < lim.value]
+        if below:
+            tightest = max(below, key=lambda lim: lim.value)
+            self.ctx.report(path, f"{format_number(value)} {unit} is below the {tightest.what} "
+                            f"{format_number(tightest.value)} {unit} ({tightest.where})")
+        above = [lim for lim in highs if lim.value is not None and value > lim.value]
+        if above:
+            tightest = min(above, key=lambda lim: lim.value)
+            self.ctx.report(path, f"{format_number(value)} {unit} exceeds the {tightest.what} "
+                            f"{format_number(tightest.value)} {unit} ({tightest.where})")
+
+    def _limits(self, procedure_key: str, station_key: str) -> list[_Limit]:
+        """Both limits that bound a value: the procedure's safety block and the station's."""
+        limits: list[_Limit] = []
+        if self.safety is not None:
+            group, field = procedure_key.split(".")
+            section = getattr(self.safety, group)
+            limits.append(_Limit(getattr(section, field), f"{group} limit",
+                                 f"procedure safety.{procedure_key}"))
+        if self.station is not None:
+            group, _, field = station_key.split(".")
+            section = getattr(self.station, group).limits
+            limits.append(_Limit(getattr(section, field), f"{group} limit",
+                                 f"station {self.station.file}: {station_key}"))
+        return limits
+
+    def check_setpoint(self, path: KeyPath, value: float | None) -> None:
+        self.check_bounds(
+            path, value, "°C",
+            lows=self._limits("chamber.min_temp_c", "chamber.limits.min_temp_c"),
+            highs=self._limits("chamber.max_temp_c", "chamber.limits.max_temp_c"),
+        )
+
+    def check_ramp(self, path: KeyPath, value: float | None) -> None:
+        self.check_bounds(path, value, "°C/min", highs=self._limits(
+            "chamber.max_ramp_c_per_min", "chamber.limits.max_ramp_c_per_min"))
+
+    def check_rate(self, path: KeyPath, value: float | None) -> None:
+        self.check_bounds(path, value, "deg/s", highs=self._limits(
+            "table.max_rate_dps", "table.limits.max_rate_dps"))
+
+    def check_accel(self, path: KeyPath, value: float | None) -> None:
+        self.check_bounds(path, value, "deg/s²", highs=self._limits(
+            "table.max_accel_dps2", "table.limits.max_accel_dps2"))
+
+    # -- defaults and quality ---------------------------------------------------------------
+    def soak(self, fields: Fields, inherited: SoakCriterion | None,
+             prefix: str | None) -> SoakCriterion | None:
+        """A soak criterion; keys left out come from ``inherited`` (the defaults, at ``prefix``)."""
+        def key(name: str) -> str | None:
+            return f"{prefix}.{name}" if prefix else None
+
+        tolerance = self.inherit(fields, "tolerance_c", quantity(TEMPERATURE, above=0.0),
+                                 inherited and inherited.tolerance_c, key("tolerance_c"))
+        hold = self.inherit(fields, "hold", _duration(), inherited and inherited.hold_s, key("hold"))
+        max_wait = self.inherit(fields, "max_wait", _duration(),
+                                inherited and inherited.max_wait_s, key("max_wait"))
+        fields.finish()
+        if None in (tolerance, hold, max_wait):
+            return None
+        if max_wait < hold:
+            self.ctx.report(fields.child("max_wait"),
+                            f"max_wait ({format_number(max_wait)} s) is shorter than the hold time "
+                            f"({format_number(hold)} s): the soak could never succeed")
+        return SoakCriterion(tolerance, hold, max_wait)
+
+    def inherit(self, fields: Fields, key: str, convert: Callable[[object], Any],
+                inherited: Any, default_key: str | None) -> Any:
+        """``key`` from this mapping, else the default; missing from both is one problem."""
+        if fields.has(key) or default_key is None:
+            return fields.take(key, convert)
+        fields.used.add(key)
+        if inherited is None and fields.valid and default_key not in self.broken_defaults:
+            self.ctx.report(fields.child(key),
+                            f"required key is missing (and there is no {default_key})")
+        return inherited
+
+    def defaults(self, parent: Fields) -> Defaults:
+        present, _ = parent.raw("defaults")
+        fields = self.section(parent, "defaults", required=False)
+
+        def take(key: str, convert: Callable[[object], Any]) -> Any:
+            value = fields.take(key, convert, required=False)
+            if fields.has(key) and value is None:
+                self.broken_defaults.add(f"defaults.{key}")
+            return value
+
+        ramp = take("ramp_c_per_min", quantity(TEMPERATURE_RATE, above=0.0))
+        self.check_ramp(fields.child("ramp_c_per_min"), ramp)
+        soak = None
+        if fields.has("soak"):
+            soak_fields = self.section(fields, "soak")
+            soak = self.soak(soak_fields, None, None) if soak_fields.valid else None
+            if soak is None:
+                self.broken_defaults.update(
+                    {"defaults.soak.tolerance_c", "defaults.soak.hold", "defaults.soak.max_wait"})
+        else:
+            fields.used.add("soak")
+        dwell = take("dwell", _duration())
+        settle = take("settle", _duration(positive=False))
+        accel = take("accel_dps2", quantity(ACCELERATION, above=0.0))
+        self.check_accel(fields.child("accel_dps2"), accel)
+        station_rate = self.station.gyro.sample_rate_hz if self.station is not None else None
+        sample_rate = take("sample_rate_hz", quantity(FREQUENCY, above=0.0))
+        if sample_rate is not None and station_rate is not None and sample_rate > station_rate:
+            self.ctx.report(fields.child("sample_rate_hz"),
+                            f"{format_number(sample_rate)} Hz exceeds the gyro's output rate "
+                            f"{format_number(station_rate)} Hz (station {self.station.file}: "
+                            f"gyro.sample_rate_hz)")
+        if present:
+            fields.finish()
+        return Defaults(ramp, soak, dwell, settle, accel,
+                        sample_rate if sample_rate is not None else station_rate)
+
+    def data_quality(self, parent: Fields) -> DataQuality:
+        fields = self.section(parent, "data_quality")
+        quality = DataQuality(
+            fields.take("max_lost_frame_fraction", number(0.0, above=None, maximum=0.5)),
+            fields.take("max_step_repeats", integer(0, 20)),
+        )
+        fields.finish()
+        return quality
+
+    # -- sequence -----------------------------------------------------------------------------
+    def temperature_step(self, path: KeyPath, value: object, defaults: Defaults) -> TemperatureStep:
+        fields = Fields(self.ctx, path, value, "a temperature step")
+        setpoint = fields.take("setpoint_c", quantity(TEMPERATURE, -273.15))
+        self.check_setpoint(fields.child("setpoint_c"), setpoint)
+        ramp = self.inherit(fields, "ramp_c_per_min", quantity(TEMPERATURE_RATE, above=0.0),
+                            defaults.ramp_c_per_min, "defaults.ramp_c_per_min")
+        if fields.has("ramp_c_per_min"):
+            self.check_ramp(fields.child("ramp_c_per_min"), ramp)
+        if fields.has("soak"):
+            soak = self.soak(self.section(fields, "soak"), defaults.soak, "defaults.soak")
+        else:
+            fields.used.add("soak")
+            soak = defaults.soak
+            if soak is None and fields.valid and "defaults.soak.hold" not in self.broken_defaults:
+                self.ctx.report(fields.child("soak"), "required key is missing (and there is no "
+                                "defaults.soak)")
+        label = fields.take("label", text, required=False)
+        present, raw = fields.raw("tests")
+        tests: list[Test] = []
+        if present:
+            for index, item in enumerate(_list(self.ctx, fields.child("tests"), raw, "tests",
+                                               allow_empty=True)):
+                test = self.test((*path, "tests", index), item, defaults)
+                if test is not None:
+                    tests.append(test)
+        fields.finish()
+        return TemperatureStep(setpoint, ramp, soak, tuple(tests), label)
+
+    def test(self, path: KeyPath, value: object, defaults: Defaults) -> Test | None:
+        fields = Fields(self.ctx, path, value, "a test")
+        if not fields.valid:
+            return None
+        kind = fields.take("kind", choice(TEST_KINDS))
+        if kind is None:
+            fields.used.update(fields.data)   # unknown kind: its keys cannot be judged
+            return None
+        repeats = fields.take("repeats", integer(1, 100), required=False, default=1)
+        label = fields.take("label", text, required=False)
+        if kind != "sf_sweep":
+            # after a sweep the table needs settling before a static hold too, but a
+            # procedure that never spins may leave settle out altogether
+            settle = fields.take("settle", _duration(positive=False), required=False,
+                                 default=defaults.settle_s if defaults.settle_s is not None else 0.0)
+            duration_s = fields.take("duration", _duration())
+            fields.finish()
+            cls = StaticTest if kind == "static" else AllanTest
+            return cls(duration_s, settle, repeats, label)
+
+        settle = self.inherit(fields, "settle", _duration(positive=False), defaults.settle_s,
+                              "defaults.settle")
+        directions = fields.take("directions", choice(DIRECTIONS), required=False, default="both")
+        dwell = self.inherit(fields, "dwell", _duration(), defaults.dwell_s, "defaults.dwell")
+        accel = self.inherit(fields, "accel_dps2", quantity(ACCELERATION, above=0.0),
+                             defaults.accel_dps2, "defaults.accel_dps2")
+        if fields.has("accel_dps2"):
+            self.check_accel(fields.child("accel_dps2"), accel)
+        revolutions = fields.take("min_revolutions", integer(1, 1000), required=False)
+        rates, schedule = self.rates(fields)
+        fields.finish()
+        return SweepTest(rates, schedule, directions, dwell, settle, accel, revolutions,
+                         repeats, label)
+
+    def rates(self, fields: Fields) -> tuple[tuple[float, ...], RateSchedule | None]:
+        has_list, has_schedule = fields.has("rates_dps"), fields.has("schedule")
+        fields.used.update({"rates_dps", "schedule"})
+        if has_list == has_schedule:
+            if fields.valid:
+                self.ctx.report(fields.path, "give either rates_dps (a list) or schedule "
+                                "(spacing, start_dps, stop_dps, count), not both"
+                                if has_list else "missing rates: give rates_dps (a list) or "
+                                "schedule (spacing, start_dps, stop_dps, count)")
+            return (), None
+        if has_list:
+            return self.rate_list(fields.child("rates_dps"), fields.data["rates_dps"]), None
+        return self.rate_schedule(self.section(fields, "schedule"))
+
+    def rate_list(self, path: KeyPath, raw: object) -> tuple[float, ...]:
+        convert = quantity(RATE, above=0.0)
+        rates: list[float] = []
+        first_index: dict[float, int] = {}
+        for index, item in enumerate(_list(self.ctx, path, raw, "rates_dps")):
+            item_path = (*path, index)
+            try:
+                rate = convert(item)
+            except UnitError as error:
+                message = str(error)
+                if "must be greater than 0" in message:
+                    message += " (give magnitudes; `directions` sets the signs)"
+                self.ctx.report(item_path, message)
+                continue
+            if rate in first_index:
+                self.ctx.report(item_path, f"{format_number(rate)} deg/s is listed twice "
+                                f"(also rates_dps[{first_index[rate]}])")
+                continue
+            first_index[rate] = index
+            self.check_rate(item_path, rate)
+            rates.append(rate)
+        return tuple(rates)
+
+    def rate_schedule(self, fields: Fields) -> tuple[tuple[float, ...], RateSchedule | None]:
+        spacing = fields.take("spacing", choice(SPACINGS))
+        start = fields.take("start_dps", quantity(RATE, above=0.0))
+        stop = fields.take("stop_dps", quantity(RATE, above=0.0))
+        count = fields.take("count", integer(1, MAX_LIST))
+        fields.finish()
+        if None in (spacing, start, stop, count):
+            return (), None
+        if stop < start:
+            self.ctx.report(fields.child("stop_dps"), f"{format_number(stop)} deg/s is below "
+                            f"start_dps {format_number(start)} deg/s")
+            return (), None
+        if count == 1 and stop != start:
+            self.ctx.report(fields.child("count"), "count 1 needs start_dps == stop_dps")
+            return (), None
+        self.check_rate(fields.child("stop_dps"), stop)
+        rates = generate_rates(spacing, start, stop, count)
+        if len(set(rates)) != len(rates):
+            self.ctx.report(fields.child("count"), f"{count} rates between {format_number(start)} "
+                            f"and {format_number(stop)} deg/s repeat after rounding to 6 digits; "
+                            "use fewer")
+            return (), None
+        return rates, RateSchedule(spacing, start, stop, count)
+
+    # -- acceptance ---------------------------------------------------------------------------
+    def acceptance(self, parent: Fields, sequence: tuple[TemperatureStep, ...]) -> tuple[AcceptanceLimit, ...]:
+        present, raw = parent.raw("acceptance")
+        if not present:
+            return ()
+        measured = _what_is_measured(sequence)
+        limits: list[AcceptanceLimit] = []
+        names: dict[str, int] = {}
+        for index, item in enumerate(_list(self.ctx, ("acceptance",), raw, "acceptance",
+                                           allow_empty=True)):
+            path: KeyPath = ("acceptance", index)
+            fields = Fields(self.ctx, path, item, "an acceptance limit")
+            if not fields.valid:
+                continue
+            name = fields.take("name", text)
+            metric = fields.take("metric", _metric)
+            maximum = fields.take("max", number(), required=False)
+            minimum = fields.take("min", number(), required=False)
+            unit = fields.take("unit", text, required=False)
+            fields.finish()
+            if fields.has("max") == fields.has("min"):
+                self.ctx.report(path, "give exactly one of max or min")
+            if name is not None:
+                if name in names:
+                    self.ctx.report(fields.child("name"),
+                                    f"name {name!r} is used twice (also acceptance[{names[name]}])")
+                names.setdefault(name, index)
+            if metric is None:
+                continue
+            spec = METRICS[metric]
+            if unit is not None and not units_match(unit, spec):
+                self.ctx.report(fields.child("unit"), f"{metric} is in {spec.unit}, not {unit}")
+            if spec.needs not in measured and sequence:
+                self.ctx.report(fields.child("metric"),
+                                f"{metric} cannot be computed: it needs "
+                                f"{NEEDS_TEXT[spec.needs]} in the sequence")
+            limits.append(AcceptanceLimit(name, metric, maximum, minimum, unit))
+        return tuple(limits)
+
+
+def _metric(value: object) -> str:
+    if isinstance(value, str) and value in METRICS:
+        return value
+    close = difflib.get_close_matches(str(value), list(METRICS), n=1) if isinstance(value, str) else []
+    hint = f"did you mean {close[0]}? " if close else ""
+    shown = repr(value) if isinstance(value, str) else describe(value)
+    raise UnitError(f"unknown metric {shown}; {hint}known metrics: {', '.join(METRICS)}")
+
+
+def _what_is_measured(sequence: tuple[TemperatureStep, ...]) -> set[str]:
+    sweep_temps: set[float] = set()
+    bias_temps: set[float] = set()
+    measured: set[str] = set()
+    for step in sequence:
+        for test in step.tests:
+            if isinstance(test, SweepTest):
+                measured.add("sweep")
+                sweep_temps.add(step.setpoint_c)
+            else:
+                bias_temps.add(step.setpoint_c)
+                if isinstance(test, AllanTest):
+                    measured.add("allan")
+    if len(sweep_temps) >= 2:
+        measured.add("sweep_temps")
+    if len(bias_temps) >= 2:
+        measured.add("bias_temps")
+    return measured
+
+
+def generate_rates(spacing: str, start_dps: float, stop_dps: float, count: int) -> tuple[float, ...]:
+    """Rates of a schedule, rounded to 6 significant digits (what a table command carries)."""
+    if count == 1:
+        return (float(f"{start_dps:.6g}"),)
+    rates = []
+    for i in range(count):
+        fraction = i / (count - 1)
+        if spacing == "log":
+            rate = start_dps * math.exp(math.log(stop_dps / start_dps) * fraction)
+        else:
+            rate = start_dps + (stop_dps - start_dps) * fraction
+        rates.append(float(f"{rate:.6g}"))
+    return tuple(rates)

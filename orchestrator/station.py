@@ -1,0 +1,361 @@
+"""The station file: which instruments a lab has, where they are, what they may do.
+
+A procedure says *what* to measure; the station says *with what*. Keeping the
+two apart lets one procedure run on several stations, and lets the station's
+hard limits (what the chamber and table can safely do) bound every procedure
+run on it. Identities and calibration due dates are recorded here because QA
+needs them in the report, not because the orchestrator uses them.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
+from gyrocal.orchestrator.schema import (
+    Context,
+    Fields,
+    boolean,
+    choice,
+    date,
+    duration,
+    integer,
+    number,
+    quantity,
+    serial_number,
+    text,
+)
+from gyrocal.orchestrator.units import (
+    ACCELERATION,
+    FREQUENCY,
+    RATE,
+    TEMPERATURE,
+    TEMPERATURE_RATE,
+    UnitError,
+    format_number,
+)
+from gyrocal.orchestrator.yaml_source import load_yaml
+
+STATION_VERSION = 1
+CHAMBER_DRIVERS = ("watlow_f4", "watlow_f4t")
+TABLE_DRIVERS = ("acutrol3000",)
+GYRO_DRIVERS = ("stim300",)
+SIM_ADDRESS = "sim"   # "started by --sim": the simulator's loopback address is chosen at run time
+
+_HOST_PORT = r"[A-Za-z0-9_.\-]+:\d{1,5}"
+_ADDRESS_FORMS = {
+    # Watlow F4: Modbus RTU over a serial line or a serial-over-TCP bridge.
+    "watlow_f4": (rf"^(/dev/\S+|COM\d+|socket://{_HOST_PORT})$",
+                  "a serial device (/dev/ttyUSB0, COM3) or socket://host:port"),
+    # Watlow F4T: Modbus TCP.
+    "watlow_f4t": (rf"^{_HOST_PORT}$", "host:port"),
+    # Acutrol3000: VISA resource string.
+    "acutrol3000": (r"^(TCPIP\d*::\S+|ASRL\S+|GPIB\d*::\S+)$",
+                    "a VISA resource such as TCPIP0::10.0.0.5::5025::SOCKET"),
+    # STIM300: RS-422 serial, or a TCP serial bridge.
+    "stim300": (rf"^(/dev/\S+|COM\d+|socket://{_HOST_PORT})$",
+                "a serial device (/dev/ttyUSB0, COM3) or socket://host:port"),
+}
+
+
+@dataclass(frozen=True)
+class Site:
+    name: str
+    latitude_deg: float   # sets the Earth-rate component the analysis removes
+
+
+@dataclass(frozen=True)
+class AssetIdentity:
+    """An instrument as the lab's asset register knows it (for the QA report)."""
+
+    make: str
+    model: str
+    serial: str
+    calibration_due: dt.date | None
+
+    def calibration_overdue(self, on: dt.date) -> bool:
+        return self.calibration_due is not None and on > self.calibration_due
+
+
+@dataclass(frozen=True)
+class ChamberLimits:
+    min_temp_c: float
+    max_temp_c: float
+    max_ramp_c_per_min: float
+
+
+@dataclass(frozen=True)
+class ChamberSafeState:
+    action: str                  # "setpoint" (hold setpoint_c) or "standby"
+    setpoint_c: float | None
+
+
+@dataclass(frozen=True)
+class ChamberConfig:
+    driver: str
+    address: str
+    unit_id: int
+    identity: AssetIdentity
+    limits: ChamberLimits
+    safe_state: ChamberSafeState
+    timeout_s: float
+    retries: int
+
+
+@dataclass(frozen=True)
+class TableLimits:
+    max_rate_dps: float
+    max_accel_dps2: float
+
+
+@dataclass(frozen=True)
+class TableConfig:
+    driver: str
+    address: str
+    axis: int
+    identity: AssetIdentity
+    limits: TableLimits
+    timeout_s: float
+    retries: int
+
+
+@dataclass(frozen=True)
+class GyroConfig:
+    driver: str
+    port: str
+    baudrate: int
+    sample_rate_hz: float
+    rate_lsb: float           # output units per LSB
+    with_temperature: bool
+    timeout_s: float
+
+
+@dataclass(frozen=True)
+class ChamberPhysics:
+    ambient_c: float
+    tau_s: float
+    max_heat_c_per_min: float
+    max_cool_c_per_min: float
+    noise_c: float
+
+
+@dataclass(frozen=True)
+class TablePhysics:
+    rate_noise_dps: float
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """What ``--sim`` and ``gyrocal sim serve`` start; ignored on real hardware."""
+
+    gyro_model: Path          # resolved against the file that named it; must exist
+    seed: int
+    chamber: ChamberPhysics
+    table: TablePhysics
+
+
+@dataclass(frozen=True)
+class Station:
+    version: int
+    name: str
+    site: Site
+    chamber: ChamberConfig
+    table: TableConfig
+    gyro: GyroConfig
+    simulation: SimulationConfig | None
+    file: str                 # as given (for messages); "<inline in ...>" when inline
+    path: Path | None         # resolved file, None when written inline in a procedure
+
+    @property
+    def simulated(self) -> bool:
+        """True when any instrument address is ``sim`` (started by ``--sim``)."""
+        return SIM_ADDRESS in (self.chamber.address, self.table.address, self.gyro.port)
+
+    def limit_source(self, key: str) -> str:
+        """``stations/sim.yaml table.limits.max_rate_dps``: where a limit came from, for messages."""
+        return f"{self.file} {key}"
+
+
+def load_station(path: str | os.PathLike[str]) -> Station:
+    """Read and validate a station file; :class:`ProcedureError` lists every problem."""
+    document = load_yaml(path)
+    ctx = Context(document)
+    station = parse_station(ctx, (), document.data, base_dir=document.path.parent,
+                            file=document.file, path=document.path)
+    if ctx.problems:
+        raise ProcedureError(sort_problems(ctx.problems))
+    assert station is not None
+    return station
+
+
+def parse_station(
+    ctx: Context, where: KeyPath, value: object, *, base_dir: Path, file: str, path: Path | None
+) -> Station | None:
+    """Parse a station mapping (a whole file, or inline in a procedure at ``where``)."""
+    fields = Fields(ctx, where, value, "a station")
+    if not fields.valid:
+        return None
+    version = fields.take("version", integer())
+    if version is not None and version != STATION_VERSION:
+        ctx.report(fields.child("version"), f"unsupported station version {version}; "
+                   f"this gyrocal reads version {STATION_VERSION}")
+    name = fields.take("name", text)
+    site = _site(ctx, fields)
+    chamber = _chamber(ctx, fields)
+    table = _table(ctx, fields)
+    gyro = _gyro(ctx, fields)
+    present, raw = fields.raw("simulation")
+    simulation = _simulation(ctx, fields.child("simulation"), raw, base_dir) if present else None
+    fields.finish()
+    if simulation is None and SIM_ADDRESS in (
+        getattr(chamber, "address", None), getattr(table, "address", None),
+        getattr(gyro, "port", None),
+    ):
+        ctx.report(where, "an instrument address is 'sim' but there is no simulation section")
+    return Station(version, name, site, chamber, table, gyro, simulation, file, path)
+
+
+def _site(ctx: Context, parent: Fields) -> Site:
+    fields = _section(ctx, parent, "site")
+    site = Site(fields.take("name", text), fields.take("latitude_deg", number(-90.0, 90.0)))
+    fields.finish()
+    return site
+
+
+def _section(ctx: Context, parent: Fields, key: str) -> Fields:
+    present, raw = parent.raw(key)
+    if not present:
+        if parent.valid:
+            ctx.report(parent.child(key), "required key is missing")
+        return Fields(ctx, parent.child(key), {}, key)
+    return Fields(ctx, parent.child(key), raw, key)
+
+
+def _address(driver: str | None) -> object:
+    def convert(value: object) -> str:
+        address = text(value)
+        if address == SIM_ADDRESS or driver not in _ADDRESS_FORMS:
+            return address
+        pattern, expected = _ADDRESS_FORMS[driver]
+        if not re.match(pattern, address):
+            raise UnitError(f"{address!r} is not an address for {driver}; expected {expected} "
+                            f"or '{SIM_ADDRESS}'")
+        return address
+    return convert
+
+
+def _identity(ctx: Context, parent: Fields) -> AssetIdentity:
+    fields = _section(ctx, parent, "identity")
+    identity = AssetIdentity(
+        fields.take("make", text),
+        fields.take("model", text),
+        fields.take("serial", serial_number),
+        fields.take("calibration_due", date, required=False),
+    )
+    fields.finish()
+    return identity
+
+
+def _common_link(fields: Fields) -> tuple[float, int]:
+    timeout_s = fields.take("timeout_s", duration(bare_seconds=True), required=False, default=1.0)
+    retries = fields.take("retries", integer(0, 20), required=False, default=3)
+    return timeout_s, retries
+
+
+def _chamber(ctx: Context, parent: Fields) -> ChamberConfig:
+    fields = _section(ctx, parent, "chamber")
+    driver = fields.take("driver", choice(CHAMBER_DRIVERS))
+    address = fields.take("address", _address(driver))
+    unit_id = fields.take("unit_id", integer(1, 247), required=False, default=1)
+    identity = _identity(ctx, fields)
+
+    lim = _section(ctx, fields, "limits")
+    limits = ChamberLimits(
+        lim.take("min_temp_c", quantity(TEMPERATURE, -273.15)),
+        lim.take("max_temp_c", quantity(TEMPERATURE, -273.15)),
+        lim.take("max_ramp_c_per_min", quantity(TEMPERATURE_RATE, above=0.0)),
+    )
+    lim.finish()
+    if None not in (limits.min_temp_c, limits.max_temp_c) and limits.min_temp_c >= limits.max_temp_c:
+        ctx.report(lim.child("max_temp_c"),
+                   f"max_temp_c {format_number(limits.max_temp_c)} °C must be above "
+                   f"min_temp_c {format_number(limits.min_temp_c)} °C")
+
+    safe = _section(ctx, fields, "safe_state")
+    action = safe.take("action", choice(("setpoint", "standby")))
+    setpoint_c = safe.take("setpoint_c", quantity(TEMPERATURE), required=action == "setpoint")
+    if action == "standby" and safe.has("setpoint_c"):
+        ctx.report(safe.child("setpoint_c"), "setpoint_c applies only to action: setpoint")
+    if setpoint_c is not None and None not in (limits.min_temp_c, limits.max_temp_c) and not (
+        limits.min_temp_c <= setpoint_c <= limits.max_temp_c
+    ):
+        ctx.report(safe.child("setpoint_c"),
+                   f"{format_number(setpoint_c)} °C is outside the chamber limits "
+                   f"{format_number(limits.min_temp_c)}…{format_number(limits.max_temp_c)} °C")
+    safe.finish()
+    timeout_s, retries = _common_link(fields)
+    fields.finish()
+    return ChamberConfig(driver, address, unit_id, identity, limits,
+                         ChamberSafeState(action, setpoint_c), timeout_s, retries)
+
+
+def _table(ctx: Context, parent: Fields) -> TableConfig:
+    fields = _section(ctx, parent, "table")
+    driver = fields.take("driver", choice(TABLE_DRIVERS))
+    address = fields.take("address", _address(driver))
+    axis = fields.take("axis", integer(1, 8), required=False, default=1)
+    identity = _identity(ctx, fields)
+    lim = _section(ctx, fields, "limits")
+    limits = TableLimits(
+        lim.take("max_rate_dps", quantity(RATE, above=0.0)),
+        lim.take("max_accel_dps2", quantity(ACCELERATION, above=0.0)),
+    )
+    lim.finish()
+    timeout_s, retries = _common_link(fields)
+    fields.finish()
+    return TableConfig(driver, address, axis, identity, limits, timeout_s, retries)
+
+
+def _gyro(ctx: Context, parent: Fields) -> GyroConfig:
+    fields = _section(ctx, parent, "gyro")
+    driver = fields.take("driver", choice(GYRO_DRIVERS))
+    gyro = GyroConfig(
+        driver,
+        fields.take("port", _address(driver)),
+        fields.take("baudrate", integer(1200, 20_000_000), required=False, default=921600),
+        fields.take("sample_rate_hz", quantity(FREQUENCY, above=0.0)),
+        fields.take("rate_lsb", number(above=0.0)),
+        fields.take("with_temperature", boolean, required=False, default=True),
+        fields.take("timeout_s", duration(bare_seconds=True), required=False, default=2.0),
+    )
+    fields.finish()
+    return gyro
+
+
+def _simulation(ctx: Context, where: KeyPath, value: object, base_dir: Path) -> SimulationConfig:
+    fields = Fields(ctx, where, value, "simulation")
+    model_text = fields.take("gyro_model", text)
+    gyro_model = (base_dir / model_text).resolve() if model_text is not None else None
+    if gyro_model is not None and not gyro_model.is_file():
+        ctx.report(fields.child("gyro_model"), f"gyro model file not found: {gyro_model} "
+                   "(the path is relative to the file that names it)")
+    seed = fields.take("seed", integer(0), required=False, default=1)
+
+    ch = _section(ctx, fields, "chamber")
+    chamber = ChamberPhysics(
+        ch.take("ambient_c", quantity(TEMPERATURE, -273.15)),
+        ch.take("tau_s", duration(bare_seconds=True)),
+        ch.take("max_heat_c_per_min", quantity(TEMPERATURE_RATE, above=0.0)),
+        ch.take("max_cool_c_per_min", quantity(TEMPERATURE_RATE, above=0.0)),
+        ch.take("noise_c", number(0.0, unit="°C"), required=False, default=0.0),
+    )
+    ch.finish()
+    tb = _section(ctx, fields, "table")
+    table = TablePhysics(tb.take("rate_noise_dps", quantity(RATE, 0.0), required=False, default=0.0))
+    tb.finish()
+    fields.finish()
+    return SimulationConfig(gyro_model, seed, chamber, table)

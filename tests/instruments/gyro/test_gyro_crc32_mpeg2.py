@@ -1,0 +1,66 @@
+"""CRC-32/MPEG-2: published check value and an independent bit-by-bit reference."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gyrocal.instruments.gyro.crc32_mpeg2 import (
+    CHECK_VALUE,
+    crc32_mpeg2,
+    crc32_mpeg2_rows,
+    crc32_mpeg2_words,
+)
+
+pytestmark = pytest.mark.timeout(60)
+
+
+def bitwise_crc32_mpeg2(data: bytes) -> int:
+    """Textbook shift register, one bit at a time (no tables, no zlib)."""
+    crc = 0xFFFFFFFF
+    for byte in data:
+        for bit in range(7, -1, -1):
+            feedback = ((crc >> 31) & 1) ^ ((byte >> bit) & 1)
+            crc = (crc << 1) & 0xFFFFFFFF
+            if feedback:
+                crc ^= 0x04C11DB7
+    return crc
+
+
+def test_published_check_value():
+    assert CHECK_VALUE == 0x0376E6E7
+    assert crc32_mpeg2(b"123456789") == 0x0376E6E7
+    assert bitwise_crc32_mpeg2(b"123456789") == 0x0376E6E7
+
+
+def test_empty_message_keeps_the_init_value():
+    assert crc32_mpeg2(b"") == 0xFFFFFFFF
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.binary(min_size=0, max_size=40))
+def test_scalar_table_crc_matches_the_bitwise_reference(data):
+    assert crc32_mpeg2(data) == bitwise_crc32_mpeg2(data)
+
+
+@pytest.mark.parametrize("length", [1, 2, 7, 8, 10, 13])
+def test_vectorised_rows_match_the_bitwise_reference(length):
+    rng = np.random.default_rng(length)
+    messages = rng.integers(0, 256, (300, length), dtype=np.uint8)
+    got = crc32_mpeg2_rows(messages)
+    assert got.dtype == np.uint32
+    assert [int(v) for v in got] == [bitwise_crc32_mpeg2(m.tobytes()) for m in messages]
+
+
+def test_word_form_takes_big_endian_words():
+    message = b"12345678"
+    words = np.frombuffer(message, dtype=">u2").reshape(1, 4)
+    assert int(crc32_mpeg2_words(words)[0]) == bitwise_crc32_mpeg2(message)
+    assert int(crc32_mpeg2_words(words.astype(np.uint16))[0]) == bitwise_crc32_mpeg2(message)
+
+
+def test_appending_the_crc_big_endian_gives_a_zero_remainder():
+    """Property of a non-reflected CRC without final XOR: the residue is 0."""
+    data = b"\x90\x01\x02\x03\x00\x07\x00\xfa"
+    crc = crc32_mpeg2(data)
+    assert crc32_mpeg2(data + crc.to_bytes(4, "big")) == 0

@@ -1,0 +1,238 @@
+"""Stim300Gyro against the simulated gyro over a real pseudo-terminal.
+
+The source is a ramp whose raw value equals the frame number k (rate = t_s
+with lsb = 1/fs), so every decoded sample says exactly which frame it was and
+the driver's counts can be compared with the truth.
+"""
+
+import time
+
+import numpy as np
+import pytest
+
+from gyrocal.instruments.errors import InstrumentConnectionError, InstrumentTimeout
+from gyrocal.instruments.gyro.datagram import RAW_FULL_SCALE, STATUS_RATE_SATURATED, encode_frames
+from gyrocal.instruments.gyro.stim300 import Stim300Gyro
+from gyrocal.instruments.interfaces import GyroStream
+from gyrocal.instruments.sim.faults import FaultInjector
+from gyrocal.instruments.sim.gyro_pty import FAULTS, SimulatedGyroPort
+from gyrocal.models.clock import RealClock, SimClock
+
+pytestmark = pytest.mark.timeout(30)
+
+FS_HZ = 2000.0
+LSB = 1.0 / FS_HZ          # rate = t_s  ->  raw = k
+
+
+def ramp_source(t_s):
+    return t_s.copy(), 20.0 + 0.5 * np.sin(t_s)
+
+
+@pytest.fixture
+def rig():
+    """Factory: (sim, gyro) pairs that are always torn down."""
+    made = []
+
+    def make(clock, with_temperature=False, faults=None, block_frames=64):
+        sim = SimulatedGyroPort(
+            ramp_source, clock, sample_rate_hz=FS_HZ, with_temperature=with_temperature,
+            lsb=LSB, faults=faults, block_frames=block_frames,
+        )
+        sim.start()
+        gyro = Stim300Gyro(sim.port_name, sample_rate_hz=FS_HZ, with_temperature=with_temperature,
+                           lsb=LSB, timeout_s=5.0)
+        made.append((sim, gyro))
+        return sim, gyro
+
+    yield make
+    for sim, gyro in made:
+        gyro.close()
+        sim.stop()
+
+
+def frame_numbers(block):
+    k = np.rint(block.rate / LSB).astype(np.int64)
+    assert np.array_equal(block.counter, (k % 256).astype(np.uint8)), "rate and counter disagree"
+    return k
+
+
+def test_driver_satisfies_the_gyro_stream_protocol(rig):
+    sim, gyro = rig(SimClock())
+    assert isinstance(gyro, GyroStream)
+    identity = gyro.identify()
+    assert identity.role == "gyro" and identity.driver == "stim300"
+    assert identity.address == sim.port_name and "0x90" in identity.description
+
+
+def test_sim_clock_advances_as_the_driver_reads(rig):
+    clock = SimClock()
+    sim, gyro = rig(clock, with_temperature=True, block_frames=64)
+    gyro.flush()
+    blocks = [gyro.read_samples(5000, timeout_s=10) for _ in range(4)]
+    k = np.concatenate([frame_numbers(b) for b in blocks])
+    assert np.array_equal(np.diff(k), np.ones(k.size - 1)), "frames must be consecutive"
+    assert all(b.lost_frames == b.crc_errors == b.garbage_bytes == 0 for b in blocks)
+    assert np.array_equal(np.concatenate([b.index for b in blocks]), np.arange(k.size))
+    temp = np.concatenate([b.temperature_c for b in blocks])
+    expected_temp = np.rint((20.0 + 0.5 * np.sin(k / FS_HZ)) * 256) / 256
+    assert np.array_equal(temp, expected_temp)
+    # Simulated time is where the reader is, give or take what sits in the
+    # pty buffer (~18 KiB) plus the block being written.
+    read_until_s = (k[-1] + 1) / FS_HZ
+    slack_s = (20480 / 14 + 2 * 64) / FS_HZ
+    assert read_until_s - 64 / FS_HZ <= clock.now_s() <= read_until_s + slack_s
+
+
+def test_real_clock_paces_frames_and_never_sends_them_early(rig):
+    clock = RealClock()
+    sim, gyro = rig(clock, block_frames=20)
+    for _ in range(3):
+        block = gyro.read_samples(150, timeout_s=3)
+        k = frame_numbers(block)
+        assert np.array_equal(np.diff(k), np.ones(k.size - 1))
+        # A frame is only written once the clock has reached its block's end.
+        assert clock.now_s() >= (k[-1] + 1) / FS_HZ
+
+
+def test_surplus_samples_carry_over_to_the_next_call(rig):
+    sim, gyro = rig(SimClock())
+    first = gyro.read_samples(7)
+    second = gyro.read_samples(3000)
+    third = gyro.read_samples(1)
+    k = np.concatenate([frame_numbers(b) for b in (first, second, third)])
+    assert [len(first), len(second), len(third)] == [7, 3000, 1]
+    assert np.array_equal(np.diff(k), np.ones(k.size - 1))
+    assert np.concatenate([first.index, second.index, third.index]).tolist() == list(range(3008))
+
+
+def test_flush_after_someone_else_advanced_the_clock_gives_fresh_frames(rig):
+    clock = SimClock()
+    sim, gyro = rig(clock)
+    gyro.read_samples(500)
+    time.sleep(0.1)                     # let the writer block on the full pty buffer
+    clock.sleep(10.0)                   # e.g. the orchestrator waiting for a chamber
+    gyro.flush()
+    block = gyro.read_samples(3000)
+    k = frame_numbers(block)
+    assert block.index[0] == 0
+    fresh = k >= 10.0 * FS_HZ
+    # At most the one frame that was half-written when time jumped is stale;
+    # the writer drops the rest of its stale block.
+    assert np.count_nonzero(~fresh) <= 1
+    assert np.array_equal(np.diff(k[fresh]), np.ones(np.count_nonzero(fresh) - 1))
+
+
+@pytest.mark.parametrize("n_faulty", [1, 5, 200])
+def test_corrupt_frames_are_counted_and_never_returned(rig, n_faulty):
+    faults = FaultInjector(FAULTS)
+    sim, gyro = rig(SimClock(), faults=faults)
+    gyro.read_samples(100)
+    faults.arm("corrupt_frames", count=n_faulty)
+    blocks = [gyro.read_samples(1000) for _ in range(5)]
+    k = np.concatenate([frame_numbers(b) for b in blocks])   # every sample is a true frame
+    assert sim.injected["corrupt_frames"] == n_faulty
+    assert sum(b.crc_errors for b in blocks) == n_faulty
+    assert sum(b.lost_frames for b in blocks) == n_faulty == (k[-1] - k[0] + 1) - k.size
+    assert sum(b.garbage_bytes for b in blocks) == 0
+
+
+def test_lost_frames_are_counted_from_the_counter(rig):
+    faults = FaultInjector(FAULTS)
+    sim, gyro = rig(SimClock(), faults=faults)
+    gyro.read_samples(100)
+    faults.arm("lose_frames", count=7)
+    blocks = [gyro.read_samples(1000) for _ in range(5)]
+    k = np.concatenate([frame_numbers(b) for b in blocks])
+    assert sim.injected["lose_frames"] == 7
+    assert sum(b.lost_frames for b in blocks) == 7 == (k[-1] - k[0] + 1) - k.size
+    assert sum(b.crc_errors + b.garbage_bytes for b in blocks) == 0
+
+
+def test_garbage_is_skipped_and_every_byte_accounted_for(rig):
+    faults = FaultInjector(FAULTS)
+    sim, gyro = rig(SimClock(), faults=faults)
+    gyro.read_samples(100)
+    faults.arm("garbage", count=4, n_bytes=53)
+    blocks = [gyro.read_samples(1000) for _ in range(5)]
+    k = np.concatenate([frame_numbers(b) for b in blocks])
+    assert np.array_equal(np.diff(k), np.ones(k.size - 1)), "garbage must not cost a frame"
+    assert sim.injected["garbage_bytes"] == 4 * 53
+    # A random identifier byte followed by a frame length of garbage is a
+    # "CRC error" span; either way every injected byte is accounted for.
+    skipped = sum(b.garbage_bytes + 12 * b.crc_errors for b in blocks)
+    assert skipped == 4 * 53
+    assert sum(b.lost_frames for b in blocks) == 0
+
+
+def test_saturated_frames_are_flagged_at_full_scale(rig):
+    faults = FaultInjector(FAULTS)
+    sim, gyro = rig(SimClock(), faults=faults)
+    gyro.read_samples(100)
+    faults.arm("saturate", count=4)
+    block = gyro.read_samples(5000)
+    flagged = (block.status & STATUS_RATE_SATURATED) != 0
+    assert int(flagged.sum()) == 4 == sim.injected["saturate"]
+    assert np.all(block.rate[flagged] == RAW_FULL_SCALE * LSB)
+    k = np.rint(block.rate[~flagged] / LSB).astype(np.int64)
+    assert np.array_equal(block.counter[~flagged], (k % 256).astype(np.uint8))
+    assert block.lost_frames == 0 and block.crc_errors == 0
+
+
+def test_stall_raises_a_clear_timeout_and_the_stream_resumes(rig):
+    faults = FaultInjector(FAULTS)
+    sim, gyro = rig(SimClock(), faults=faults)
+    before = gyro.read_samples(100)
+    faults.arm("stall", count=None)
+    with pytest.raises(InstrumentTimeout) as caught:
+        for _ in range(100):            # drain what was already buffered
+            gyro.read_samples(2000, timeout_s=0.3)
+    error = caught.value
+    assert error.instrument == "gyro" and error.transient
+    assert "read_samples(n=2000" in str(error)
+    assert "of 2000 samples within 0.3 s" in str(error) and sim.port_name in str(error)
+    faults.clear("stall")
+    after = gyro.read_samples(3000, timeout_s=5)
+    k_after = frame_numbers(after)
+    assert np.array_equal(np.diff(k_after), np.ones(k_after.size - 1))
+    # Samples decoded before the timeout were kept for this call, and nothing
+    # was lost: a stalled SimClock gyro loses no frames.
+    assert after.lost_frames == 0
+    assert after.index[0] == before.index[-1] + 1
+    assert k_after[0] == frame_numbers(before)[-1] + 1
+
+
+def test_timed_stall_is_ridden_out_within_the_timeout(rig):
+    faults = FaultInjector(FAULTS)
+    sim, gyro = rig(SimClock(), faults=faults)
+    gyro.read_samples(10)
+    faults.arm("stall", count=1, duration_s=0.3)
+    block = gyro.read_samples(30000, timeout_s=10)
+    k = frame_numbers(block)
+    assert np.array_equal(np.diff(k), np.ones(k.size - 1))
+    assert sim.injected["stalls"] == 1
+
+
+def test_gyro_gone_is_a_connection_error(rig):
+    sim, gyro = rig(SimClock())
+    gyro.read_samples(10)
+    sim.stop()
+    with pytest.raises((InstrumentConnectionError, InstrumentTimeout)) as caught:
+        for _ in range(100):
+            gyro.read_samples(5000, timeout_s=0.5)
+    assert caught.value.instrument == "gyro"
+
+
+def test_missing_port_is_a_connection_error_naming_the_port():
+    with pytest.raises(InstrumentConnectionError, match="gyro-x: open /dev/nonexistent-gyro"):
+        Stim300Gyro("/dev/nonexistent-gyro", name="gyro-x")
+
+
+def test_pyserial_url_ports_work_too():
+    """``loop://`` echoes what is written to it: the driver reads it like a line."""
+    gyro = Stim300Gyro("loop://", lsb=LSB)
+    try:
+        gyro._serial.write(encode_frames(np.arange(5) * LSB, np.arange(5), lsb=LSB))
+        block = gyro.read_samples(5, timeout_s=1)
+        assert np.rint(block.rate / LSB).tolist() == [0, 1, 2, 3, 4]
+    finally:
+        gyro.close()
