@@ -12,6 +12,7 @@ needs to know what truth it is looking at.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -134,6 +135,36 @@ class GyroSimulator:
         self._state = result[1]
         self._index += n
         return result[0]
+
+    def skip_to(
+        self,
+        t_s: float,
+        inputs_at: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray | None]],
+        step_s: float = 1.0,
+    ) -> None:
+        """Jump to the sample at ``t_s`` without emitting the samples in between.
+
+        A simulated gyro whose frames nobody reads (the orchestrator is waiting
+        for a soak on simulated time) must not spend hours generating them,
+        but its physics must not forget the span either: the thermal-lag
+        sensor temperature, the hysteresis branch and the table angle are
+        evolved through it on a ``step_s`` grid (exact for the thermal lag
+        when the chamber temperature is piecewise linear on that grid).
+        The noise processes simply continue from their last state, as if the
+        span had not been there — a negligible error for the unread span.
+        ``inputs_at(t)`` gives (table rate, chamber temperature, table angle or None).
+        """
+        k_target = int(round((t_s - self.t0_s) * self.fs_hz))
+        if k_target <= self._index:
+            return
+        t_first = self.t_next_s
+        t_last = self.t0_s + (k_target - 1) / self.fs_hz
+        count = max(2, int(np.ceil((t_last - t_first) / step_s)) + 1)
+        grid = np.linspace(t_first, t_last, count) if t_last > t_first else np.array([t_last])
+        rate, chamber, angle = inputs_at(grid)
+        ideal = indicated_rate(self.model, ModelInputs.of(grid, rate, chamber, angle), self._state)
+        self._state = ideal.state
+        self._index = k_target
 
 
 def _emit(

@@ -13,7 +13,6 @@ The same code runs against hardware (``RealClock``) and against simulators
 
 from __future__ import annotations
 
-import contextlib
 import signal
 import threading
 from collections.abc import Callable, Iterator
@@ -22,9 +21,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
 from gyrocal.instruments.errors import InstrumentError
-from gyrocal.instruments.interfaces import Chamber, GyroStream, Identity, RateTable
-from gyrocal.models.clock import Clock
+from gyrocal.instruments.factory import Instruments
+from gyrocal.instruments.interfaces import Identity
 from gyrocal.orchestrator.machine import RunStateMachine
 from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.run_folder import RunFolder
@@ -40,21 +40,6 @@ class SoakTimeoutError(RunFaultError):
 
 class StepQualityError(RunFaultError):
     pass
-
-
-@dataclass
-class Instruments:
-    chamber: Chamber
-    table: RateTable
-    gyro: GyroStream
-    clock: Clock
-    sample_rate_hz: float
-
-    def close(self) -> None:
-        for inst in (self.gyro, self.table, self.chamber):
-            # Closing must never mask the run's real outcome.
-            with contextlib.suppress(Exception):
-                inst.close()
 
 
 @dataclass(frozen=True)

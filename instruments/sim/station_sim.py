@@ -1,0 +1,152 @@
+"""A whole simulated station: chamber, table and gyro servers sharing one clock and one physics.
+
+``gyrocal run --sim`` and ``gyrocal sim serve`` build one of these from a
+station file's ``simulation:`` section. The servers are the same ones the
+tests talk to — a Modbus server, a SCPI socket server, a pseudo-terminal —
+so a dry run exercises the real drivers end to end. The simulated gyro sees
+the table's true rate and angle and the chamber's true air temperature at
+each frame time, through the measurement model in ``models/``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from gyrocal.instruments.sim.chamber_server import (
+    FAULTS as CHAMBER_FAULTS,
+)
+from gyrocal.instruments.sim.chamber_server import (
+    SimulatedWatlowF4,
+    SimulatedWatlowF4T,
+)
+from gyrocal.instruments.sim.faults import FaultInjector
+from gyrocal.instruments.sim.gyro_pty import FAULTS as GYRO_FAULTS
+from gyrocal.instruments.sim.gyro_pty import SimulatedGyroPort
+from gyrocal.instruments.sim.table_server import FAULTS as TABLE_FAULTS
+from gyrocal.instruments.sim.table_server import SimulatedAcutrol
+from gyrocal.models.chamber import ChamberPhysics
+from gyrocal.models.clock import RealClock, SimClock
+from gyrocal.models.gyro_model import GyroModel, load_model
+from gyrocal.models.gyro_sim import GyroSimulator
+from gyrocal.models.table import TablePhysics
+
+#: Seed offsets so the chamber, table and gyro noise streams are independent.
+_SEED_CHAMBER, _SEED_TABLE, _SEED_GYRO, _SEED_PTY = 101, 202, 303, 404
+
+
+class GyroPhysicsSource:
+    """Feeds the simulated gyro: model output for the table/chamber state at each frame time."""
+
+    def __init__(self, simulator: GyroSimulator, table: TablePhysics, chamber: ChamberPhysics,
+                 skip_step_s: float = 1.0) -> None:
+        self.simulator = simulator
+        self.table = table
+        self.chamber = chamber
+        self.skip_step_s = skip_step_s
+        self.skipped_s = 0.0
+
+    def _inputs(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return (np.asarray(self.table.rate_dps(t_s), dtype=float),
+                np.asarray(self.chamber.air_temperature_c(t_s), dtype=float),
+                np.asarray(self.table.angle_deg(t_s), dtype=float))
+
+    def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        sim = self.simulator
+        gap_s = float(t_s[0]) - sim.t_next_s
+        if gap_s > 0.5 / sim.fs_hz:
+            sim.skip_to(float(t_s[0]), self._inputs, self.skip_step_s)
+            self.skipped_s += gap_s
+        rate, chamber, angle = self._inputs(t_s)
+        samples = sim.generate(rate, chamber, angle)
+        return samples.gyro, samples.sensor_temp_c
+
+
+@dataclass(frozen=True)
+class SimAddresses:
+    chamber: str
+    table: str
+    gyro: str
+
+
+class SimulatedStation:
+    """Starts/stops the three simulators of a station; exposes their addresses and faults."""
+
+    def __init__(self, station, clock: RealClock | SimClock, seed: int | None = None,
+                 model: GyroModel | None = None, gyro_block_frames: int | None = None) -> None:
+        sim = station.simulation
+        if sim is None:
+            raise ValueError(f"{station.file}: the station has no simulation: section; "
+                             "--sim needs one (gyro_model, seed, chamber and table physics)")
+        self.station = station
+        self.clock = clock
+        self.seed = sim.seed if seed is None else int(seed)
+        self.model = model if model is not None else load_model(sim.gyro_model)
+        limits = station.chamber.limits
+        self.chamber_physics = ChamberPhysics(
+            clock,
+            ambient_c=sim.chamber.ambient_c,
+            tau_s=sim.chamber.tau_s,
+            max_heat_c_per_min=sim.chamber.max_heat_c_per_min,
+            max_cool_c_per_min=sim.chamber.max_cool_c_per_min,
+            min_setpoint_c=limits.min_temp_c,
+            max_setpoint_c=limits.max_temp_c,
+            noise_c=sim.chamber.noise_c,
+            seed=self.seed + _SEED_CHAMBER,
+        )
+        table_limits = station.table.limits
+        self.table_physics = TablePhysics(
+            clock,
+            max_rate_dps=table_limits.max_rate_dps,
+            max_accel_dps2=table_limits.max_accel_dps2,
+            rate_noise_dps=sim.table.rate_noise_dps,
+            seed=self.seed + _SEED_TABLE,
+        )
+        gyro_cfg = station.gyro
+        self.gyro_simulator = GyroSimulator(self.model, gyro_cfg.sample_rate_hz,
+                                            seed=self.seed + _SEED_GYRO)
+        self.chamber_faults = FaultInjector(CHAMBER_FAULTS, owner="simulated chamber")
+        self.table_faults = FaultInjector(TABLE_FAULTS, owner="simulated table")
+        self.gyro_faults = FaultInjector(GYRO_FAULTS, owner="simulated gyro")
+        chamber_cls = SimulatedWatlowF4T if station.chamber.driver == "watlow_f4t" else SimulatedWatlowF4
+        self.chamber_server = chamber_cls(self.chamber_physics, self.chamber_faults,
+                                          unit_id=station.chamber.unit_id)
+        self.table_server = SimulatedAcutrol(self.table_physics, self.table_faults)
+        self.source = GyroPhysicsSource(self.gyro_simulator, self.table_physics, self.chamber_physics)
+        if gyro_block_frames is None:
+            # ~50 ms of frames per write: big enough for throughput, small enough that the
+            # clock never runs far ahead of what the reader has consumed.
+            gyro_block_frames = max(16, int(gyro_cfg.sample_rate_hz * 0.05))
+        self.gyro_port = SimulatedGyroPort(
+            self.source, clock, sample_rate_hz=gyro_cfg.sample_rate_hz,
+            with_temperature=gyro_cfg.with_temperature, lsb=gyro_cfg.rate_lsb,
+            faults=self.gyro_faults, block_frames=gyro_block_frames, seed=self.seed + _SEED_PTY,
+        )
+        self._started = False
+
+    @property
+    def addresses(self) -> SimAddresses:
+        return SimAddresses(self.chamber_server.address, self.table_server.resource,
+                            self.gyro_port.port_name)
+
+    def start(self) -> SimulatedStation:
+        if not self._started:
+            self.chamber_server.start()
+            self.table_server.start()
+            self.gyro_port.start()
+            self._started = True
+        return self
+
+    def stop(self) -> None:
+        for server in (self.gyro_port, self.table_server, self.chamber_server):
+            with contextlib.suppress(Exception):
+                server.stop()
+        self._started = False
+
+    def __enter__(self) -> SimulatedStation:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

@@ -1,0 +1,311 @@
+"""``gyrocal validate | plan | run | resume | status | demo``: wiring, not logic.
+
+Each command loads and validates its inputs (exit 2 on a problem), builds the
+instruments — real ones from the station file, or ``--sim`` simulators on
+loopback sharing one clock — and hands the plan to the engine. A resumed run
+re-reads the procedure and station from where they were and refuses if they
+changed since the run started (their SHA-256 is in the manifest).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import getpass
+import logging
+import os
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from gyrocal.cli import EXIT_ACCEPTANCE_FAILED, EXIT_FAULT, EXIT_OK, BadInput
+from gyrocal.instruments.errors import InstrumentError
+from gyrocal.instruments.factory import Instruments, open_instruments
+from gyrocal.models.clock import RealClock, SimClock, make_clock
+from gyrocal.orchestrator.engine import EnginePolicy, RunEngine, RunFaultError, completed_steps
+from gyrocal.orchestrator.journal import sha256_file
+from gyrocal.orchestrator.plan import Plan, expand_plan, format_plan
+from gyrocal.orchestrator.procedure import Procedure, load_procedure
+from gyrocal.orchestrator.progress import Progress
+from gyrocal.orchestrator.run_folder import RunFolder, new_run_id
+
+DEFAULT_SIM_STATION = Path("stations/sim.yaml")
+
+
+def quiet_library_logs(debug: bool = False) -> None:
+    """pymodbus logs every retry to stderr; the journal is where retries belong."""
+    level = logging.DEBUG if debug else logging.CRITICAL
+    for name in ("pymodbus", "pyvisa", "pyvisa_py"):
+        logging.getLogger(name).setLevel(level)
+
+
+# -- validate / plan -----------------------------------------------------------------------
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    procedure = load_procedure(args.procedure, station_path=args.station)
+    plan = expand_plan(procedure)
+    print(f"{procedure.file}: OK — {procedure.name!r} on station {procedure.station.name!r}: "
+          f"{len(plan.steps)} steps, ETA {_hms(plan.total_s)} (worst case {_hms(plan.max_total_s)})")
+    return EXIT_OK
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    procedure = load_procedure(args.procedure, station_path=args.station)
+    print(format_plan(expand_plan(procedure)))
+    return EXIT_OK
+
+
+def _hms(seconds: float) -> str:
+    seconds = int(round(seconds))
+    return f"{seconds // 3600}:{seconds % 3600 // 60:02d}:{seconds % 60:02d}"
+
+
+# -- run / resume --------------------------------------------------------------------------
+
+def _policy(procedure: Procedure) -> EnginePolicy:
+    quality = procedure.data_quality
+    safe = procedure.station.chamber.safe_state
+    return EnginePolicy(
+        max_loss_fraction=quality.max_lost_frame_fraction,
+        max_repeats=quality.max_step_repeats,
+        safe_setpoint_c=safe.setpoint_c if safe.action == "setpoint" else None,
+    )
+
+
+@contextlib.contextmanager
+def station_instruments(procedure: Procedure, clock, sim: bool, seed: int | None,
+                        on_retry) -> Iterator[tuple[Instruments, Any]]:
+    """Instruments for the run: simulators on loopback (``sim``) or the station's addresses."""
+    station = procedure.station
+    simulated = None
+    try:
+        addresses = None
+        if sim:
+            from gyrocal.instruments.sim.station_sim import SimulatedStation
+
+            try:
+                simulated = SimulatedStation(station, clock, seed=seed).start()
+            except ValueError as exc:
+                raise BadInput(str(exc)) from None
+            addresses = simulated.addresses
+        instruments = open_instruments(station, clock, addresses, on_retry=on_retry)
+        try:
+            yield instruments, simulated
+        finally:
+            instruments.close()
+    finally:
+        if simulated is not None:
+            simulated.stop()
+
+
+def _input_files(procedure: Procedure) -> dict[str, Path]:
+    files: dict[str, Path] = {}
+    for path in procedure.files:
+        role = "procedure" if path == procedure.path else (
+            "station" if procedure.station.path and path == procedure.station.path else
+            f"include-{path.stem}")
+        files[role] = path
+    sim = procedure.station.simulation
+    if sim is not None:
+        files["gyro_model"] = Path(sim.gyro_model)
+    return files
+
+
+def _clock_for(speed: str | None, sim: bool) -> RealClock | SimClock:
+    try:
+        return make_clock(speed if speed is not None else ("max" if sim else "1"))
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    quiet_library_logs(getattr(args, "debug", False))
+    station_path = args.station
+    if args.sim and args.sim_station:
+        station_path = args.sim_station
+    procedure = load_procedure(args.procedure, station_path=station_path)
+    plan = expand_plan(procedure)
+    if not args.sim and any(
+        addr == "sim" for addr in (procedure.station.chamber.address,
+                                   procedure.station.table.address, procedure.station.gyro.port)):
+        raise BadInput(f"{procedure.station.file}: instrument address 'sim' needs --sim "
+                       "(or a station file with real addresses)")
+    if args.speed is not None and args.speed != "max" and args.sim is False:
+        pass  # scaled real time against real hardware is the operator's choice
+    clock = _clock_for(args.speed, args.sim)
+    run_dir = Path(args.out) if args.out else Path("runs") / new_run_id()
+    files = _input_files(procedure)
+    folder = RunFolder.create(
+        run_dir,
+        procedure_path=files.pop("procedure"),
+        station_path=files.pop("station", None),
+        extra_files=files,
+        manifest_fields={
+            "mode": "sim" if args.sim else "station",
+            "speed": args.speed if args.speed is not None else ("max" if args.sim else "1"),
+            "seed": args.seed,
+            "operator": args.operator or _operator(),
+            "unit_under_test": {"model": procedure.unit_under_test.model,
+                                "serial": procedure.unit_under_test.serial},
+            "station_name": procedure.station.name,
+            "steps": [step.step_id for step in plan.steps],
+            "eta_s": plan.total_s,
+            "pid": os.getpid(),
+        },
+    )
+    print(f"run folder: {folder.path}", file=sys.stderr)
+    return _execute(folder, procedure, plan, clock, args.sim, args.seed)
+
+
+def cmd_resume(args: argparse.Namespace) -> int:
+    quiet_library_logs(getattr(args, "debug", False))
+    folder = RunFolder.open(Path(args.run_dir))
+    manifest = folder.read_manifest()
+    if manifest.get("state") == "done":
+        print(f"{folder.path}: run already complete; nothing to resume")
+        return EXIT_OK
+    inputs = manifest["inputs"]
+    for role, entry in inputs.items():
+        source = Path(entry["source"])
+        if not source.is_file():
+            raise BadInput(f"{source}: the {role} file of this run is gone; restore it to resume "
+                           f"(a copy is in {folder.path / entry['copy']})")
+        if sha256_file(source) != entry["sha256"]:
+            raise BadInput(f"{source}: the {role} file changed since the run started "
+                           f"(SHA-256 differs from {folder.path / entry['copy']}); "
+                           "resume needs the inputs the run started with")
+    station = inputs.get("station", {}).get("source")
+    procedure = load_procedure(inputs["procedure"]["source"], station_path=station)
+    plan = expand_plan(procedure)
+    if [s.step_id for s in plan.steps] != manifest.get("steps"):
+        raise BadInput(f"{folder.path}: the expanded plan differs from the one the run started with")
+    sim = manifest.get("mode") == "sim"
+    speed = args.speed if args.speed is not None else manifest.get("speed")
+    clock = _clock_for(speed, sim)
+    seed = manifest.get("seed")
+    resumes = int(manifest.get("resumes", 0)) + 1
+    folder.update_manifest(resumes=resumes, pid=os.getpid())
+    if sim:
+        # A fresh simulator noise stream per resume: a restarted rig does not replay its noise.
+        base = seed if seed is not None else (procedure.station.simulation.seed or 0)
+        seed = base + 7919 * resumes
+    return _execute(folder, procedure, plan, clock, sim, seed)
+
+
+def _operator() -> str:
+    try:
+        return getpass.getuser()
+    except Exception:  # noqa: BLE001 - no passwd entry in some containers
+        return "unknown"
+
+
+def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bool,
+             seed: int | None) -> int:
+    journal = folder.open_journal()
+    if journal.count == 0:
+        journal.append("run_started", run_id=folder.read_manifest()["run_id"],
+                       procedure=procedure.name, steps=len(plan.steps), sim=sim, seed=seed)
+
+    def on_retry(role: str, attempt: int, exc: InstrumentError) -> None:
+        journal.append("retry", instrument=role, attempt=attempt, command=exc.command,
+                       detail=exc.detail, reply=_text(exc.reply))
+
+    results: dict[str, Any] = {}
+
+    def on_finished() -> None:
+        results.update(_build_report(folder))
+
+    try:
+        with station_instruments(procedure, clock, sim, seed, on_retry) as (instruments, _):
+            engine = RunEngine(folder, list(plan.steps), instruments, _policy(procedure),
+                               progress=Progress(), on_finished=on_finished)
+            engine.run()
+    except RunFaultError as exc:
+        print(f"gyrocal: fault: {exc}", file=sys.stderr)
+        return EXIT_FAULT
+    except InstrumentError as exc:
+        # Raised while connecting, before the engine owned the instruments.
+        journal.append("fault", message=str(exc), state="connecting")
+        folder.update_manifest(state="faulted", last_fault=str(exc))
+        print(f"gyrocal: fault: {exc}; nothing was commanded. Resume with "
+              f"`gyrocal resume {folder.path}` when the instrument answers", file=sys.stderr)
+        return EXIT_FAULT
+    finally:
+        folder.close()
+    failed = [a for a in results.get("acceptance", []) if not a.get("pass")]
+    print(f"run complete: {folder.path}")
+    for item in results.get("acceptance", []):
+        verdict = "PASS" if item["pass"] else "FAIL"
+        print(f"  {verdict}  {item['name']}: {item['value']:.6g} (limit {item['limit']:.6g})")
+    return EXIT_ACCEPTANCE_FAILED if failed else EXIT_OK
+
+
+def _build_report(folder: RunFolder) -> dict[str, Any]:
+    try:
+        from gyrocal.reports.build import build_report
+    except ImportError:
+        return {}
+    return build_report(folder.path)
+
+
+def _text(reply: Any) -> Any:
+    return reply.decode("latin-1") if isinstance(reply, bytes) else reply
+
+
+# -- status ------------------------------------------------------------------------------
+
+def cmd_status(args: argparse.Namespace) -> int:
+    folder = RunFolder.open(Path(args.run_dir))
+    manifest = folder.read_manifest()
+    events = folder.journal_events()
+    done = completed_steps(events)
+    steps = manifest.get("steps", [])
+    remaining = [s for s in steps if s not in done]
+    live = manifest.get("state") == "running" and _pid_alive(manifest.get("pid"))
+    state = manifest.get("state")
+    if state == "running" and not live:
+        state = "interrupted (process gone; resumable)"
+    print(f"run {manifest.get('run_id')}  {folder.path}")
+    print(f"  state: {state}")
+    print(f"  unit: {manifest.get('unit_under_test')}")
+    print(f"  steps: {len(done)}/{len(steps)} completed"
+          + (f"; next: {remaining[0]}" if remaining else ""))
+    faults = [e for e in events if e.get("event") in ("fault", "interrupted")]
+    retries = sum(1 for e in events if e.get("event") == "retry")
+    bad = sum(1 for e in events if e.get("event") == "step_bad")
+    print(f"  retries: {retries}; repeated (bad) steps: {bad}; faults: {len(faults)}")
+    if faults:
+        print(f"  last fault: {faults[-1].get('message')}")
+    if events:
+        last = events[-1]
+        print(f"  last event: #{last.get('seq')} {last.get('event')} {last.get('step_id', '')}")
+    return EXIT_OK
+
+
+def _pid_alive(pid: Any) -> bool:
+    if not isinstance(pid, int):
+        return False
+    try:
+        os.kill(pid, 0)
+    except OSError:
+        return False
+    return True
+
+
+# -- demo --------------------------------------------------------------------------------
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """The smoke procedure against simulated instruments, end to end, with its report."""
+    root = Path(__file__).resolve().parents[1]
+    procedure = root / "procedures" / "smoke.yaml"
+    out = Path(args.out) if args.out else Path("runs") / f"demo-{new_run_id()}"
+    print(f"== gyrocal demo: {procedure.relative_to(root)} against simulated instruments ==")
+    run_args = argparse.Namespace(procedure=str(procedure), station=None, sim=True, out=str(out),
+                                  speed="max", seed=1, operator="demo", sim_station=None,
+                                  debug=getattr(args, "debug", False))
+    code = cmd_run(run_args)
+    if code == EXIT_FAULT:
+        return code
+    print(f"report: {out / 'report' / 'report.html'}")
+    return code
