@@ -45,8 +45,13 @@ class Instruments:
 
 
 def open_instruments(station, clock: Clock, addresses=None,
-                     on_retry: RetryHook | None = None) -> Instruments:
-    """Drivers for ``station``; ``addresses`` (a SimAddresses) replaces the file's addresses."""
+                     on_retry: RetryHook | None = None,
+                     sample_rate_hz: float | None = None) -> Instruments:
+    """Drivers for ``station``; ``addresses`` (a SimAddresses) replaces the file's addresses.
+
+    ``sample_rate_hz`` is the gyro's configured output rate when it differs from
+    the station file's (the simulated gyro runs at the procedure's rate).
+    """
 
     def hook(role: str):
         if on_retry is None:
@@ -73,7 +78,8 @@ def open_instruments(station, clock: Clock, addresses=None,
         table = Acutrol3000Table(table_addr, axis=t.axis, timeout_s=t.timeout_s,
                                  retry=RetryPolicy(attempts=t.retries), on_retry=hook("table"))
         opened.append(table)
-        gyro = Stim300Gyro(gyro_port, baudrate=g.baudrate, sample_rate_hz=g.sample_rate_hz,
+        fs_hz = float(sample_rate_hz or g.sample_rate_hz)
+        gyro = Stim300Gyro(gyro_port, baudrate=g.baudrate, sample_rate_hz=fs_hz,
                            with_temperature=g.with_temperature, lsb=g.rate_lsb,
                            timeout_s=g.timeout_s)
         opened.append(gyro)
@@ -82,4 +88,4 @@ def open_instruments(station, clock: Clock, addresses=None,
             with contextlib.suppress(Exception):
                 inst.close()
         raise
-    return Instruments(chamber, table, gyro, clock, g.sample_rate_hz)
+    return Instruments(chamber, table, gyro, clock, fs_hz)

@@ -78,6 +78,12 @@ def station_instruments(procedure: Procedure, clock, sim: bool, seed: int | None
                         on_retry) -> Iterator[tuple[Instruments, Any]]:
     """Instruments for the run: simulators on loopback (``sim``) or the station's addresses."""
     station = procedure.station
+    fs_hz = procedure.defaults.sample_rate_hz
+    if not sim and abs(fs_hz - station.gyro.sample_rate_hz) > 1e-9:
+        raise BadInput(
+            f"{procedure.file}: defaults.sample_rate_hz: {fs_hz:g} Hz, but the gyro of station "
+            f"{station.name!r} is configured for {station.gyro.sample_rate_hz:g} Hz; a STIM300 "
+            "streams at its configured rate, so set the procedure to it or reconfigure the unit")
     simulated = None
     try:
         addresses = None
@@ -85,11 +91,12 @@ def station_instruments(procedure: Procedure, clock, sim: bool, seed: int | None
             from gyrocal.instruments.sim.station_sim import SimulatedStation
 
             try:
-                simulated = SimulatedStation(station, clock, seed=seed).start()
+                simulated = SimulatedStation(station, clock, seed=seed, sample_rate_hz=fs_hz).start()
             except ValueError as exc:
                 raise BadInput(str(exc)) from None
             addresses = simulated.addresses
-        instruments = open_instruments(station, clock, addresses, on_retry=on_retry)
+        instruments = open_instruments(station, clock, addresses, on_retry=on_retry,
+                                       sample_rate_hz=fs_hz)
         try:
             yield instruments, simulated
         finally:

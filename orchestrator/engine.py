@@ -201,10 +201,10 @@ class RunEngine:
             self._soak(step, journal_done=False)
 
     def _ramp(self, step: Any, journal_done: bool = True) -> None:
-        self.machine.ramp()
         self.journal.append("step_started", step_id=step.step_id, kind="ramp",
                             setpoint_c=step.setpoint_c, attempt=1)
         self._set_table_rate(0.0)
+        self.machine.ramp()
         self.inst.chamber.set_setpoint_c(step.setpoint_c)
         self.machine.soak()
         self.machine.stable()
@@ -251,11 +251,12 @@ class RunEngine:
     def _elapsed(self) -> float:
         return self.clock.now_s() - self._t_run_start
 
-    def _set_table_rate(self, rate_dps: float, accel_dps2: float | None = None) -> None:
-        """Command a rate and wait (on the clock) until the table reads it back."""
+    def _set_table_rate(self, rate_dps: float, accel_dps2: float | None = None,
+                        settle_s: float = 0.0) -> None:
+        """Command a rate, wait (on the clock) until the table reads it back, then settle."""
         table = self.inst.table
         current = table.read_rate_dps()
-        if abs(current - rate_dps) <= self._rate_band(rate_dps) and abs(rate_dps) > 0:
+        if abs(current - rate_dps) <= self._rate_band(rate_dps):
             return
         if not table.interlock_closed():
             raise RunFaultError("table: interlock open; refusing to command motion")
@@ -278,6 +279,9 @@ class RunEngine:
                 raise RunFaultError("table: interlock opened while spinning")
             self.clock.sleep(max(0.05, min(expected_s / 5, 1.0)))
         self.progress.update(table_dps=reading, elapsed_s=self._elapsed())
+        if settle_s > 0:
+            self.machine.settle()
+            self.clock.sleep(settle_s)
         self.machine.settled()
 
     def _rate_band(self, rate_dps: float) -> float:
@@ -289,12 +293,7 @@ class RunEngine:
         for attempt in range(1, self.policy.max_repeats + 2):
             self.journal.append("step_started", step_id=step.step_id, kind=step.kind,
                                 rate_dps=rate_dps, attempt=attempt)
-            self._set_table_rate(rate_dps, getattr(step, "accel_dps2", None))
-            if settle_s > 0:
-                self.machine.spin()
-                self.machine.settle()
-                self.clock.sleep(settle_s)
-                self.machine.settled()
+            self._set_table_rate(rate_dps, getattr(step, "accel_dps2", None), settle_s)
             self.machine.log()
             result = self._record(step, attempt, rate_dps)
             self.machine.logged()

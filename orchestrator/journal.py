@@ -101,9 +101,9 @@ class Journal:
     def last_sha256(self) -> str:
         return self._last_sha256
 
-    def append(self, kind: str, **fields: Any) -> dict[str, Any]:
+    def append(self, name: str, /, **fields: Any) -> dict[str, Any]:
         """Write one event durably and return it as written."""
-        event = {"seq": self.count + 1, "wall_time": time.time(), "event": kind, **fields}
+        event = {"seq": self.count + 1, "wall_time": time.time(), "event": name, **fields}
         event["prev_sha256"] = self._last_sha256
         raw = _encode(event)
         self._handle.write(raw)

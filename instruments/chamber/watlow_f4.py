@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from pymodbus.client import ModbusSerialClient
+from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.framer import FramerType
 
 from gyrocal.instruments.chamber.modbus_link import ModbusLink
@@ -88,7 +88,17 @@ class WatlowF4:
         self.decimals = decimals
         self.check_model = check_model
 
-        def make_client(trace: Callable[[bool, bytes], bytes]) -> ModbusSerialClient:
+        def make_client(trace: Callable[[bool, bytes], bytes]) -> ModbusSerialClient | ModbusTcpClient:
+            if address.startswith("socket://"):
+                # A serial-to-Ethernet bridge: the same RTU frames, carried by TCP.
+                # pymodbus' TCP transport waits on the socket; its serial transport
+                # polls a pyserial socket:// URL with sleeps (~10 ms a read), which
+                # would dominate a dry run's wall time. Bytes on the wire are identical.
+                host, _, port = address[len("socket://"):].rpartition(":")
+                return ModbusTcpClient(
+                    host, port=int(port), framer=FramerType.RTU, timeout=timeout_s,
+                    retries=0, trace_packet=trace,
+                )
             return ModbusSerialClient(
                 address, framer=FramerType.RTU, baudrate=baudrate, timeout=timeout_s,
                 retries=0, trace_packet=trace,

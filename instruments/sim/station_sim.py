@@ -75,7 +75,8 @@ class SimulatedStation:
     """Starts/stops the three simulators of a station; exposes their addresses and faults."""
 
     def __init__(self, station, clock: RealClock | SimClock, seed: int | None = None,
-                 model: GyroModel | None = None, gyro_block_frames: int | None = None) -> None:
+                 model: GyroModel | None = None, gyro_block_frames: int | None = None,
+                 sample_rate_hz: float | None = None) -> None:
         sim = station.simulation
         if sim is None:
             raise ValueError(f"{station.file}: the station has no simulation: section; "
@@ -105,7 +106,10 @@ class SimulatedStation:
             seed=self.seed + _SEED_TABLE,
         )
         gyro_cfg = station.gyro
-        self.gyro_simulator = GyroSimulator(self.model, gyro_cfg.sample_rate_hz,
+        # A real STIM300 is configured for its output rate; the simulated one takes
+        # the procedure's rate so dry runs log exactly what the procedure asks for.
+        self.sample_rate_hz = float(sample_rate_hz or gyro_cfg.sample_rate_hz)
+        self.gyro_simulator = GyroSimulator(self.model, self.sample_rate_hz,
                                             seed=self.seed + _SEED_GYRO)
         self.chamber_faults = FaultInjector(CHAMBER_FAULTS, owner="simulated chamber")
         self.table_faults = FaultInjector(TABLE_FAULTS, owner="simulated table")
@@ -118,9 +122,9 @@ class SimulatedStation:
         if gyro_block_frames is None:
             # ~50 ms of frames per write: big enough for throughput, small enough that the
             # clock never runs far ahead of what the reader has consumed.
-            gyro_block_frames = max(16, int(gyro_cfg.sample_rate_hz * 0.05))
+            gyro_block_frames = max(16, int(self.sample_rate_hz * 0.05))
         self.gyro_port = SimulatedGyroPort(
-            self.source, clock, sample_rate_hz=gyro_cfg.sample_rate_hz,
+            self.source, clock, sample_rate_hz=self.sample_rate_hz,
             with_temperature=gyro_cfg.with_temperature, lsb=gyro_cfg.rate_lsb,
             faults=self.gyro_faults, block_frames=gyro_block_frames, seed=self.seed + _SEED_PTY,
         )
