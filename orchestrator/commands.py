@@ -26,6 +26,7 @@ from gyrocal.models.clock import RealClock, SimClock, make_clock
 from gyrocal.orchestrator.engine import EnginePolicy, RunEngine, RunFaultError, completed_steps
 from gyrocal.orchestrator.journal import sha256_file
 from gyrocal.orchestrator.plan import Plan, expand_plan, format_plan
+from gyrocal.orchestrator.plan_record import write_plan_record
 from gyrocal.orchestrator.procedure import Procedure, load_procedure
 from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.run_folder import RunFolder, new_run_id
@@ -161,6 +162,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             "pid": os.getpid(),
         },
     )
+    record = write_plan_record(folder.path, procedure, plan)
+    folder.update_manifest(plan_sha256=sha256_file(record))
     print(f"run folder: {folder.path}", file=sys.stderr)
     return _execute(folder, procedure, plan, clock, args.sim, args.seed)
 
