@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gyrocal.reports.allan_edf import ONE_SIGMA_CONFIDENCE, chi2_interval, edf_greenhall
+from gyrocal.reports.allan_kernel import second_difference_sums
 from gyrocal.reports.noise_id import identify_alpha_per_m
 
 _CHUNK = 1 << 16  # elements per pass: 3 input slices + 1 buffer stay inside L2 cache
@@ -131,25 +132,28 @@ def _resolve_m(n_samples: int, rate_hz: float, m, taus_s) -> np.ndarray:
 
 
 def overlapping_adev(y, rate_hz: float, m=None, taus_s=None,
-                     confidence: float | None = ONE_SIGMA_CONFIDENCE) -> AllanResult:
+                     confidence: float | None = ONE_SIGMA_CONFIDENCE,
+                     compiled: bool = True) -> AllanResult:
     """Overlapping Allan deviation of rate samples ``y`` taken at ``rate_hz``.
 
     Same definition as ``allantools.oadev(y, rate_hz, data_type="freq")``.
     ``m`` (averaging factors) or ``taus_s`` choose the τ grid, default
     :func:`log_spaced_m`. With ``confidence`` (default 68.3 %), each τ gets
     a noise type, Greenhall's EDF and a chi-squared interval; pass None to
-    skip them.
+    skip them. ``compiled=False`` forces the pure-numpy path (the oracle for
+    the compiled kernel in :mod:`gyrocal.reports.allan_kernel`).
     """
     data = _validated_rate(y, rate_hz)
     m_values = _resolve_m(data.size, rate_hz, m, taus_s)
     phase = _phase_from_rate(data, rate_hz)
     buffer = np.empty(min(_CHUNK, phase.size), dtype=np.float64)
 
-    adev = np.empty(m_values.size)
     n_terms = phase.size - 2 * m_values
-    for index, mj in enumerate(m_values):
-        total = _sum_second_differences_squared(phase, int(mj), buffer)
-        adev[index] = np.sqrt(total / (2.0 * n_terms[index])) / mj * rate_hz
+    totals = second_difference_sums(phase, m_values) if compiled else None
+    if totals is None:
+        totals = np.array([_sum_second_differences_squared(phase, int(mj), buffer)
+                           for mj in m_values])
+    adev = np.sqrt(totals / (2.0 * n_terms)) / m_values * rate_hz
     tau_s = m_values / float(rate_hz)
 
     if confidence is None:
