@@ -119,6 +119,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--station", default=None)
     s.add_argument("--speed", default="1", help="real time × X (default 1)")
     s.add_argument("--seed", type=int, default=None)
+    s.add_argument("--write-station", default=None,
+                   help="write the station file with the live addresses here")
     s.set_defaults(func=_lazy("gyrocal.instruments.sim.serve", "cmd_sim_serve"))
 
     p = sub.add_parser("demo", help="the dry run against simulated instruments")

@@ -41,17 +41,22 @@ class GyroPhysicsSource:
     """Feeds the simulated gyro: model output for the table/chamber state at each frame time."""
 
     def __init__(self, simulator: GyroSimulator, table: TablePhysics, chamber: ChamberPhysics,
-                 skip_step_s: float = 1.0) -> None:
+                 start_s: float, skip_step_s: float = 1.0) -> None:
         self.simulator = simulator
         self.table = table
         self.chamber = chamber
+        self.start_s = float(start_s)
         self.skip_step_s = skip_step_s
         self.skipped_s = 0.0
 
     def _inputs(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return (np.asarray(self.table.rate_dps(t_s), dtype=float),
-                np.asarray(self.chamber.air_temperature_c(t_s), dtype=float),
-                np.asarray(self.table.angle_deg(t_s), dtype=float))
+        # Frames on the gyro's grid may start a fraction of a frame before the physics
+        # existed (real time runs on while the servers start): that instant's state is
+        # the initial one, so clamp to it rather than ask the physics for its prehistory.
+        t_q = np.maximum(t_s, self.start_s)
+        return (np.asarray(self.table.rate_dps(t_q), dtype=float),
+                np.asarray(self.chamber.air_temperature_c(t_q), dtype=float),
+                np.asarray(self.table.angle_deg(t_q), dtype=float))
 
     def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         sim = self.simulator
@@ -118,7 +123,8 @@ class SimulatedStation:
         self.chamber_server = chamber_cls(self.chamber_physics, self.chamber_faults,
                                           unit_id=station.chamber.unit_id)
         self.table_server = SimulatedAcutrol(self.table_physics, self.table_faults)
-        self.source = GyroPhysicsSource(self.gyro_simulator, self.table_physics, self.chamber_physics)
+        self.source = GyroPhysicsSource(self.gyro_simulator, self.table_physics,
+                                        self.chamber_physics, start_s=clock.now_s())
         if gyro_block_frames is None:
             # ~50 ms of frames per write: big enough for throughput, small enough that the
             # clock never runs far ahead of what the reader has consumed.
