@@ -15,7 +15,7 @@ import getpass
 import logging
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,12 @@ from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.run_folder import RunFolder, new_run_id
 
 DEFAULT_SIM_STATION = Path("stations/sim.yaml")
+
+#: Called with each ``SimulatedStation`` right after ``--sim`` starts it, before any
+#: driver connects. Fault-injection tests (and operator drills) arm simulator faults
+#: through it, so faults reach the very simulators a real ``run``/``resume`` talks to.
+#: Empty in normal use.
+SIM_STARTED_HOOKS: list[Callable[[Any], None]] = []
 
 
 def quiet_library_logs(debug: bool = False) -> None:
@@ -71,6 +77,7 @@ def _policy(procedure: Procedure) -> EnginePolicy:
         max_loss_fraction=quality.max_lost_frame_fraction,
         max_repeats=quality.max_step_repeats,
         safe_setpoint_c=safe.setpoint_c if safe.action == "setpoint" else None,
+        read_timeout_margin_s=procedure.station.gyro.timeout_s,
     )
 
 
@@ -96,6 +103,8 @@ def station_instruments(procedure: Procedure, clock, sim: bool, seed: int | None
             except ValueError as exc:
                 raise BadInput(str(exc)) from None
             addresses = simulated.addresses
+            for hook in SIM_STARTED_HOOKS:
+                hook(simulated)
         instruments = open_instruments(station, clock, addresses, on_retry=on_retry,
                                        sample_rate_hz=fs_hz)
         try:
@@ -247,7 +256,8 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
     print(f"run complete: {folder.path}")
     for item in results.get("acceptance", []):
         verdict = "PASS" if item["pass"] else "FAIL"
-        print(f"  {verdict}  {item['name']}: {item['value']:.6g} (limit {item['limit']:.6g})")
+        value = "not computed" if item["value"] is None else f"{item['value']:.6g}"
+        print(f"  {verdict}  {item['name']}: {value} (limit {item['limit']:.6g})")
     return EXIT_ACCEPTANCE_FAILED if failed else EXIT_OK
 
 
@@ -256,7 +266,8 @@ def _build_report(folder: RunFolder) -> dict[str, Any]:
         from gyrocal.reports.build import build_report
     except ImportError:
         return {}
-    return build_report(folder.path)
+    # The engine holds the journal open; appending through it keeps the hash chain whole.
+    return build_report(folder.path, journal=folder.open_journal())
 
 
 def _text(reply: Any) -> Any:

@@ -49,11 +49,11 @@ class EnginePolicy:
     poll_s: float = 5.0                 # chamber/table polling period while waiting (clock time)
     chunk_s: float = 60.0               # seconds of samples per Parquet chunk
     block_s: float = 5.0                # seconds of samples per driver read
-    read_timeout_margin_s: float = 5.0  # wall seconds beyond the block duration before a read times out
+    read_timeout_margin_s: float = 5.0  # wall seconds beyond the block's wall duration before a read times out
     rate_tolerance_dps: float = 0.05    # table "at rate" band (plus 0.1 % of the rate)
     spin_timeout_factor: float = 3.0    # × the acceleration time before "table never reached rate"
     max_loss_fraction: float = 0.001    # lost + corrupt frames allowed per logged step
-    max_repeats: int = 2                # bad logged step repeated at most this many times
+    max_repeats: int = 2                # bad logged step (frame loss, gyro read failure) repeated at most this many times
     safe_setpoint_c: float | None = 25.0  # None = chamber standby is not supported: hold setpoint
 
 
@@ -72,21 +72,67 @@ def completed_steps(events: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     return {e["step_id"]: e for e in events if e.get("event") == "step_completed"}
 
 
-@contextmanager
-def sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM (systemd stop, a killed terminal) gets the same safe handling as Ctrl-C."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
+def attempts_started(events: list[dict[str, Any]]) -> dict[str, int]:
+    """step_id → the highest attempt number any ``step_started`` event gave it."""
+    last: dict[str, int] = {}
+    for event in events:
+        if event.get("event") == "step_started" and "step_id" in event:
+            step_id = event["step_id"]
+            last[step_id] = max(last.get(step_id, 0), int(event.get("attempt", 1)))
+    return last
 
-    def handler(signum: int, frame: object) -> None:
+
+class InterruptGate:
+    """Ctrl-C and SIGTERM become ``KeyboardInterrupt`` — but never inside a journal append.
+
+    SIGTERM (systemd stop, a killed terminal) gets the same safe handling as
+    Ctrl-C. A ``KeyboardInterrupt`` raised between the write of a journal line
+    and the writer's update of its chain hash would make the next line (the
+    ``interrupted`` event itself) chain to the wrong hash, so a signal that
+    arrives during an append is held and raised as soon as the append returns.
+    """
+
+    def __init__(self) -> None:
+        self._depth = 0
+        self._pending: int | None = None
+
+    def _handler(self, signum: int, frame: object) -> None:
+        if self._depth:
+            self._pending = signum
+            return
         raise KeyboardInterrupt(f"signal {signum}")
 
-    previous = signal.signal(signal.SIGTERM, handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+    @contextmanager
+    def held(self) -> Iterator[None]:
+        self._depth += 1
+        try:
+            yield
+        finally:
+            self._depth -= 1
+            if not self._depth and self._pending is not None:
+                signum, self._pending = self._pending, None
+                raise KeyboardInterrupt(f"signal {signum}")
+
+    @contextmanager
+    def installed(self, journal: Any) -> Iterator[None]:
+        """Handle SIGINT/SIGTERM and hold them during ``journal.append`` (main thread only)."""
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+        append = journal.append
+
+        def held_append(name: str, /, **fields: Any) -> dict[str, Any]:
+            with self.held():
+                return append(name, **fields)
+
+        journal.append = held_append   # the commands' retry hook appends to this same journal
+        previous = {sig: signal.signal(sig, self._handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+            del journal.append
 
 
 class RunEngine:
@@ -112,27 +158,34 @@ class RunEngine:
         self.on_finished = on_finished
         self._chamber_c: float | None = None
         self._table_dps: float | None = None
+        self._step_id: str | None = None    # the plan step being executed (for fault events)
+        self._attempts_before: dict[str, int] = {}  # step_id → last attempt journaled by earlier sessions
         self._t_run_start = self.clock.now_s()
 
     # -- public ----------------------------------------------------------------------------
     def run(self) -> str:
         """Run to the end or to the safe state. Returns the final state ("done" or "faulted")."""
-        with sigterm_as_interrupt():
+        with InterruptGate().installed(self.journal):
             try:
                 self._connect_and_preflight()
-                done = completed_steps(self.folder.journal_events())
+                events = self.folder.journal_events()
+                done = completed_steps(events)
+                self._attempts_before = attempts_started(events)
                 remaining = [s for s in self.steps if s.step_id not in done]
                 if done and remaining:
                     self.journal.append("resumed", from_step=remaining[0].step_id,
                                         completed=len(done))
+                    self._step_id = remaining[0].step_id
                     self._restore_conditions(remaining[0])
                 self.folder.update_manifest(state="running")
                 for index, step in enumerate(self.steps, start=1):
                     if step.step_id in done:
                         continue
+                    self._step_id = step.step_id
                     self.progress.update(step_id=step.step_id, step_index=index,
                                          step_count=len(self.steps))
                     self._execute(step)
+                self._step_id = None
                 self._finish()
                 return "done"
             except KeyboardInterrupt as exc:
@@ -193,11 +246,19 @@ class RunEngine:
             raise RunFaultError(f"plan step {step.step_id}: unknown kind {kind!r}")
 
     def _restore_conditions(self, step: Any) -> None:
-        """On resume, bring chamber and table back to the conditions of ``step`` first."""
+        """On resume, bring chamber and table back to the conditions of ``step`` first.
+
+        The safe state left the chamber at the safe setpoint (and a restarted
+        controller may hold anything), so nothing but a ramp step may assume
+        the setpoint is already commanded: a soak is preceded by a ramp (the
+        crash happened mid-soak), a logged step by a ramp and a full soak.
+        """
         setpoint = getattr(step, "setpoint_c", None)
-        if setpoint is not None and step.kind not in ("ramp", "soak"):
-            self.journal.append("restore_conditions", step_id=step.step_id, setpoint_c=setpoint)
-            self._ramp(step, journal_done=False)
+        if setpoint is None or step.kind == "ramp":
+            return
+        self.journal.append("restore_conditions", step_id=step.step_id, setpoint_c=setpoint)
+        self._ramp(step, journal_done=False)
+        if step.kind != "soak":
             self._soak(step, journal_done=False)
 
     def _ramp(self, step: Any, journal_done: bool = True) -> None:
@@ -288,14 +349,36 @@ class RunEngine:
         return self.policy.rate_tolerance_dps + 1e-3 * abs(rate_dps)
 
     def _log_step(self, step: Any) -> None:
+        """Log a step; a bad attempt (frame loss, a gyro read that failed) is repeated.
+
+        A gyro read that times out or loses its port leaves a hole in the
+        step's data, so it is not retried in place like a chamber or table
+        command: the whole step is repeated as a new attempt, and the failure
+        is journaled as a ``retry`` of the gyro. Past ``max_repeats`` the last
+        gyro error (or the loss) ends the run in the safe state.
+        """
         rate_dps = float(getattr(step, "rate_dps", 0.0) or 0.0)
         settle_s = float(getattr(step, "settle_s", 0.0) or 0.0)
-        for attempt in range(1, self.policy.max_repeats + 2):
+        # Attempt numbers continue after those of an interrupted session: its chunks are
+        # journaled with their hashes and must never be overwritten by a new attempt.
+        first = self._attempts_before.get(step.step_id, 0) + 1
+        attempts = first + self.policy.max_repeats
+        for attempt in range(first, attempts + 1):
             self.journal.append("step_started", step_id=step.step_id, kind=step.kind,
                                 rate_dps=rate_dps, attempt=attempt)
             self._set_table_rate(rate_dps, getattr(step, "accel_dps2", None), settle_s)
             self.machine.log()
-            result = self._record(step, attempt, rate_dps)
+            try:
+                result = self._record(step, attempt, rate_dps)
+            except InstrumentError as exc:
+                if not (exc.transient and exc.instrument == self._gyro_name()) or attempt == attempts:
+                    raise
+                self.machine.logged()
+                self.journal.append("retry", instrument="gyro", attempt=attempt,
+                                    command=exc.command, detail=exc.detail, reply=_text(exc.reply))
+                self.journal.append("step_bad", step_id=step.step_id, attempt=attempt,
+                                    reason=f"gyro read failed: {exc}")
+                continue
             self.machine.logged()
             frames = result.samples + result.lost_frames + result.crc_errors
             loss = (result.lost_frames + result.crc_errors) / max(frames, 1)
@@ -311,7 +394,23 @@ class RunEngine:
                 limit=self.policy.max_loss_fraction)
         raise StepQualityError(
             f"gyro: step {step.step_id} lost more than {self.policy.max_loss_fraction:.3%} of its "
-            f"frames in {self.policy.max_repeats + 1} attempts")
+            f"frames in {self.policy.max_repeats + 1} attempts (last attempt lost {loss:.3%})")
+
+    def _gyro_name(self) -> str | None:
+        return getattr(self.inst.gyro, "name", None)
+
+    def _read_timeout_s(self, block_s: float) -> float:
+        """Wall seconds a gyro read of ``block_s`` clock seconds may take before it times out.
+
+        On simulated time the stream runs as fast as it is read, so only the
+        margin applies; on (scaled) real time the block itself takes
+        ``block_s / speed`` wall seconds.
+        """
+        if getattr(self.clock, "simulated", False):
+            wall_s = 0.0
+        else:
+            wall_s = block_s / float(getattr(self.clock, "speed", 1.0))
+        return wall_s + self.policy.read_timeout_margin_s
 
     def _record(self, step: Any, attempt: int, rate_dps: float) -> StepResult:
         """Log ``step.duration_s`` of gyro samples with chamber and table context, in chunks."""
@@ -332,7 +431,7 @@ class RunEngine:
         pending_n = 0
         chunk_index = 0
         last_index = -1
-        timeout_s = self.policy.block_s + self.policy.read_timeout_margin_s
+        timeout_s = self._read_timeout_s(block_n / fs)
         while result.samples < n_total:
             want = min(block_n, n_total - result.samples)
             block = gyro.read_samples(want, timeout_s=timeout_s)
@@ -410,10 +509,16 @@ class RunEngine:
         self.folder.update_manifest(state="done", ended_at=_now_text())
 
     def _go_safe(self, kind: str, message: str, **fields: Any) -> None:
-        """Safe state: table stopped, chamber to its safe setpoint. Every action is attempted."""
+        """Safe state: table stopped, chamber to its safe setpoint. Every action is attempted.
+
+        The event records the state the run was in when the fault struck (not
+        ``safing``, which every fault passes through) and the step it struck in.
+        """
+        state_at_fault = self.machine.state
         if self.machine.can("fault"):
             self.machine.fault()
-        self.journal.append(kind, message=message, state=self.machine.state, **fields)
+        self.journal.append(kind, message=message, state=state_at_fault, step_id=self._step_id,
+                            **fields)
         actions: dict[str, str] = {}
         try:
             self.inst.table.stop()
@@ -445,9 +550,12 @@ def integrate_angle(rate_dps: np.ndarray, t_s: np.ndarray, start: tuple[float, f
 
 def _fault_fields(exc: BaseException) -> dict[str, Any]:
     if isinstance(exc, InstrumentError):
-        reply = exc.reply.decode("latin-1") if isinstance(exc.reply, bytes) else exc.reply
-        return {"instrument": exc.instrument, "command": exc.command, "reply": reply}
+        return {"instrument": exc.instrument, "command": exc.command, "reply": _text(exc.reply)}
     return {}
+
+
+def _text(reply: Any) -> Any:
+    return reply.decode("latin-1") if isinstance(reply, bytes) else reply
 
 
 def _now_text() -> str:

@@ -1,0 +1,453 @@
+"""Run folder → report/results.json + report/report.html, hashes journalled.
+
+The report must be rebuildable by QA from the run folder alone, so every
+input comes from it: plan.json (steps, acceptance, unit, station), the
+journal (which chunks belong to completed attempts) and the sample chunks.
+Each step is read once, reduced to its mean at once and dropped, except the
+longest static hold, kept for the Allan curve — an overnight run is far
+larger than memory needs to be.
+
+Single numbers where several temperatures exist (documented in results.json
+``definitions`` as well):
+
+- ``scale_factor_ls``: the LS line at the temperature closest to 25 °C
+  (:data:`REFERENCE_TEMP_C`, the gyro-model reference temperature; a tie goes to the lower);
+- ``nonlinearity``: the worst (largest) rms_pct and max_ppm_fs over temperatures;
+- ``asymmetry_ppm``: the value with the largest magnitude, sign kept;
+- ``bias``: per temperature from the static/allan holds there (mean output
+  / SF at that temperature, Earth rate along a vertical axis removed with the
+  station latitude); from the sweep's LS intercept where no hold exists;
+- ``allan``: the longest static/allan hold, input-referred (÷ nominal scale
+  factor, which is output units per deg/s, ×3600 → deg/h).
+
+A figure that cannot be computed is null with a reason in ``notes``.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from gyrocal.orchestrator.atomic import write_bytes_atomic
+from gyrocal.orchestrator.journal import Journal, sha256_bytes
+from gyrocal.orchestrator.plan_record import PLAN_RECORD
+from gyrocal.orchestrator.run_folder import RunFolder, RunFolderError
+from gyrocal.reports import bias as bias_mod
+from gyrocal.reports import compensation as comp
+from gyrocal.reports.allan_summary import allan_curve, curve_json, fit_curve, fit_uncertainty_json
+from gyrocal.reports.dwell import Dwell, dwell_mean
+from gyrocal.reports.results import evaluate_acceptance, finite_or_none, results_bytes
+from gyrocal.reports.scale_factor import ScaleFactorResult, analyze_scale_factor
+
+REFERENCE_TEMP_C = 25.0
+REPORT_DIR = "report"
+RESULTS_FILE = "report/results.json"
+HTML_FILE = "report/report.html"
+HOLD_KINDS = ("static", "allan")
+_READ_COLUMNS = ["gyro", "sensor_temp_c", "chamber_temp_c"]
+_JOURNAL_SHOWN = ("retry", "fault", "step_bad", "interrupted", "safe_state", "resumed",
+                  "restore_conditions")
+
+
+@dataclass
+class StepSummary:
+    """One logged step reduced: mean output over the samples used, measured temperatures."""
+
+    step: dict[str, Any]
+    output_mean: float
+    output_std: float
+    n_used: int
+    n_logged: int
+    sensor_temp_c: float | None
+    chamber_temp_c: float | None
+    trimmed_to_revolutions: float | None = None
+
+
+@dataclass
+class RunData:
+    folder: RunFolder
+    manifest: dict[str, Any]
+    plan: dict[str, Any]
+    events: list[dict[str, Any]]
+    steps: list[StepSummary] = field(default_factory=list)
+    allan_step: StepSummary | None = None
+    allan_output: np.ndarray | None = None
+
+
+# -- reading ------------------------------------------------------------------------------
+
+def _read_plan(folder: RunFolder) -> dict[str, Any]:
+    import json
+
+    path = folder.path / PLAN_RECORD
+    if not path.is_file():
+        raise RunFolderError(f"{path}: missing; the report needs the plan record the run wrote")
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise RunFolderError(f"{path}: not valid JSON: {exc}") from None
+
+
+def completed_attempts(events: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """step_id → its last step_completed event that logged chunks (a repeat supersedes)."""
+    done: dict[str, dict[str, Any]] = {}
+    for event in events:
+        if event.get("event") == "step_completed" and event.get("chunks"):
+            done[event["step_id"]] = event
+    return done
+
+
+def _read_columns(folder: RunFolder, chunks: list[str]) -> dict[str, np.ndarray]:
+    tables = [pq.read_table(folder.path / rel, columns=_READ_COLUMNS) for rel in chunks]
+    table = pa.concat_tables(tables) if len(tables) > 1 else tables[0]
+    return {name: table.column(name).to_numpy() for name in _READ_COLUMNS}
+
+
+def _mean_or_none(values: np.ndarray) -> float | None:
+    finite = values[np.isfinite(values)]
+    return float(finite.mean()) if finite.size else None
+
+
+def _whole_revolutions(step: dict[str, Any]) -> int | None:
+    """Revolutions to keep when the procedure asked for whole turns (min_revolutions)."""
+    turns = step.get("revolutions")
+    if step.get("kind") != "dwell" or turns is None or not float(turns).is_integer():
+        return None
+    return int(turns) if turns >= 1 else None
+
+
+def _reduce_dwell(output: np.ndarray, step: dict[str, Any], fs_hz: float,
+                  notes: list[str]) -> tuple[float, float, int, float | None]:
+    turns = _whole_revolutions(step)
+    if turns is not None:
+        for wanted in (turns, "all"):
+            try:
+                stats = dwell_mean(output, fs_hz, 0.0, step["rate_dps"], revolutions=wanted)
+            except ValueError:
+                continue
+            kept = stats.n_samples * abs(step["rate_dps"]) / fs_hz / 360.0
+            return stats.mean, stats.std, stats.n_samples, round(kept, 6)
+        notes.append(f"step {step['step_id']}: fewer samples than one whole revolution; "
+                     "the mean uses every logged sample")
+    stats = dwell_mean(output, fs_hz, 0.0)
+    return stats.mean, stats.std, stats.n_samples, None
+
+
+def read_run(run_dir: Path, notes: list[str]) -> RunData:
+    """Read and reduce every completed logged step; keep the longest hold's samples."""
+    folder = RunFolder.open(Path(run_dir))
+    data = RunData(folder, folder.read_manifest(), _read_plan(folder), folder.journal_events())
+    fs_hz = float(data.plan["sample_rate_hz"])
+    plan_steps = {s["step_id"]: s for s in data.plan.get("steps", [])}
+    done = completed_attempts(data.events)
+    holds = [sid for sid in done if plan_steps.get(sid, {}).get("kind") in HOLD_KINDS]
+    longest = max(holds, key=lambda sid: int(done[sid].get("samples") or 0), default=None)
+    for step_id, event in done.items():
+        step = plan_steps.get(step_id)
+        if step is None:
+            notes.append(f"step {step_id}: logged but not in plan.json; ignored")
+            continue
+        columns = _read_columns(folder, event["chunks"])
+        output = columns["gyro"]
+        if output.size == 0:
+            continue
+        if step["kind"] == "dwell":
+            mean, std, used, turns = _reduce_dwell(output, step, fs_hz, notes)
+        else:
+            stats = dwell_mean(output, fs_hz, 0.0)
+            mean, std, used, turns = stats.mean, stats.std, stats.n_samples, None
+        summary = StepSummary(step, mean, std, used, int(output.size),
+                              _mean_or_none(columns["sensor_temp_c"]),
+                              _mean_or_none(columns["chamber_temp_c"]), turns)
+        data.steps.append(summary)
+        if step_id == longest:
+            data.allan_step, data.allan_output = summary, output
+    return data
+
+
+# -- analysis -----------------------------------------------------------------------------
+
+def _weighted_temp(summaries: list[StepSummary], attr: str) -> float | None:
+    pairs = [(getattr(s, attr), s.n_used) for s in summaries if getattr(s, attr) is not None]
+    if not pairs:
+        return None
+    return float(sum(v * n for v, n in pairs) / sum(n for _, n in pairs))
+
+
+def _scale_factor(data: RunData, notes: list[str]) -> list[tuple[ScaleFactorResult, dict]]:
+    """SF per setpoint temperature, each with its JSON entry (extra keys kept)."""
+    groups: dict[float, list[StepSummary]] = defaultdict(list)
+    for s in data.steps:
+        if s.step["kind"] == "dwell":
+            groups[float(s.step["setpoint_c"])].append(s)
+    out = []
+    for temp in sorted(groups):
+        members = groups[temp]
+        dwells = [Dwell(temp, float(s.step["rate_dps"]), s.output_mean, s.output_std, s.n_used)
+                  for s in members]
+        try:
+            result = analyze_scale_factor(dwells)
+        except ValueError as exc:
+            notes.append(f"scale factor at {temp:g} °C not computed: {exc}")
+            continue
+        full_scale = abs(result.sf) * max(abs(d.rate_dps) for d in dwells)
+        entry = result.to_json() | {
+            "bias": result.bias,
+            "sensor_temp_c": _weighted_temp(members, "sensor_temp_c"),
+            "chamber_temp_c": _weighted_temp(members, "chamber_temp_c"),
+            "sf_by_rate": [[r, v] for r, v in sorted(result.sf_by_rate.items())],
+            "residuals_ppm_fs": sorted([d.rate_dps, float(res / full_scale * 1e6)]
+                                       for d, res in zip(dwells, result.residuals, strict=True)),
+            "nonlinearity": {"rms_pct": result.nonlinearity_rms_pct,
+                             "max_ppm_fs": result.nonlinearity_max_ppm_fs},
+            "asymmetry_ppm": result.asymmetry_ppm,
+        }
+        out.append((result, entry))
+    return out
+
+
+def _earth_rate_dph(plan: dict[str, Any], notes: list[str]) -> float:
+    latitude = ((plan.get("station") or {}).get("site") or {}).get("latitude_deg")
+    if latitude is None:
+        notes.append("station site has no latitude_deg: Earth rate is NOT removed from the bias")
+        return 0.0
+    return bias_mod.earth_rate_vertical_dph(float(latitude))
+
+
+def _bias(data: RunData, sf_results: list[ScaleFactorResult], nominal_sf: float,
+          earth_dph: float, notes: list[str]) -> list[dict[str, Any]]:
+    sf_at = {r.temp_c: r for r in sf_results}
+    holds: dict[float, list[StepSummary]] = defaultdict(list)
+    for s in data.steps:
+        if s.step["kind"] in HOLD_KINDS:
+            holds[float(s.step["setpoint_c"])].append(s)
+    points = []
+    for temp in sorted(set(holds) | set(sf_at)):
+        sf_result = sf_at.get(temp)
+        sf = sf_result.sf if sf_result is not None else nominal_sf
+        if temp in holds:
+            members = holds[temp]
+            mean = sum(s.output_mean * s.n_used for s in members) / sum(s.n_used for s in members)
+            value, source = mean / sf * 3600.0 - earth_dph, "static"
+            if sf_result is None:
+                notes.append(f"bias at {temp:g} °C uses the nominal scale factor {nominal_sf:g} "
+                             "(no sweep at that temperature)")
+            sensor = _weighted_temp(members, "sensor_temp_c")
+        else:
+            value = sf_result.bias / sf * 3600.0 - earth_dph
+            source, sensor = "sweep_intercept", None
+        points.append({"temp_c": temp, "bias_dph": value, "source": source,
+                       "sensor_temp_c": sensor})
+    return points
+
+
+def _comp_tables(points: list[list[float]], what: str, notes: list[str]) -> dict[str, Any]:
+    temps = [p[0] for p in points]
+    values = [p[1] for p in points]
+    tables: dict[str, Any] = {"piecewise_linear": None, "polynomial": None}
+    if len(points) < 3:
+        notes.append(f"{what} compensation: {len(points)} temperature(s); residuals need ≥ 3 "
+                     "(the table is the measured points)")
+        return tables
+    for key, make in (("piecewise_linear", lambda: comp.piecewise_linear(temps, values)),
+                      ("polynomial", lambda: comp.polynomial(temps, values,
+                                                             degree=min(2, len(points) - 2)))):
+        table = make()
+        tables[key] = {"kind": table.kind, "points": table.to_pairs(),
+                       "residual_rms": table.residual_rms,
+                       "loo_residual_rms": table.loo_residual_rms,
+                       "loo_residual_max": table.loo_residual_max,
+                       "coefficients": table.coefficients}
+    return tables
+
+
+def _allan(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any] | None:
+    if data.allan_step is None or data.allan_output is None:
+        notes.append("allan: no static or allan hold was logged")
+        return None
+    fs_hz = float(data.plan["sample_rate_hz"])
+    rate_dph = data.allan_output / nominal_sf * 3600.0
+    step = data.allan_step.step
+    try:
+        curve = allan_curve(rate_dph, fs_hz)
+        fit = fit_curve(curve)
+    except ValueError as exc:
+        notes.append(f"allan: step {step['step_id']} ({rate_dph.size} samples) gives no usable "
+                     f"curve/fit: {exc}")
+        return None
+    return curve_json(curve, fit) | {
+        "fit_uncertainty": fit_uncertainty_json(fit),
+        "model_adev_dph": fit.model_adev(curve.tau_s).tolist(),
+        "step_id": step["step_id"], "temp_c": float(step["setpoint_c"]),
+        "duration_s": rate_dph.size / fs_hz, "n_samples": int(rate_dph.size),
+        "rate_hz": fs_hz, "method": curve.method,
+    }
+
+
+def _journal_summary(events: list[dict[str, Any]]) -> dict[str, Any]:
+    shown = [{k: v for k, v in e.items() if k != "prev_sha256"}
+             for e in events if e.get("event") in _JOURNAL_SHOWN]
+    chunks = [e for e in events if e.get("event") == "chunk_written"]
+    digest = hashlib.sha256()
+    for e in chunks:
+        digest.update(f"{e['path']} {e['sha256']}\n".encode())
+    return {
+        "events": shown,
+        "retries": sum(1 for e in events if e.get("event") == "retry"),
+        "faults": sum(1 for e in events if e.get("event") == "fault"),
+        "bad_steps": sum(1 for e in events if e.get("event") == "step_bad"),
+        "chunks": len(chunks),
+        "samples_sha256": digest.hexdigest(),
+        "event_count": len(events),
+        "first_wall_time": events[0].get("wall_time") if events else None,
+        "last_wall_time": events[-1].get("wall_time") if events else None,
+    }
+
+
+def _instruments(data: RunData, notes: list[str]) -> dict[str, Any]:
+    planned = ((data.plan.get("station") or {}).get("instruments")) or {}
+    identified = data.manifest.get("instruments") or {}
+    run_date = str(data.manifest.get("started_at") or "")[:10]
+    out = {}
+    for role in sorted(set(planned) | set(identified)):
+        identity = (planned.get(role) or {}).get("identity") or {}
+        due = identity.get("calibration_due")
+        overdue = bool(due and run_date and str(due) < run_date)
+        if overdue:
+            notes.append(f"{role}: calibration was due {due}, before the run ({run_date})")
+        out[role] = {
+            "driver": (identified.get(role) or planned.get(role) or {}).get("driver"),
+            "address": (identified.get(role) or {}).get("address"),
+            "description": (identified.get(role) or {}).get("description"),
+            "make": identity.get("make"), "model": identity.get("model"),
+            "serial": identity.get("serial"), "calibration_due": due,
+            "calibration_overdue": overdue,
+        }
+    return out
+
+
+def _pick_reference(entries: list[dict[str, Any]]) -> dict[str, Any] | None:
+    return min(entries, key=lambda e: abs(e["temp_c"] - REFERENCE_TEMP_C), default=None)
+
+
+def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
+    """Every figure of results.json from reduced run data (see the module docstring)."""
+    plan, manifest = data.plan, data.manifest
+    uut = plan.get("unit_under_test") or {}
+    nominal_sf = float(uut.get("nominal_scale_factor") or 1.0)
+    sf_pairs = _scale_factor(data, notes)
+    sf_results = [r for r, _ in sf_pairs]
+    sf_entries = [e for _, e in sf_pairs]
+    if not sf_entries:
+        notes.append("no ± rate sweep completed: scale factor, nonlinearity and asymmetry are null")
+
+    reference = _pick_reference(sf_entries)
+    scale_factor_ls = None if reference is None else {
+        "sf": reference["sf"], "bias": reference["bias"], "temp_c": reference["temp_c"]}
+    nonlinearity = None if not sf_entries else {
+        "rms_pct": max(e["nonlinearity"]["rms_pct"] for e in sf_entries),
+        "max_ppm_fs": max(e["nonlinearity"]["max_ppm_fs"] for e in sf_entries)}
+    asymmetry = None if not sf_entries else max(
+        (e["asymmetry_ppm"] for e in sf_entries), key=abs)
+
+    sf_temperature = None
+    if len(sf_results) >= 2:
+        sf_temperature = bias_mod.sf_temperature(sf_results, REFERENCE_TEMP_C).to_json()
+    elif sf_results:
+        notes.append("sf_temperature: sweeps at one temperature only; needs two or more")
+
+    earth_dph = _earth_rate_dph(plan, notes)
+    bias_points = _bias(data, sf_results, nominal_sf, earth_dph, notes)
+    bias_temperature = None
+    if len(bias_points) >= 2:
+        bias_temperature = {"sensitivity_dph_per_c": bias_mod.bias_sensitivity_dph_per_c(
+            [bias_mod.BiasPoint(p["temp_c"], p["bias_dph"]) for p in bias_points])}
+    else:
+        notes.append(f"bias_temperature: bias at {len(bias_points)} temperature(s); needs two or more")
+
+    bias_pairs = [[p["temp_c"], p["bias_dph"]] for p in bias_points]
+    sf_pairs_t = [[e["temp_c"], e["sf"]] for e in sf_entries]
+    compensation = {
+        "bias_dph_vs_temp": bias_pairs, "sf_vs_temp": sf_pairs_t,
+        "tables": {"bias_dph": _comp_tables(bias_pairs, "bias", notes),
+                   "sf": _comp_tables(sf_pairs_t, "scale factor", notes)},
+    }
+    results: dict[str, Any] = {
+        "unit_under_test": {"model": uut.get("model"), "serial": uut.get("serial"),
+                            "output_units": uut.get("output_units"),
+                            "nominal_scale_factor": nominal_sf},
+        "scale_factor": sf_entries,
+        "scale_factor_ls": scale_factor_ls,
+        "nonlinearity": nonlinearity,
+        "asymmetry_ppm": asymmetry,
+        "sf_temperature": sf_temperature,
+        "bias": bias_points,
+        "bias_temperature": bias_temperature,
+        "allan": _allan(data, nominal_sf, notes),
+        "compensation": compensation,
+        "earth_rate_removed_dph": earth_dph,
+        "reference_temp_c": REFERENCE_TEMP_C,
+        "run": {key: manifest.get(key) for key in
+                ("run_id", "operator", "started_at", "ended_at", "mode", "seed", "speed",
+                 "state", "software", "station_name", "plan_sha256")},
+        "procedure": plan.get("procedure"),
+        "station": {"name": (plan.get("station") or {}).get("name"),
+                    "file": (plan.get("station") or {}).get("file"),
+                    "site": (plan.get("station") or {}).get("site")},
+        "instruments": _instruments(data, notes),
+        "inputs": {role: {"copy": e.get("copy"), "source": e.get("source"),
+                          "sha256": e.get("sha256")}
+                   for role, e in (manifest.get("inputs") or {}).items()},
+        "journal": _journal_summary(data.events),
+        "steps": [{"step_id": s.step["step_id"], "kind": s.step["kind"],
+                   "setpoint_c": s.step["setpoint_c"], "rate_dps": s.step["rate_dps"],
+                   "output_mean": s.output_mean, "n_used": s.n_used, "n_logged": s.n_logged,
+                   "revolutions_used": s.trimmed_to_revolutions,
+                   "sensor_temp_c": s.sensor_temp_c} for s in data.steps],
+        "definitions": {
+            "scale_factor_ls": f"LS line at the temperature closest to {REFERENCE_TEMP_C:g} °C",
+            "nonlinearity": "worst over temperatures",
+            "asymmetry_ppm": "largest magnitude over temperatures, sign kept",
+            "bias": "static holds: mean/SF(T)·3600 − Earth rate (vertical axis, station latitude)",
+            "allan": "longest static/allan hold, ÷ nominal scale factor, deg/h",
+        },
+    }
+    results["acceptance"] = evaluate_acceptance(results, plan.get("acceptance") or [], notes)
+    results["notes"] = notes
+    return results
+
+
+# -- writing ------------------------------------------------------------------------------
+
+def build_report(run_dir: str | Path, journal: Journal | None = None) -> dict[str, Any]:
+    """Compute, write report/results.json and report/report.html, journal their SHA-256.
+
+    ``journal``: the engine's open journal when called at the end of a run
+    (a second writer would fork the hash chain); None opens and closes one.
+    """
+    from gyrocal.reports.html_report import render_html
+
+    notes: list[str] = []
+    data = read_run(Path(run_dir), notes)
+    results = finite_or_none(compute_results(data, notes))
+    results["report_built_at"] = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+    encoded = results_bytes(results)
+    html = render_html(results).encode()
+    root = data.folder.path
+    write_bytes_atomic(root / RESULTS_FILE, encoded)
+    write_bytes_atomic(root / HTML_FILE, html)
+    files = {RESULTS_FILE: sha256_bytes(encoded), HTML_FILE: sha256_bytes(html)}
+    if journal is not None:
+        journal.append("report_written", files=files)
+    else:
+        with Journal(root / "journal.jsonl") as own:
+            own.append("report_written", files=files)
+    return results

@@ -1,0 +1,40 @@
+"""results dict → report.html: one self-contained page for someone who was not there.
+
+Autoescape is on for the whole template: procedure names, serials,
+operator names and instrument replies are user-supplied text, and a
+report opened in QA's browser must not run what a YAML file contained.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jinja2
+
+from gyrocal.reports.plots import all_plots
+from gyrocal.reports.report_template import REPORT_TEMPLATE
+
+_TERMS = (("Q_arcsec", "arcsec"), ("N_deg_per_rth", "deg/√h"), ("B_dph", "deg/h"),
+          ("K_dph_per_rth", "deg/h/√h"), ("R_dph_per_h", "deg/h/h"))
+
+
+def _fmt(value: Any, digits: int = 4) -> str:
+    """Numbers to ``digits`` significant figures; null shows as 'n/a'."""
+    if value is None:
+        return "n/a"
+    if isinstance(value, float):
+        return f"{value:.{digits}g}"
+    return str(value)
+
+
+def _environment() -> jinja2.Environment:
+    return jinja2.Environment(autoescape=True, undefined=jinja2.ChainableUndefined,
+                              trim_blocks=True, lstrip_blocks=True)
+
+
+def render_html(results: dict[str, Any]) -> str:
+    """The report page with its plots embedded as base64 PNG."""
+    template = _environment().from_string(REPORT_TEMPLATE)
+    acceptance = results.get("acceptance") or []
+    return template.render(r=results, plots=all_plots(results), fmt=_fmt, terms=_TERMS,
+                           all_pass=all(a.get("pass") for a in acceptance))

@@ -1,0 +1,108 @@
+"""The report.html jinja2 template, kept as a module constant (no package-data files).
+
+Every value is rendered through autoescape; nothing from the run is marked safe.
+"""
+
+REPORT_TEMPLATE = """<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<title>Calibration report — {{ r.unit_under_test.model }} {{ r.unit_under_test.serial }}</title>
+<style>
+body{font-family:sans-serif;max-width:60em;margin:1em auto;color:#222}
+table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #bbb;padding:2px 6px;font-size:90%}
+th{background:#eee}.pass{color:#070;font-weight:bold}.fail{color:#b00;font-weight:bold}
+.warn{background:#fdd}code{font-size:85%}img{max-width:100%}
+</style></head><body>
+<h1>Gyro calibration report</h1>
+<p><b>Overall: {% if all_pass %}<span class="pass">PASS</span>{% else %}<span class="fail">FAIL</span>{% endif %}</b>
+({{ r.acceptance|length }} acceptance limit(s))</p>
+
+<h2>Unit, procedure, run</h2>
+<table>
+<tr><th>Unit under test</th><td>{{ r.unit_under_test.model }}, serial {{ r.unit_under_test.serial }}
+ (output {{ r.unit_under_test.output_units }}, nominal SF {{ r.unit_under_test.nominal_scale_factor }})</td></tr>
+<tr><th>Procedure</th><td>{{ r.procedure.name }} (<code>{{ r.procedure.file }}</code>)<br>{{ r.procedure.description }}</td></tr>
+<tr><th>Station</th><td>{{ r.station.name }} (<code>{{ r.station.file }}</code>), site {{ r.station.site.name if r.station.site else "" }},
+ latitude {{ r.station.site.latitude_deg if r.station.site else "unknown" }}°</td></tr>
+<tr><th>Run</th><td>{{ r.run.run_id }} — mode {{ r.run.mode }}, seed {{ r.run.seed }}, speed {{ r.run.speed }}</td></tr>
+<tr><th>Operator</th><td>{{ r.run.operator }}</td></tr>
+<tr><th>Started / ended</th><td>{{ r.run.started_at }} / {{ r.run.ended_at or "(report built before the run closed)" }}</td></tr>
+<tr><th>Software</th><td>{{ r.run.software.name if r.run.software }} {{ r.run.software.version if r.run.software }}</td></tr>
+<tr><th>Report built</th><td>{{ r.report_built_at }}</td></tr>
+</table>
+
+<h2>Instruments</h2>
+<table><tr><th>Role</th><th>Make / model</th><th>Serial</th><th>Calibration due</th><th>Driver</th><th>Address</th><th>Identified as</th></tr>
+{% for role, i in r.instruments.items() %}
+<tr{% if i.calibration_overdue %} class="warn"{% endif %}><td>{{ role }}</td><td>{{ i.make }} {{ i.model }}</td><td>{{ i.serial }}</td>
+<td>{{ i.calibration_due }}{% if i.calibration_overdue %} <span class="fail">OVERDUE</span>{% endif %}</td>
+<td>{{ i.driver }}</td><td><code>{{ i.address }}</code></td><td>{{ i.description }}</td></tr>
+{% endfor %}</table>
+
+<h2>Acceptance</h2>
+<table><tr><th>Limit</th><th>Metric</th><th>Value</th><th>Limit</th><th>Verdict</th></tr>
+{% for a in r.acceptance %}
+<tr><td>{{ a.name }}</td><td><code>{{ a.metric }}</code></td>
+<td>{{ fmt(a.value) }} {{ a.unit or "" }}</td><td>{{ a.kind }} {{ fmt(a.limit) }} {{ a.unit or "" }}</td>
+<td>{% if a["pass"] %}<span class="pass">PASS</span>{% else %}<span class="fail">FAIL</span>{% endif %}</td></tr>
+{% else %}<tr><td colspan="5">no acceptance limits in the procedure</td></tr>{% endfor %}
+</table>
+
+<h2>Scale factor</h2>
+<table><tr><th>Temp (°C)</th><th>Sensor (°C)</th><th>SF (LS)</th><th>SF+</th><th>SF−</th><th>Asymmetry (ppm)</th><th>Nonlin. RMS (%)</th><th>Nonlin. max (ppm FS)</th></tr>
+{% for e in r.scale_factor %}
+<tr><td>{{ fmt(e.temp_c) }}</td><td>{{ fmt(e.sensor_temp_c) }}</td><td>{{ fmt(e.sf, 9) }}</td><td>{{ fmt(e.sf_plus, 9) }}</td><td>{{ fmt(e.sf_minus, 9) }}</td>
+<td>{{ fmt(e.asymmetry_ppm) }}</td><td>{{ fmt(e.nonlinearity.rms_pct) }}</td><td>{{ fmt(e.nonlinearity.max_ppm_fs) }}</td></tr>
+{% endfor %}</table>
+<p>LS line at the reference: {% if r.scale_factor_ls %}SF {{ fmt(r.scale_factor_ls.sf, 9) }}, bias {{ fmt(r.scale_factor_ls.bias) }} at {{ fmt(r.scale_factor_ls.temp_c) }} °C{% else %}not computed{% endif %}.
+Worst nonlinearity: {% if r.nonlinearity %}{{ fmt(r.nonlinearity.rms_pct) }} % RMS, {{ fmt(r.nonlinearity.max_ppm_fs) }} ppm FS{% else %}not computed{% endif %}.
+Asymmetry: {{ fmt(r.asymmetry_ppm) }} ppm.
+SF over temperature: {% if r.sf_temperature %}instability {{ fmt(r.sf_temperature.instability_pct) }} %, sensitivity {{ fmt(r.sf_temperature.sensitivity_ppm_per_c) }} ppm/°C{% else %}not computed{% endif %}.</p>
+{% for key in ["sf_vs_rate", "nonlinearity", "sf_vs_temp"] %}{% if plots[key] %}<img alt="{{ key }}" src="data:image/png;base64,{{ plots[key] }}">{% endif %}{% endfor %}
+
+<h2>Bias</h2>
+<p>Earth rate removed: {{ fmt(r.earth_rate_removed_dph) }} deg/h (vertical input axis at the station latitude).</p>
+<table><tr><th>Temp (°C)</th><th>Bias (deg/h)</th><th>From</th></tr>
+{% for b in r.bias %}<tr><td>{{ fmt(b.temp_c) }}</td><td>{{ fmt(b.bias_dph) }}</td><td>{{ b.source }}</td></tr>{% endfor %}</table>
+<p>Bias temperature sensitivity: {% if r.bias_temperature %}{{ fmt(r.bias_temperature.sensitivity_dph_per_c) }} deg/h/°C{% else %}not computed{% endif %}.</p>
+{% if plots.bias_vs_temp %}<img alt="bias vs temperature" src="data:image/png;base64,{{ plots.bias_vs_temp }}">{% endif %}
+
+<h2>Allan deviation and noise terms</h2>
+{% if r.allan %}
+<p>Hold {{ r.allan.step_id }} at {{ fmt(r.allan.temp_c) }} °C, {{ fmt(r.allan.duration_s) }} s at {{ fmt(r.allan.rate_hz) }} Hz; {{ r.allan.method }}.</p>
+<table><tr><th>Term</th><th>Value</th><th>68 % interval</th></tr>
+{% for name, unit in terms %}<tr><td>{{ name }}</td><td>{{ fmt(r.allan.fit[name]) }} {{ unit }}</td>
+<td>{% set u = r.allan.fit_uncertainty[name] %}{{ fmt(u.lo) }} … {{ fmt(u.hi) }}</td></tr>{% endfor %}
+<tr><td>Markov (σ, T<sub>c</sub>)</td><td colspan="2">{% if r.allan.fit.markov %}{{ fmt(r.allan.fit.markov.sigma_dph) }} deg/h, {{ fmt(r.allan.fit.markov.tau_s) }} s{% else %}not significant{% endif %}</td></tr>
+</table>
+{% if plots.allan %}<img alt="Allan deviation" src="data:image/png;base64,{{ plots.allan }}">{% endif %}
+{% else %}<p>Not computed.</p>{% endif %}
+
+<h2>Compensation tables</h2>
+{% for what, t in r.compensation.tables.items() %}
+<h3>{{ what }}</h3>
+{% for kind, table in t.items() %}{% if table %}
+<p>{{ table.kind }}: in-sample RMS residual {{ fmt(table.residual_rms) }}, leave-one-out RMS {{ fmt(table.loo_residual_rms) }}, max {{ fmt(table.loo_residual_max) }}
+{% if table.coefficients %}; coefficients (highest power first) {{ table.coefficients|map("string")|join(", ") }}{% endif %}</p>
+<table><tr><th>Temp (°C)</th><th>Value</th></tr>{% for p in table.points %}<tr><td>{{ fmt(p[0]) }}</td><td>{{ fmt(p[1], 9) }}</td></tr>{% endfor %}</table>
+{% endif %}{% else %}{% endfor %}
+{% endfor %}
+
+<h2>Run history (journal)</h2>
+<p>{{ r.journal.event_count }} events; {{ r.journal.retries }} retries, {{ r.journal.faults }} faults, {{ r.journal.bad_steps }} bad (repeated) steps.</p>
+<table><tr><th>#</th><th>Event</th><th>Details</th></tr>
+{% for e in r.journal.events %}<tr><td>{{ e.seq }}</td><td>{{ e.event }}</td>
+<td>{% for k, v in e.items() if k not in ("seq", "event", "wall_time") %}{{ k }}={{ v }}; {% endfor %}</td></tr>
+{% else %}<tr><td colspan="3">no retries, faults or bad steps</td></tr>{% endfor %}</table>
+
+<h2>Notes</h2>
+<ul>{% for n in r.notes %}<li>{{ n }}</li>{% else %}<li>none</li>{% endfor %}</ul>
+
+<h2>Hashes (SHA-256)</h2>
+<table><tr><th>Input</th><th>Copy</th><th>SHA-256</th></tr>
+{% for role, i in r.inputs.items() %}<tr><td>{{ role }}</td><td><code>{{ i.copy }}</code></td><td><code>{{ i.sha256 }}</code></td></tr>{% endfor %}
+<tr><td>plan record</td><td><code>plan.json</code></td><td><code>{{ r.run.plan_sha256 }}</code></td></tr>
+<tr><td>samples ({{ r.journal.chunks }} chunks)</td><td>hash of the journal's chunk list</td><td><code>{{ r.journal.samples_sha256 }}</code></td></tr>
+</table>
+<p>Check every hash with <code>gyrocal verify RUN_DIR</code>.</p>
+</body></html>
+"""

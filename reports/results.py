@@ -1,0 +1,73 @@
+"""results.json assembly helpers and the acceptance evaluation.
+
+QA signs a run off against its acceptance limits, so the verdict must be
+traceable: each limit names a key path of results.json, the value found
+there is shown next to the limit, and a metric that could not be computed
+fails (a missing number is never a pass) with a note saying why.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+#: The keys interfaces.md requires in report/results.json.
+REQUIRED_KEYS = ("unit_under_test", "scale_factor", "scale_factor_ls", "nonlinearity",
+                 "asymmetry_ppm", "sf_temperature", "bias", "bias_temperature", "allan",
+                 "compensation", "acceptance")
+
+
+def lookup_metric(results: dict[str, Any], metric: str) -> Any:
+    """Value at a dotted key path (``allan.fit.B_dph``); None when any part is missing/null."""
+    node: Any = results
+    for part in metric.split("."):
+        if not isinstance(node, dict) or node.get(part) is None:
+            return None
+        node = node[part]
+    return node
+
+
+def evaluate_acceptance(results: dict[str, Any], limits: list[dict[str, Any]],
+                        notes: list[str]) -> list[dict[str, Any]]:
+    """One verdict per limit: {name, metric, kind, limit, unit, value, pass}.
+
+    ``limits`` are plan.json's acceptance entries ({name, metric, max|min, unit}).
+    A null or non-numeric value fails, and a note says which metric was missing.
+    """
+    verdicts = []
+    for limit in limits:
+        kind = "max" if limit.get("max") is not None else "min"
+        bound = float(limit[kind])
+        value = lookup_metric(results, limit["metric"])
+        number = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) \
+            else None
+        if number is None or not math.isfinite(number):
+            passed = False
+            number = None
+            notes.append(f"acceptance {limit['name']!r}: {limit['metric']} was not computed, "
+                         "so the limit fails")
+        else:
+            passed = number <= bound if kind == "max" else number >= bound
+        verdicts.append({"name": limit["name"], "metric": limit["metric"], "kind": kind,
+                         "limit": bound, "unit": limit.get("unit"), "value": number,
+                         "pass": bool(passed)})
+    return verdicts
+
+
+def finite_or_none(value: Any) -> Any:
+    """JSON has no NaN/inf: such a number becomes null (recursively)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_or_none(v) for v in value]
+    if hasattr(value, "item") and callable(value.item):  # numpy scalar
+        return finite_or_none(value.item())
+    return value
+
+
+def results_bytes(results: dict[str, Any]) -> bytes:
+    """Canonical, NaN-free encoding of results.json."""
+    return json.dumps(finite_or_none(results), indent=2, allow_nan=False).encode() + b"\n"
