@@ -126,9 +126,10 @@ class SimulatedStation:
         self.source = GyroPhysicsSource(self.gyro_simulator, self.table_physics,
                                         self.chamber_physics, start_s=clock.now_s())
         if gyro_block_frames is None:
-            # ~50 ms of frames per write: big enough for throughput, small enough that the
-            # clock never runs far ahead of what the reader has consumed.
-            gyro_block_frames = max(16, int(self.sample_rate_hz * 0.05))
+            # Per block the model is evaluated once (its fixed cost is ~0.2 ms), so blocks must
+            # be large; 512 frames (0.26 s at 2 kHz, 2 s at 250 Hz) keeps that cost under 1 µs a
+            # frame while the clock runs at most one block ahead of what the reader consumed.
+            gyro_block_frames = 512
         self.gyro_port = SimulatedGyroPort(
             self.source, clock, sample_rate_hz=self.sample_rate_hz,
             with_temperature=gyro_cfg.with_temperature, lsb=gyro_cfg.rate_lsb,
