@@ -1,0 +1,206 @@
+"""discrepancy.html: the story in plots, one self-contained file.
+
+QA reads this to decide whether to trust the updated model, so it shows the
+evidence in the order of the argument: where model and data disagreed
+(residual against time with the procedure's steps shaded, segment means
+with their noise band, residual against each input), what was named and how
+sure the workflow is (scores against the calibrated threshold, look-alikes
+with probabilities, the separating experiment), and the gap before and after
+beside the noise floor (segment means, spectrum, Allan deviation). Figures
+are embedded as base64 PNG; every string from the user (model name, log
+path, segment labels) goes through jinja2's autoescape.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+from pathlib import Path
+
+import jinja2
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from gyrocal.reports.allan import overlapping_adev  # noqa: E402
+from gyrocal.reports.discrepancy.gap import allan_taus_m  # noqa: E402
+from gyrocal.reports.discrepancy.workflow import DiscrepancyResult  # noqa: E402
+
+_TEMPLATE = """<!doctype html>
+<html lang="en"><head><meta charset="utf-8">
+<title>Discrepancy: {{ model_name }}</title>
+<style>
+body { font-family: sans-serif; max-width: 1100px; margin: 2em auto; color: #222; }
+table { border-collapse: collapse; margin: 0.5em 0; }
+td, th { border: 1px solid #bbb; padding: 3px 8px; text-align: left; }
+pre { background: #f4f4f4; padding: 0.6em; overflow-x: auto; }
+.verdict { font-size: 1.2em; padding: 0.5em; background: #eef; }
+img { max-width: 100%; }
+</style></head><body>
+<h1>Model vs measured data</h1>
+<p>Model: <b>{{ model_name }}</b> &middot; measured: <code>{{ source }}</code></p>
+<p class="verdict">{{ verdict }}</p>
+
+<h2>1. Where they disagree</h2>
+<p>Residual = measured − refitted model (input-referred, deg/h), bin means; shading marks the
+procedure's steps (blue: temperature ramps, grey: table moving). Segment means with their
+±2σ noise band under the noise model.</p>
+<img src="data:image/png;base64,{{ fig_time }}" alt="residual against time">
+<p>Segment means of the residual (before) against the inputs: what the disagreement follows.</p>
+<img src="data:image/png;base64,{{ fig_inputs }}" alt="residual against inputs">
+
+<h2>2. What was named</h2>
+{% if found %}
+<table><tr><th>effect</th><th>parameters</th><th>probability</th><th>score</th><th>threshold</th><th>look-alikes</th></tr>
+{% for f in found %}
+<tr><td>{{ f.name }}</td>
+<td>{% for k, v in f.parameters.items() %}{{ k }} = {{ "%.4g"|format(v) }}<br>{% endfor %}</td>
+<td>{{ "%.2f"|format(f.probability) }}</td><td>{{ "%.1f"|format(f.score) }}</td>
+<td>{{ "%.2f"|format(f.threshold) }}</td>
+<td>{% for a in f.look_alikes %}{{ a.name }} ({{ "%.2f"|format(a.probability) }})<br>{% endfor %}</td></tr>
+{% endfor %}</table>
+{% for f in found if f.separating_experiment %}
+<p>Experiment that would separate <b>{{ f.name }}</b> from its look-alikes (procedure fragment):</p>
+<pre>{{ f.separating_experiment }}</pre>
+{% endfor %}
+{% else %}
+<p>No catalogue effect passed the threshold.</p>
+{% endif %}
+<p>Scores are −log10 of each effect's likelihood-gain tail probability; the threshold is the
+{{ "%.0f"|format(100 * (1 - alpha)) }} % quantile of the best score over the whole library on
+effect-free data simulated from the refitted model and the noise model.</p>
+{% for it in iterations %}
+<p>Pass {{ loop.index }}: threshold {{ "%.2f"|format(it.threshold) }}, accepted: {{ it.accepted or "none" }}</p>
+<table><tr><th>effect</th><th>score</th><th>Δχ²</th></tr>
+{% for name, score in it.ranked %}<tr><td>{{ name }}</td><td>{{ "%.2f"|format(score) }}</td>
+<td>{{ "%.1f"|format(it.delta[name]) }}</td></tr>{% endfor %}</table>
+{% endfor %}
+{% if unexplained %}<p><b>Unexplained remainder:</b> {{ where }}</p>{% endif %}
+
+<h2>3. The gap before and after</h2>
+<table><tr><th>metric</th><th>before</th><th>after</th><th>noise floor</th></tr>
+{% for name, m in metrics %}<tr><td>{{ name }}{% if name == primary %} (primary){% endif %}</td>
+<td>{{ "%.4g"|format(m.before) }}</td><td>{{ "%.4g"|format(m.after) }}</td>
+<td>{{ "%.4g"|format(m.noise_floor) }}</td></tr>{% endfor %}</table>
+<img src="data:image/png;base64,{{ fig_gap }}" alt="spectrum and Allan deviation">
+<h3>Notes</h3>
+<ul>{% for n in notes %}<li>{{ n }}</li>{% endfor %}</ul>
+</body></html>
+"""
+
+
+def _png(fig) -> str:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=90, bbox_inches="tight")
+    plt.close(fig)
+    return base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+def _shade(ax, result: DiscrepancyResult, t_bins: np.ndarray) -> None:
+    rate = result.signals["table rate (deg/s)"]
+    trend = result.signals["sensor temperature rate (degC/min)"]
+    for mask, colour in ((np.abs(trend) > 0.05, "#cde"), (np.abs(rate) > 1e-3, "#ddd")):
+        edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(int), [0]))))
+        for a, b in zip(edges[::2], edges[1::2], strict=True):
+            ax.axvspan(t_bins[a], t_bins[b - 1], color=colour, lw=0, zorder=0)
+
+
+def _fig_time(result: DiscrepancyResult) -> str:
+    t = result.bins.centre_s
+    geometry = result.geometry
+    fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
+    for ax, resid, title in ((axes[0], result.resid_before_bins, "before (input model, refitted)"),
+                             (axes[1], result.resid_after_bins, "after (updated model, refitted)")):
+        _shade(ax, result, t)
+        ax.plot(t, resid, ".", ms=2, color="#888", label="bin means")
+        means = geometry.means(resid)
+        band = 2.0 * geometry.stderr_dph
+        for k in range(len(means)):
+            sel = geometry.seg_of_bin == k
+            ts = t[sel]
+            ax.plot([ts[0], ts[-1]], [means[k]] * 2, color="C3", lw=2)
+            ax.fill_between([ts[0], ts[-1]], -band[k], band[k], color="C2", alpha=0.25, lw=0)
+        ax.set_ylabel("residual (deg/h)")
+        ax.set_title(title)
+        spread = np.percentile(np.abs(resid), 99.5)
+        ax.set_ylim(-1.5 * spread, 1.5 * spread)
+    axes[1].set_xlabel("time (s)")
+    return _png(fig)
+
+
+def _fig_inputs(result: DiscrepancyResult) -> str:
+    geometry = result.geometry
+    means = geometry.means(result.resid_before_bins)
+    fig, axes = plt.subplots(2, 3, figsize=(11, 6))
+    for ax, (name, values) in zip(axes.ravel(), result.signals.items(), strict=False):
+        x = geometry.means(values)
+        ax.errorbar(x, means, yerr=2.0 * geometry.stderr_dph, fmt="o", ms=3, color="C0")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_xlabel(name)
+        ax.set_ylabel("segment mean (deg/h)")
+    fig.tight_layout()
+    return _png(fig)
+
+
+def _fig_gap(result: DiscrepancyResult) -> str:
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    ax = axes[0]
+    for scan, label, colour in ((result.scan_before, "before", "C3"), (result.scan_after, "after", "C0")):
+        if scan is not None:
+            ax.semilogy(scan.f_hz, scan.ratio, lw=0.6, color=colour, label=label)
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("periodogram / noise PSD")
+    ax.set_title("residual spectrum (full rate)")
+    ax.legend()
+    ax = axes[1]
+    m = allan_taus_m(result.bins.n_bins)
+    fs = 1.0 / result.bins.width_s
+    for resid, label, colour in ((result.resid_before_bins, "residual before", "C3"),
+                                 (result.resid_after_bins, "residual after", "C0")):
+        a = overlapping_adev(resid, fs, m=m, confidence=None)
+        ax.loglog(a.tau_s, a.adev, "o-", color=colour, label=label, ms=3)
+    tau = m / fs
+    ax.loglog(tau, result.noise_before.allan_deviation_dph(tau), "k--", label="noise model (before)")
+    ax.loglog(tau, result.noise.model.allan_deviation_dph(tau), "k-", lw=0.8, label="noise model (after)")
+    ax.set_xlabel("tau (s)")
+    ax.set_ylabel("Allan deviation (deg/h)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return _png(fig)
+
+
+def verdict(result: DiscrepancyResult) -> str:
+    gap = result.metrics[result.primary]
+    parts = []
+    if result.found:
+        parts.append("Found: " + ", ".join(f"{f.name} (p = {f.probability:.2f})" for f in result.found) + ".")
+    else:
+        parts.append("No catalogue effect is needed to explain the data." if not result.unexplained
+                     else "No catalogue effect explains the disagreement.")
+    if result.unexplained:
+        parts.append("Structure remains that no catalogue effect explains: " + result.where + ".")
+    parts.append(f"Gap ({result.primary}): {gap.before:.3g} before, {gap.after:.3g} after, "
+                 f"noise floor {gap.noise_floor:.3g}.")
+    return " ".join(parts)
+
+
+def write_html(result: DiscrepancyResult, source: str, path: str | Path) -> Path:
+    """Render the report to ``path``."""
+    from gyrocal.reports.discrepancy.workflow import ALPHA
+
+    env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined)
+    iterations = [{"threshold": it.threshold, "accepted": it.accepted, "delta": it.delta_chi2,
+                   "ranked": sorted(it.scores.items(), key=lambda kv: -kv[1])}
+                  for it in result.iterations]
+    html = env.from_string(_TEMPLATE).render(
+        model_name=result.input_model.name or "(unnamed model)", source=source,
+        verdict=verdict(result), found=result.found, iterations=iterations, alpha=ALPHA,
+        unexplained=result.unexplained, where=result.where, primary=result.primary,
+        metrics=list(result.metrics.items()), notes=result.notes,
+        fig_time=_fig_time(result), fig_inputs=_fig_inputs(result), fig_gap=_fig_gap(result),
+    )
+    path = Path(path)
+    path.write_text(html, encoding="utf-8")
+    return path

@@ -1,0 +1,218 @@
+"""Linear designs and effect signatures, built from the model's own equation.
+
+The refit and every effect's signature are computed by evaluating
+:func:`gyrocal.models.indicated.indicated_rate` on the measured inputs with
+one parameter switched on at a time, never by re-deriving the physics here:
+the indicated rate is affine in every amplitude-like parameter (bias,
+tempcos, SF error, effect amplitudes) once the shape parameters (τ,
+threshold, frequency) are fixed, so "the model with parameter p = 1 minus the
+model with every linear parameter at 0" is exactly p's regressor, including
+the way thermal lag and the dead zone act through every other term.
+
+Everything is input-referred and in deg/h: measured = gyro/scale_factor·3600.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from gyrocal.models.effects import EFFECTS
+from gyrocal.models.gyro_model import EffectSpec, GyroModel
+from gyrocal.models.indicated import ModelInputs, indicated_rate
+from gyrocal.reports.discrepancy.segments import Bins
+
+#: The model's own parameters that are always refitted (the issue: bias, SF, tempcos).
+BASE_KEYS = ("bias_dph", "bias_tempco_dph_per_c", "sf_error_ppm", "sf_tempco_ppm_per_c")
+
+#: Effects that change the inputs of every other term (T_s, ω_t): adding one
+#: changes the whole design, not just one column.
+STRUCTURAL = ("thermal_lag", "dead_zone")
+
+#: Effects judged elsewhere: the Markov term from the quiet-segment Allan
+#: curve, periodic interference from the full-rate spectrum, quantization
+#: (output stage, bounded angle error) not scored (see docs).
+NOT_IN_BIN_SEARCH = ("markov_bias", "periodic_interference", "quantization")
+
+#: Effects whose amplitude is fitted as a (cos, sin) pair, the phase following from it.
+PHASED = {"table_angle_harmonic": ("amplitude_dph", "phase_deg")}
+
+
+@dataclass(frozen=True)
+class Column:
+    """One linear parameter of a design: a top-level key, or an effect's key.
+
+    For a phased effect ``key`` is ``"cos"`` or ``"sin"`` (the quadrature pair).
+    """
+
+    effect: str | None
+    key: str
+
+    @property
+    def label(self) -> str:
+        return self.key if self.effect is None else f"{self.effect}.{self.key}"
+
+
+def effect_columns(name: str) -> list[Column]:
+    if name in PHASED:
+        return [Column(name, "cos"), Column(name, "sin")]
+    if name in NOT_IN_BIN_SEARCH:
+        return []
+    return [Column(name, k) for k in EFFECTS[name].linear_keys]
+
+
+def model_columns(model: GyroModel) -> list[Column]:
+    """Every linear parameter the refit adjusts for ``model``."""
+    columns = [Column(None, k) for k in BASE_KEYS]
+    for e in model.effects:
+        columns.extend(effect_columns(e.name))
+    return columns
+
+
+def _set_effect(model: GyroModel, name: str, params: dict[str, float]) -> GyroModel:
+    spec = model.effect(name)
+    merged = dict(spec.params) if spec is not None else {}
+    merged.update(params)
+    effects = tuple(EffectSpec(e.name, merged) if e.name == name else e for e in model.effects)
+    if spec is None:
+        effects = (*effects, EffectSpec(name, merged))
+    return replace(model, effects=effects)
+
+
+def zero_linear(model: GyroModel) -> GyroModel:
+    """The model with every refitted parameter at 0 (shape parameters and fixed terms kept)."""
+    out = replace(model, **{k: 0.0 for k in BASE_KEYS})
+    for e in model.effects:
+        if e.name in PHASED:
+            out = _set_effect(out, e.name, {PHASED[e.name][0]: 0.0})
+        else:
+            keys = [c.key for c in effect_columns(e.name)]
+            if keys:
+                out = _set_effect(out, e.name, {k: 0.0 for k in keys})
+    return out
+
+
+def unit_model(zeroed: GyroModel, column: Column) -> GyroModel:
+    """``zeroed`` with ``column``'s parameter at 1 (its regressor is the difference)."""
+    if column.effect is None:
+        return replace(zeroed, **{column.key: 1.0})
+    if column.effect in PHASED:
+        amp, phase = PHASED[column.effect]
+        return _set_effect(zeroed, column.effect, {amp: 1.0, phase: 0.0 if column.key == "cos" else 90.0})
+    return _set_effect(zeroed, column.effect, {column.key: 1.0})
+
+
+def apply_coefficients(model: GyroModel, columns: list[Column], coeffs: np.ndarray) -> GyroModel:
+    """The model with fitted values; a (cos, sin) pair becomes amplitude and phase."""
+    out = model
+    pairs: dict[str, dict[str, float]] = {}
+    for column, value in zip(columns, coeffs, strict=True):
+        value = float(value)
+        if column.effect is None:
+            out = replace(out, **{column.key: value})
+        elif column.effect in PHASED:
+            pairs.setdefault(column.effect, {})[column.key] = value
+        else:
+            out = _set_effect(out, column.effect, {column.key: value})
+    for name, pair in pairs.items():
+        amp, phase = PHASED[name]
+        c, s = pair.get("cos", 0.0), pair.get("sin", 0.0)
+        out = _set_effect(out, name, {amp: math.hypot(c, s), phase: math.degrees(math.atan2(s, c))})
+    return out
+
+
+@dataclass(frozen=True)
+class Design:
+    """Binned offset and regressors of one model (deg/h), ready for whitening."""
+
+    model: GyroModel            # the model the design is for (linear values irrelevant)
+    columns: list[Column]
+    offset_bins: np.ndarray     # ω_ind·3600 of the model with every linear parameter at 0
+    x_bins: np.ndarray          # n_bins × len(columns)
+
+
+class DesignBuilder:
+    """Evaluates the equation on the measured inputs and bins the result."""
+
+    def __init__(self, inputs: ModelInputs, bins: Bins) -> None:
+        self.inputs = inputs
+        self.bins = bins
+
+    def rate_dph(self, model: GyroModel) -> np.ndarray:
+        """Full-rate noise-free indicated rate, deg/h."""
+        return indicated_rate(model, self.inputs).rate_dps * 3600.0
+
+    def design(self, model: GyroModel) -> Design:
+        zeroed = zero_linear(model)
+        offset = self.rate_dph(zeroed)
+        columns = model_columns(model)
+        x = np.empty((self.bins.n_bins, len(columns)))
+        for j, column in enumerate(columns):
+            x[:, j] = self.bins.mean(self.rate_dph(unit_model(zeroed, column)) - offset)
+        return Design(model, columns, self.bins.mean(offset), x)
+
+    def extra_columns(self, model: GyroModel, spec: EffectSpec) -> tuple[list[Column], np.ndarray]:
+        """Binned regressors of an additive effect (its shape parameters from ``spec``)."""
+        zeroed = zero_linear(model.with_effect(spec))
+        offset = self.rate_dph(zeroed)
+        columns = effect_columns(spec.name)
+        x = np.empty((self.bins.n_bins, len(columns)))
+        for j, column in enumerate(columns):
+            x[:, j] = self.bins.mean(self.rate_dph(unit_model(zeroed, column)) - offset)
+        return columns, x
+
+
+def placeholder_spec(name: str, shape: dict[str, float]) -> EffectSpec:
+    """An effect with the given shape parameters and every amplitude at 0 (or 1 if 0 is out of range)."""
+    params = {}
+    for p in EFFECTS[name].params:
+        if p.key in shape:
+            params[p.key] = float(shape[p.key])
+        elif p.kind == "linear":
+            params[p.key] = 0.0
+        else:
+            params[p.key] = 1.0
+    return EffectSpec(name, params)
+
+
+@dataclass(frozen=True)
+class SearchSpace:
+    """What the inputs allow to be searched: record length, bin width, rate levels."""
+
+    duration_s: float
+    bin_width_s: float
+    rate_levels_dps: tuple[float, ...]   # distinct |ω_t| held for a while, ascending, 0 first
+
+
+def rate_levels(table_rate_dps: np.ndarray, fs_hz: float, min_hold_s: float = 5.0) -> tuple[float, ...]:
+    """Distinct |rate| levels held at least ``min_hold_s`` (dwells, not accelerations)."""
+    magnitude = np.round(np.abs(np.asarray(table_rate_dps, dtype=float)), 6)
+    values, counts = np.unique(magnitude, return_counts=True)
+    held = values[counts >= min_hold_s * fs_hz]
+    return tuple(sorted({0.0, *held.tolist()}))
+
+
+def shape_grid(name: str, space: SearchSpace) -> list[dict[str, float]]:
+    """Shape-parameter values to try for effect ``name`` (one empty dict if it has none).
+
+    τ grids are log-spaced between a few bins and the record length; dead-zone
+    thresholds are midpoints between the held rate levels (any threshold
+    between two levels predicts the same data, so only the bracket is
+    identifiable).
+    """
+    lo_tau = max(3.0 * space.bin_width_s, 10.0)
+    if name == "thermal_lag":
+        return [{"tau_s": float(t)} for t in np.geomspace(lo_tau, max(0.5 * space.duration_s, 2 * lo_tau), 14)]
+    if name == "warmup_transient":
+        return [{"tau_s": float(t)} for t in np.geomspace(max(lo_tau, 30.0), max(space.duration_s, 2 * lo_tau), 14)]
+    if name == "dead_zone":
+        levels = space.rate_levels_dps[:7]
+        return [{"threshold_dps": 0.5 * (a + b)} for a, b in zip(levels[:-1], levels[1:], strict=True)]
+    return [{}]
+
+
+def searched_effects(model: GyroModel) -> list[str]:
+    """Catalogue effects the bin-level search scores: not in the model, not judged elsewhere."""
+    return [name for name in EFFECTS if not model.has_effect(name) and name not in NOT_IN_BIN_SEARCH]

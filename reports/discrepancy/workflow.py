@@ -1,0 +1,447 @@
+"""The discrepancy workflow: refit, estimate the noise, score the catalogue, add, repeat.
+
+1. Refit the model's own linear parameters (bias, SF error, tempcos, any
+   effect amplitudes) to the bin means by GLS, so what remains is structure
+   the model lacks rather than wrong numbers.
+2. Estimate the noise on the quiet segments of that residual (a Markov hump
+   found there is the ``markov_bias`` effect) and build the whitening.
+3. Score every catalogue effect the model lacks (shape parameters by grid and
+   golden-section search), periodic interference on the full-rate spectrum,
+   and an out-of-catalogue probe (a bias step at any time).
+4. Calibrate the acceptance threshold by simulation: effect-free data from
+   the refitted model and the noise model, the maximum score over the whole
+   library per dataset, its (1 − α) quantile. Accept the best effect only
+   above it, and only if a generic step does not explain the data clearly
+   better (then the structure is outside the catalogue and is reported, not
+   named after its nearest neighbour).
+5. Add it, refit everything jointly (shape parameters of found effects too),
+   repeat up to ``max_effects``; then measure the gap before and after
+   beside the noise floor and decide whether anything is left unexplained.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy import stats
+
+from gyrocal.models.gyro_model import EffectSpec, GyroModel
+from gyrocal.models.indicated import ModelInputs, indicated_rate
+from gyrocal.reports.discrepancy.blas import single_threaded_blas
+from gyrocal.reports.discrepancy.gap import (
+    Metric,
+    SegmentGeometry,
+    allan_mismatch,
+    choose_primary,
+    describe_remainder,
+    expected_max_exponential,
+    g1,
+    segment_rms,
+)
+from gyrocal.reports.discrepancy.lookalikes import LookAlike, lookalike_group, separating_experiment
+from gyrocal.reports.discrepancy.noise_model import NoiseEstimate, NoiseModel, estimate_noise
+from gyrocal.reports.discrepancy.periodic import (
+    REFINEMENT_FACTOR,
+    PeriodicScan,
+    periodic_scan,
+    sine_dph,
+)
+from gyrocal.reports.discrepancy.scoring import (
+    EffectScores,
+    Fit,
+    Whitener,
+    gls_fit,
+    null_scores,
+    order_statistic_quantile,
+    refine_shape,
+    score_from_delta,
+    score_library,
+    step_columns,
+)
+from gyrocal.reports.discrepancy.segments import Bins, Segments, derive_segments, make_bins
+from gyrocal.reports.discrepancy.signatures import DesignBuilder, SearchSpace, rate_levels
+from gyrocal.reports.measured_log import LogFormatError, MeasuredLog
+
+#: Family-wise false-positive rate of the acceptance threshold in the first pass; pass k
+#: uses ALPHA/k, so an extra effect after a real one is no easier to "find" than a first.
+ALPHA = 0.05
+#: G1 after the refit above this quantile of its effect-free distribution is "unexplained".
+UNEXPLAINED_LEVEL = 0.99
+#: Number of step positions the out-of-catalogue probe tries.
+STEP_POSITIONS = 150
+
+
+@dataclass(frozen=True)
+class FoundEffect:
+    name: str
+    parameters: dict[str, float]
+    probability: float
+    look_alikes: list[LookAlike]
+    separating_experiment: str
+    score: float
+    delta_chi2: float
+    threshold: float
+
+    def to_json(self) -> dict:
+        return {
+            "name": self.name,
+            "parameters": {k: float(v) for k, v in self.parameters.items()},
+            "probability": float(self.probability),
+            "look_alikes": [{"name": a.name, "probability": float(a.probability)}
+                            for a in self.look_alikes],
+            "separating_experiment": self.separating_experiment,
+            "score": float(self.score),
+            "delta_chi2": float(self.delta_chi2),
+            "threshold": float(self.threshold),
+        }
+
+
+@dataclass(frozen=True)
+class StepProbe:
+    """The best single bias step (not a catalogue effect: a locator for the unexplained)."""
+
+    time_s: float
+    size_dph: float
+    delta_chi2: float
+    score: float
+    threshold: float
+    n_positions: int
+
+    @property
+    def significant(self) -> bool:
+        return self.score > self.threshold
+
+
+@dataclass(frozen=True)
+class Iteration:
+    """What one pass scored, for the report: every effect's score and the threshold."""
+
+    scores: dict[str, float]
+    delta_chi2: dict[str, float]
+    threshold: float
+    accepted: str | None
+    step: StepProbe
+
+
+@dataclass
+class DiscrepancyResult:
+    found: list[FoundEffect]
+    unexplained: bool
+    where: str
+    metrics: dict[str, Metric]
+    primary: str
+    input_model: GyroModel
+    updated_model: GyroModel
+    noise: NoiseEstimate
+    iterations: list[Iteration]
+    # material for the plots
+    bins: Bins
+    segments: Segments
+    seg_ids_of_geometry: np.ndarray
+    geometry: SegmentGeometry
+    resid_before_bins: np.ndarray
+    resid_after_bins: np.ndarray
+    signals: dict[str, np.ndarray]
+    scan_before: PeriodicScan | None
+    scan_after: PeriodicScan | None
+    noise_before: NoiseModel
+    t0_s: float
+    notes: list[str] = field(default_factory=list)
+
+    def to_json(self) -> dict:
+        gap = self.metrics[self.primary]
+        return {
+            "found": [f.to_json() for f in self.found],
+            "unexplained": bool(self.unexplained),
+            "where": self.where,
+            "gap": {"metric": self.primary, **gap.to_json()},
+            "metrics": {name: m.to_json() for name, m in self.metrics.items()},
+            "threshold": {"alpha": ALPHA,
+                          "per_iteration": [it.threshold for it in self.iterations]},
+            "scores": [{"effects": it.scores, "threshold": it.threshold, "accepted": it.accepted,
+                        "step_probe": {"time_s": it.step.time_s, "size_dph": it.step.size_dph,
+                                       "score": it.step.score, "threshold": it.step.threshold}}
+                       for it in self.iterations],
+            "noise_model": {**self.noise.model.__dict__, "source": self.noise.source,
+                            "quiet_seconds": self.noise.quiet_seconds},
+            "notes": self.notes,
+        }
+
+
+class _Analysis:
+    """State shared by the passes: inputs, bins, design builder, whitening."""
+
+    def __init__(self, model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
+                 max_bins: int) -> None:
+        self.log = log
+        try:
+            self.inputs = ModelInputs.of(log.t_s, log.table_rate_dps, log.chamber_temp_c,
+                                         log.table_angle_deg, log.sensor_temp_c)
+        except ValueError as exc:
+            raise LogFormatError(f"{log.source}: {exc}") from None
+        self.fs_hz = log.sample_rate_hz
+        try:
+            self.bins = make_bins(log.t_s, self.fs_hz, max_bins=max_bins)
+        except ValueError as exc:
+            raise LogFormatError(f"{log.source}: {exc}") from None
+        self.segments = derive_segments(log.t_s, log.table_rate_dps, log.chamber_temp_c, log.segment)
+        self.builder = DesignBuilder(self.inputs, self.bins)
+        self.y_full = np.asarray(log.gyro, dtype=float) / model.scale_factor * 3600.0
+        self.y_bins = self.bins.mean(self.y_full)
+        self.space = SearchSpace(float(log.t_s[-1] - log.t_s[0]), self.bins.width_s,
+                                 rate_levels(log.table_rate_dps, self.fs_hz))
+        self.rng = np.random.default_rng(seed)
+        self.n_null = n_null
+        self.whitener: Whitener | None = None
+        self.noise: NoiseModel | None = None
+
+    def use_noise(self, noise: NoiseModel) -> None:
+        self.noise = noise
+        cov = noise.bin_covariance(self.bins.centre_s, self.bins.width_s,
+                                   self.bins.samples_per_bin, self.fs_hz)
+        self.whitener = Whitener(cov)
+
+    def fit(self, model: GyroModel) -> Fit:
+        return gls_fit(self.builder, self.whitener, self.y_bins, model)
+
+    def resid_full(self, fit: Fit) -> np.ndarray:
+        return self.y_full - self.builder.rate_dph(fit.model)
+
+    def scan(self, fit: Fit) -> PeriodicScan | None:
+        return periodic_scan(self.resid_full(fit), self.fs_hz, self.noise,
+                             0.5 / self.bins.width_s, self.log.t_s)
+
+
+def _step_probe(fit: Fit, whitener: Whitener, bins: Bins, z: np.ndarray) -> StepProbe:
+    n = bins.n_bins
+    positions = np.unique(np.linspace(0.02 * n, 0.98 * n, STEP_POSITIONS).astype(int))
+    ws = whitener.white(step_columns(n, positions))
+    perp = ws - fit.basis @ (fit.basis.T @ ws)
+    norms = np.linalg.norm(perp, axis=0)
+    usable = norms > 1e-9 * norms.max()
+    q = perp[:, usable] / norms[usable]
+    proj = q.T @ fit.white_resid
+    k = int(np.argmax(proj**2))
+    null = np.max((q.T @ z) ** 2, axis=0)
+    with np.errstate(divide="ignore"):
+        null_score = -stats.chi2.logsf(null, 1) / math.log(10.0)
+    threshold = order_statistic_quantile(null_score, 1.0 - ALPHA)
+    position = positions[usable][k]
+    return StepProbe(float(bins.centre_s[position] - bins.width_s / 2), float(proj[k] / norms[usable][k]),
+                     float(proj[k] ** 2), score_from_delta(float(proj[k] ** 2), 1), threshold,
+                     int(usable.sum()))
+
+
+def _refine_found(analysis: _Analysis, model: GyroModel, names: list[str]) -> GyroModel:
+    """Joint refit of the found effects' τ (golden section in log τ, one pass each)."""
+    for name in names:
+        spec = model.effect(name)
+        if spec is None or "tau_s" not in spec.params or name == "markov_bias":
+            continue
+        tau0 = spec["tau_s"]
+
+        def chi2(log_tau: float, name=name, spec=spec, model=model) -> float:
+            trial = model.with_effect(EffectSpec(name, {**spec.params, "tau_s": math.exp(log_tau)}))
+            return analysis.fit(trial).chi2
+
+        a, b = math.log(tau0 / 2.0), math.log(tau0 * 2.0)
+        golden = (math.sqrt(5.0) - 1.0) / 2.0
+        c, d = b - golden * (b - a), a + golden * (b - a)
+        fc, fd = chi2(c), chi2(d)
+        for _ in range(8):
+            if fc < fd:
+                b, d, fd = d, c, fc
+                c = b - golden * (b - a)
+                fc = chi2(c)
+            else:
+                a, c, fc = c, d, fd
+                d = a + golden * (b - a)
+                fd = chi2(d)
+        best = c if fc < fd else d
+        if min(fc, fd) < chi2(math.log(tau0)):
+            model = model.with_effect(EffectSpec(name, {**spec.params, "tau_s": math.exp(best)}))
+    return analysis.fit(model).model
+
+
+def _library_threshold(scores: dict[str, EffectScores], fit: Fit, z: np.ndarray,
+                       periodic: PeriodicScan | None, rng: np.random.Generator, alpha: float) -> float:
+    nulls = null_scores(scores, fit, z)
+    columns = list(nulls.values())
+    if periodic is not None:
+        # exact under the noise model: the max-of-M tail makes the periodic p-value uniform
+        columns.append(-np.log10(rng.uniform(size=z.shape[1])))
+    library_max = np.max(np.vstack(columns), axis=0) if columns else np.zeros(z.shape[1])
+    return order_statistic_quantile(library_max, 1.0 - alpha)
+
+
+def _signals(analysis: _Analysis, model: GyroModel) -> dict[str, np.ndarray]:
+    state = indicated_rate(model, analysis.inputs)
+    b = analysis.bins
+    rate = analysis.inputs.table_rate_dps
+    return {
+        "chamber temperature (degC)": b.mean(analysis.inputs.chamber_temp_c),
+        "sensor temperature rate (degC/min)": b.mean(state.sensor_temp_rate_c_per_min),
+        "table rate (deg/s)": b.mean(rate),
+        "|table rate| (deg/s)": b.mean(np.abs(rate)),
+        "cos(table angle)": b.mean(np.cos(np.deg2rad(state.table_angle_deg))),
+        "time since power-on (s)": b.centre_s.copy(),
+    }
+
+
+def analyse(model: GyroModel, log: MeasuredLog, seed: int = 0, n_null: int = 500,
+            max_effects: int = 3, max_bins: int = 2000) -> DiscrepancyResult:
+    """Run the whole workflow on a measured log; see the module docstring.
+
+    ``seed`` makes the simulated threshold calibration reproducible;
+    ``n_null`` is the number of effect-free datasets it simulates;
+    ``max_bins`` bounds the size of the GLS (bins are at least 1 s).
+    """
+    with single_threaded_blas():
+        return _analyse(model, log, seed, n_null, max_effects, max_bins)
+
+
+def _analyse(model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
+             max_effects: int, max_bins: int) -> DiscrepancyResult:
+    analysis = _Analysis(model, log, seed, n_null, max_bins)
+    notes: list[str] = []
+    prior = NoiseModel.of_model(model)
+    # the first refit only feeds the quiet-segment noise estimate: ordinary least squares will do
+    analysis.whitener = Whitener(np.eye(analysis.bins.n_bins))
+    first = analysis.fit(model)
+    noise_est = estimate_noise(analysis.resid_full(first), analysis.fs_hz,
+                               analysis.segments.quiet_slices(analysis.fs_hz), prior,
+                               allow_markov=not model.has_effect("markov_bias"))
+    noise = noise_est.model
+    noise_before = replace(noise, markov_sigma_dph=prior.markov_sigma_dph, markov_tau_s=prior.markov_tau_s)
+    analysis.use_noise(noise)
+    notes.append(f"noise model: {noise_est.source}")
+
+    current = model
+    found: list[FoundEffect] = []
+    if noise.has_markov and not model.has_effect("markov_bias"):
+        spec = EffectSpec("markov_bias", {"sigma_dph": noise.markov_sigma_dph, "tau_s": noise.markov_tau_s})
+        current = current.with_effect(spec)
+        delta = noise_est.fit.markov.delta_chi2 if noise_est.fit and noise_est.fit.markov else 0.0
+        found.append(FoundEffect("markov_bias", dict(spec.params), 1.0, [], "", score_from_delta(delta, 2),
+                                 float(delta), float("nan")))
+        notes.append("markov_bias: Allan hump in the quiet segments, significant by the noise fit's "
+                     "99.9 % rule; it is not part of the deterministic search")
+    if log.sensor_temp_c is not None:
+        notes.append("the log has sensor_temp_c: thermal_lag is not searched (the measured sensor "
+                     "temperature is used as it is)")
+
+    iterations: list[Iteration] = []
+    preempted: StepProbe | None = None
+    fit = analysis.fit(current)
+    for iteration in range(1, max_effects + 1):
+        scores = score_library(analysis.builder, fit, analysis.whitener, analysis.y_bins, analysis.space)
+        if log.sensor_temp_c is not None:
+            scores.pop("thermal_lag", None)
+        scan = None if current.has_effect("periodic_interference") else analysis.scan(fit)
+        z = analysis.rng.standard_normal((analysis.bins.n_bins, analysis.n_null))
+        threshold = _library_threshold(scores, fit, z, scan, analysis.rng, ALPHA / iteration)
+        step = _step_probe(fit, analysis.whitener, analysis.bins, z)
+        ranked = {name: s.score for name, s in scores.items()}
+        deltas = {name: s.delta_chi2 for name, s in scores.items()}
+        if scan is not None:
+            ranked["periodic_interference"] = scan.score
+            deltas["periodic_interference"] = scan.delta_chi2
+        if not ranked:
+            break
+        best = max(ranked, key=ranked.get)
+        accepted = None
+        if ranked[best] > threshold:
+            if (step.significant and best != "periodic_interference"
+                    and step.delta_chi2 - 2.0 * math.log(step.n_positions) > deltas[best]):
+                preempted = step
+            else:
+                accepted = best
+        iterations.append(Iteration(ranked, deltas, threshold, accepted, step))
+        if accepted is None:
+            break
+        if accepted == "periodic_interference":
+            spec = EffectSpec(accepted, {"freq_hz": scan.freq_hz, "amplitude_dph": scan.amplitude_dph})
+            probability, rivals, experiment, score = 1.0, [], "", scan.score
+            delta = scan.delta_chi2
+        else:
+            refined = refine_shape(scores[accepted], analysis.builder, fit, analysis.whitener, analysis.y_bins)
+            scores[accepted].candidates.append(refined)
+            spec = refined.spec(fit.model)
+            probability, rivals = lookalike_group(accepted, scores)
+            tau = spec.params.get("tau_s")
+            experiment = separating_experiment(accepted, [r.name for r in rivals], tau,
+                                               analysis.space.rate_levels_dps)
+            score, delta = refined.score, refined.delta_chi2
+        current = fit.model.with_effect(spec)
+        current = _refine_found(analysis, current, [f.name for f in found] + [accepted])
+        fit = analysis.fit(current)
+        found.append(FoundEffect(accepted, {}, probability, rivals, experiment, score, delta, threshold))
+
+    after = analysis.fit(current)
+    updated = _final_periodic(analysis, after)
+    if updated is not after.model:
+        after = analysis.fit(updated)
+    found = [replace(f, parameters=dict(after.model.effect(f.name).params)) for f in found]
+    before = analysis.fit(model)
+
+    seg_of_bin = analysis.segments.bin_index(analysis.bins)
+    geometry = SegmentGeometry.of(seg_of_bin, analysis.whitener.covariance)
+    z = analysis.rng.standard_normal((analysis.bins.n_bins, 60))
+    null_resid = analysis.whitener.colour(z - after.basis @ (after.basis.T @ z))
+    metrics: dict[str, Metric] = {}
+    null_g1 = g1(geometry, null_resid)
+    metrics["g1_segment_mean"] = Metric(float(g1(geometry, before.resid_bins)),
+                                        float(g1(geometry, after.resid_bins)),
+                                        float(np.mean(null_g1)), float(np.std(null_g1)))
+    null_rms = segment_rms(geometry, null_resid)
+    metrics["segment_mean_rms_dph"] = Metric(float(segment_rms(geometry, before.resid_bins)),
+                                             float(segment_rms(geometry, after.resid_bins)),
+                                             float(np.mean(null_rms)), float(np.std(null_rms)))
+    null_allan = np.array([allan_mismatch(null_resid[:, k], analysis.bins, noise) for k in range(20)])
+    metrics["allan_mismatch"] = Metric(allan_mismatch(before.resid_bins, analysis.bins, noise_before),
+                                       allan_mismatch(after.resid_bins, analysis.bins, noise),
+                                       float(np.mean(null_allan)), float(np.std(null_allan)))
+    scan_before, scan_after = analysis.scan(before), analysis.scan(after)
+    if scan_before is not None and scan_after is not None:
+        m = int(scan_after.n_freqs / REFINEMENT_FACTOR)
+        metrics["spectrum_peak"] = Metric(scan_before.peak_ratio, scan_after.peak_ratio,
+                                          expected_max_exponential(m), math.pi / math.sqrt(6.0))
+    primary = choose_primary(metrics, bool(found))
+
+    g1_limit = order_statistic_quantile(null_g1, UNEXPLAINED_LEVEL)
+    last_step = _step_probe(after, analysis.whitener, analysis.bins,
+                            analysis.rng.standard_normal((analysis.bins.n_bins, analysis.n_null)))
+    unexplained = preempted is not None or metrics["g1_segment_mean"].after > g1_limit
+    signals = _signals(analysis, after.model)
+    where = ""
+    if unexplained:
+        step_info = last_step if last_step.significant else preempted
+        line = None
+        if scan_after is not None and scan_after.score > 2.0 and not after.model.has_effect("periodic_interference"):
+            line = (scan_after.freq_hz, scan_after.amplitude_dph)
+        where = describe_remainder(after.resid_bins, analysis.bins, geometry, analysis.segments.names,
+                                   np.unique(seg_of_bin), signals,
+                                   None if step_info is None else (step_info.time_s, step_info.size_dph),
+                                   line)
+        if preempted is not None:
+            notes.append(f"a bias step near t = {preempted.time_s:.0f} s explains the data better than "
+                         f"any catalogue effect (Δχ² {preempted.delta_chi2:.1f}); nothing was named")
+    return DiscrepancyResult(
+        found, unexplained, where, metrics, primary, model, after.model, noise_est, iterations,
+        analysis.bins, analysis.segments, np.unique(seg_of_bin), geometry, before.resid_bins,
+        after.resid_bins, signals, scan_before, scan_after, noise_before, float(log.t_s[0]), notes)
+
+
+def _final_periodic(analysis: _Analysis, fit: Fit) -> GyroModel:
+    """Re-estimate a found line's amplitude on the full-rate residual of the joint refit."""
+    spec = fit.model.effect("periodic_interference")
+    if spec is None:
+        return fit.model
+    t = analysis.log.t_s
+    line = sine_dph(spec["freq_hz"], 1.0, t)
+    resid = analysis.resid_full(fit) + spec["amplitude_dph"] * line
+    resid = resid - resid.mean()
+    amplitude = float(line @ resid / (line @ line))
+    return fit.model.with_effect(EffectSpec(spec.name, {**spec.params, "amplitude_dph": amplitude}))
