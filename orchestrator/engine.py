@@ -65,6 +65,7 @@ class StepResult:
     lost_frames: int = 0
     crc_errors: int = 0
     chunks: list[str] = field(default_factory=list)
+    table_rate_max_dev_dps: float = 0.0
 
 
 def completed_steps(events: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
@@ -382,19 +383,25 @@ class RunEngine:
             self.machine.logged()
             frames = result.samples + result.lost_frames + result.crc_errors
             loss = (result.lost_frames + result.crc_errors) / max(frames, 1)
-            if loss <= self.policy.max_loss_fraction:
+            rate_ok = result.table_rate_max_dev_dps <= self._rate_band(rate_dps)
+            if loss <= self.policy.max_loss_fraction and rate_ok:
                 self.journal.append(
                     "step_completed", step_id=step.step_id, attempt=attempt,
                     samples=result.samples, lost_frames=result.lost_frames,
-                    crc_errors=result.crc_errors, chunks=result.chunks)
+                    crc_errors=result.crc_errors, chunks=result.chunks,
+                    table_rate_max_dev_dps=result.table_rate_max_dev_dps)
                 return
+            reason = (f"lost {loss:.3%} of frames (limit {self.policy.max_loss_fraction:.3%})"
+                      if not loss <= self.policy.max_loss_fraction else
+                      f"table rate strayed {result.table_rate_max_dev_dps:.4g} deg/s from "
+                      f"{rate_dps:g} deg/s (band {self._rate_band(rate_dps):.4g})")
             self.journal.append(
                 "step_bad", step_id=step.step_id, attempt=attempt, loss_fraction=loss,
                 lost_frames=result.lost_frames, crc_errors=result.crc_errors,
-                limit=self.policy.max_loss_fraction)
+                limit=self.policy.max_loss_fraction,
+                table_rate_max_dev_dps=result.table_rate_max_dev_dps, reason=reason)
         raise StepQualityError(
-            f"gyro: step {step.step_id} lost more than {self.policy.max_loss_fraction:.3%} of its "
-            f"frames in {self.policy.max_repeats + 1} attempts (last attempt lost {loss:.3%})")
+            f"step {step.step_id}: no good attempt in {self.policy.max_repeats + 1}: {reason}")
 
     def _gyro_name(self) -> str | None:
         return getattr(self.inst.gyro, "name", None)
@@ -425,8 +432,8 @@ class RunEngine:
         angle_start = (t0, 0.0, self._safe_position())
         context_t = [t0]
         context_chamber = [self._poll_chamber()]
-        context_rate = [self.inst.table.read_rate_dps()]
-        angle_start = (t0, context_rate[0], angle_start[2])
+        self._check_table_rate(result, rate_dps, self.inst.table.read_rate_dps())
+        angle_start = (t0, rate_dps, angle_start[2])
         pending: dict[str, list[np.ndarray]] = {"index": [], "gyro": [], "sensor": []}
         pending_n = 0
         chunk_index = 0
@@ -452,11 +459,11 @@ class RunEngine:
             context_t.append(t0 + (last_index + 1) / fs)
             context_chamber.append(self._poll_chamber())
             reading = self.inst.table.read_rate_dps()
-            context_rate.append(reading)
+            self._check_table_rate(result, rate_dps, reading)
             self.progress.update(table_dps=reading, elapsed_s=self._elapsed())
             if pending_n >= chunk_n or result.samples >= n_total:
                 columns = self._assemble(pending, t0, fs, context_t, context_chamber,
-                                         context_rate, angle_start)
+                                         rate_dps, angle_start)
                 angle_start = (float(columns["t_s"][-1]), float(columns["table_rate_dps"][-1]),
                                float(columns["table_angle_deg"][-1]))
                 record = self.folder.write_chunk(step.step_id, attempt, chunk_index, columns)
@@ -471,21 +478,31 @@ class RunEngine:
     def _safe_position(self) -> float:
         return float(self.inst.table.read_position_deg())
 
+    def _check_table_rate(self, result: StepResult, demand_dps: float, reading_dps: float) -> None:
+        """Track how far the table's rate readback strays from the demand during a logged step."""
+        deviation = abs(reading_dps - demand_dps)
+        result.table_rate_max_dev_dps = max(result.table_rate_max_dev_dps, deviation)
+
     @staticmethod
     def _assemble(pending: dict[str, list[np.ndarray]], t0: float, fs: float,
                   context_t: list[float], context_chamber: list[float],
-                  context_rate: list[float], angle_start: tuple[float, float, float]
+                  rate_dps: float, angle_start: tuple[float, float, float]
                   ) -> dict[str, np.ndarray]:
-        """Per-sample columns: chamber temperature and table rate interpolated between polls.
+        """Per-sample columns: chamber temperature interpolated between polls, table rate.
 
-        The table angle is the angle read at the start of the step plus the
-        integral of the logged rate: a position readback modulo 360° cannot be
-        unwrapped between polls at high rates, the integral can.
+        The logged table rate is the demanded rate. In rate mode the table
+        holds its demand to encoder precision, while its rate *readback* is a
+        noisy single-shot estimate (±0.001 deg/s is 3.6 deg/h, more than the
+        bias being calibrated); the readbacks are kept as a check instead
+        (``table_rate_max_dev_dps`` per step; beyond the rate band the step is
+        bad and repeated). The table angle is the angle read at the start of
+        the step plus the integral of that rate: a position readback modulo
+        360° cannot be unwrapped between polls at high rates, the integral can.
         """
         index = np.concatenate(pending["index"])
         t_s = t0 + index / fs
         chamber = np.interp(t_s, context_t, context_chamber)
-        rate = np.interp(t_s, context_t, context_rate)
+        rate = np.full(t_s.shape, float(rate_dps))
         angle = integrate_angle(rate, t_s, angle_start)
         return {
             "t_s": t_s,

@@ -208,8 +208,12 @@ def test_chamber_silent_for_good_stops_the_table_and_reports_the_chamber(h: Any,
 
 # -- gyro frame loss: repeated within the limit, safe state beyond it ---------------------------
 
-def lose_frames_per_block(h: Any, sim: Any, blocks: int | None, per_block: int = 2) -> None:
-    """From the +20 °/s command on, drop ``per_block`` frames of each block the gyro writes."""
+def lose_frames_per_block(h: Any, sim: Any, blocks: int | None, per_block: int = 20) -> None:
+    """From the +20 °/s command on, drop ``per_block`` frames of each block the gyro writes.
+
+    The simulated gyro writes 512-frame blocks (2 s at 250 Hz): 20 lost frames a block is
+    a 4 % loss, and 3 blocks cover the first 8 s attempt of the step.
+    """
     port = sim.gyro_port
     source = port.source
     state = {"on": False, "left": blocks}
@@ -229,7 +233,7 @@ def lose_frames_per_block(h: Any, sim: Any, blocks: int | None, per_block: int =
 
 
 def test_frame_loss_above_threshold_repeats_the_step(h: Any, tmp_path: Path, sim_capture) -> None:
-    sim_capture.arm.append(lambda sim: lose_frames_per_block(h, sim, blocks=100))
+    sim_capture.arm.append(lambda sim: lose_frames_per_block(h, sim, blocks=3))
     out = tmp_path / "run"
     assert run(h.write_procedure(tmp_path, max_loss=0.01), out) == EXIT_OK
     log = h.events(out)
@@ -247,7 +251,7 @@ def test_frame_loss_beyond_the_repeat_limit_goes_safe(h: Any, tmp_path: Path, si
     sim_capture.arm.append(lambda sim: lose_frames_per_block(h, sim, blocks=None))
     out = tmp_path / "run"
     assert run(h.write_procedure(tmp_path, max_loss=0.01, max_repeats=2), out) == EXIT_FAULT
-    assert "lost more than 1.000%" in capsys.readouterr().err
+    assert "no good attempt in 3" in (err := capsys.readouterr().err) and "(limit 1.000%)" in err
     bad = [e for e in h.events(out) if e["event"] == "step_bad"]
     assert [e["attempt"] for e in bad] == [1, 2, 3]
     assert all(e["loss_fraction"] > 0.01 for e in bad)
