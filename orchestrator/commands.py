@@ -317,16 +317,51 @@ def _pid_alive(pid: Any) -> bool:
 # -- demo --------------------------------------------------------------------------------
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    """The smoke procedure against simulated instruments, end to end, with its report."""
+    """The dry run a new user sees: two acts, both against simulated instruments.
+
+    1. The smoke procedure end to end: connect, preflight, ramp, soak, dwells,
+       the report and its audit check.
+    2. The discrepancy workflow: the same procedure on a station whose gyro
+       carries an effect its nominal model lacks; ``gyrocal discrepancy`` with
+       the nominal model must name the effect and show the gap shrink.
+    """
+    from gyrocal.reports.discrepancy.command import run_discrepancy
+    from gyrocal.reports.verify import verify_run_folder
+
     root = Path(__file__).resolve().parents[1]
     procedure = root / "procedures" / "smoke.yaml"
     out = Path(args.out) if args.out else Path("runs") / f"demo-{new_run_id()}"
-    print(f"== gyrocal demo: {procedure.relative_to(root)} against simulated instruments ==")
-    run_args = argparse.Namespace(procedure=str(procedure), station=None, sim=True, out=str(out),
-                                  speed="max", seed=1, operator="demo", sim_station=None,
-                                  debug=getattr(args, "debug", False))
-    code = cmd_run(run_args)
+    debug = getattr(args, "debug", False)
+
+    print(f"== 1/2  {procedure.relative_to(root)} against simulated instruments ==")
+    code = cmd_run(argparse.Namespace(
+        procedure=str(procedure), station=None, sim=True, out=str(out / "smoke"), speed="max",
+        seed=1, operator="demo", sim_station=None, debug=debug))
     if code == EXIT_FAULT:
         return code
-    print(f"report: {out / 'report' / 'report.html'}")
+    audit = verify_run_folder(out / "smoke")
+    print(f"report: {out / 'smoke' / 'report' / 'report.html'}")
+    print(f"audit (gyrocal verify): {audit.summary() if audit.ok else audit.failure}")
+
+    station = root / "stations" / "sim-hidden-effect.yaml"
+    nominal = root / "gyro-models" / "nominal-fog.yaml"
+    print(f"\n== 2/2  discrepancy: {station.relative_to(root)} carries an effect "
+          f"{nominal.relative_to(root)} lacks ==")
+    hidden_code = cmd_run(argparse.Namespace(
+        procedure=str(procedure), station=None, sim=True, out=str(out / "hidden-effect"),
+        speed="max", seed=2, operator="demo", sim_station=str(station), debug=debug))
+    if hidden_code == EXIT_FAULT:
+        return hidden_code
+    document = run_discrepancy(nominal, out / "hidden-effect", out / "discrepancy")
+    for found in document["found"]:
+        params = ", ".join(f"{k} = {v:.4g}" for k, v in found["parameters"].items())
+        print(f"named: {found['name']} ({params}), probability {found['probability']:.3f}")
+    if not document["found"]:
+        print("named: nothing")
+    gap = document["gap"]
+    print(f"gap ({gap['metric']}): before {gap['before']:.4g} → after {gap['after']:.4g} "
+          f"(noise floor {gap['noise_floor']:.4g})")
+    print(f"story: {out / 'discrepancy' / 'discrepancy.html'}")
+    if not audit.ok:
+        return EXIT_ACCEPTANCE_FAILED
     return code

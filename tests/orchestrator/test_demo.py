@@ -1,0 +1,33 @@
+"""The README's main command, end to end: the smoke dry run, its audit, and the discrepancy act."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from gyrocal.cli import main
+from gyrocal.models.gyro_model import load_model
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.mark.timeout(240)
+def test_demo_runs_the_smoke_procedure_and_names_the_hidden_effect(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "every hash matches" in out
+    results = json.loads((tmp_path / "smoke" / "report" / "results.json").read_text())
+    assert all(item["pass"] for item in results["acceptance"])
+
+    # Act 2: the station's gyro carries sf_asymmetry (40 ppm); the nominal model lacks it.
+    truth = load_model(REPO / "gyro-models" / "fog-hidden-asymmetry.yaml").effect("sf_asymmetry")["ppm"]
+    document = json.loads((tmp_path / "discrepancy" / "discrepancy.json").read_text())
+    assert [f["name"] for f in document["found"]] == ["sf_asymmetry"]
+    assert document["found"][0]["parameters"]["ppm"] == pytest.approx(truth, rel=0.1)
+    assert document["unexplained"] is False
+    gap = document["gap"]
+    assert gap["before"] > 20 * gap["noise_floor"]
+    assert gap["after"] < 3 * gap["noise_floor"]
+    updated = load_model(tmp_path / "discrepancy" / "updated-model.yaml")
+    assert updated.has_effect("sf_asymmetry")
+    assert "named: sf_asymmetry" in out
