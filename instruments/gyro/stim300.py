@@ -22,6 +22,7 @@ from gyrocal.instruments.interfaces import GyroBlock, Identity
 
 _POLL_S = 0.05                  # longest single blocking read, so deadlines are honoured
 _MAX_READ_BYTES = 4 << 20       # cap per read() so one call cannot hoard memory
+_FLUSH_SETTLE_S = 0.02          # > a USB-serial adapter's latency timer (FTDI default 16 ms)
 
 
 class Stim300Gyro:
@@ -69,8 +70,18 @@ class Stim300Gyro:
         )
 
     def flush(self) -> None:
-        """Drop buffered bytes, the decoder's partial frame and any surplus samples."""
+        """Drop buffered bytes, the decoder's partial frame and any surplus samples.
+
+        Bytes already in flight when the host buffer is flushed — in a
+        USB-serial adapter's FIFO (released on its latency timer, 16 ms on
+        FTDI parts) or in the kernel's tty flip buffers — arrive just after
+        the flush and would be read as the first samples of the next step,
+        though they describe the conditions before it. So the input is
+        flushed, left for :data:`_FLUSH_SETTLE_S`, and flushed again.
+        """
         try:
+            self._serial.reset_input_buffer()
+            time.sleep(_FLUSH_SETTLE_S)
             self._serial.reset_input_buffer()
         except (serial.SerialException, OSError) as exc:
             raise InstrumentConnectionError(self.name, "flush", str(exc)) from exc

@@ -176,17 +176,20 @@ class SimulatedGyroPort:
         t_end_s = (k0 + self.block_frames) / fs
         if not isinstance(self.clock, SimClock) and not self._wait_real_time(t_end_s):
             return
-        data, n_garbage = self._encode_block(k)
+        data, n_garbage, k_first = self._encode_block(k)
         self.next_frame = k0 + self.block_frames
-        written = self._write_all(data, n_garbage, t_end_s)
+        written = self._write_all(data, n_garbage, k_first)
         if written is None:
             return
         self.frames_written += written
         if isinstance(self.clock, SimClock):
             self.clock.advance_to(t_end_s)
 
-    def _encode_block(self, k: np.ndarray) -> tuple[bytes, int]:
-        """Frames for grid indices ``k`` with the armed faults applied; (bytes, garbage prefix length)."""
+    def _encode_block(self, k: np.ndarray) -> tuple[bytes, int, int]:
+        """Frames for grid indices ``k`` with the armed faults applied.
+
+        Returns (bytes, garbage prefix length, grid index of the first frame written).
+        """
         t_s = k / self.sample_rate_hz
         rate, temp_c = self.source(t_s)
         rate = np.array(rate, dtype=np.float64, copy=True).reshape(k.shape)
@@ -218,7 +221,7 @@ class SimulatedGyroPort:
             n_bytes = int(params.get("n_bytes", 32))
             garbage = self._rng.integers(0, 256, n_bytes, dtype=np.uint8).tobytes()
             self.injected["garbage_bytes"] += n_bytes
-        return garbage + frames.tobytes(), len(garbage)
+        return garbage + frames.tobytes(), len(garbage), int(k[0]) + n_lost
 
     def _take_up_to(self, name: str, limit: int) -> int:
         """Consume up to ``limit`` firings of a per-frame fault (no work when not armed)."""
@@ -237,17 +240,22 @@ class SimulatedGyroPort:
             if self._stop.wait(min(remaining_s / speed, _POLL_S)):
                 return False
 
-    def _write_all(self, data: bytes, frames_from: int, t_end_s: float) -> int | None:
+    def _write_all(self, data: bytes, frames_from: int, k_first: int) -> int | None:
         """Blocking write into the master, with ``select`` so that stop() is prompt.
 
         Returns the number of frames written, None if stopped. On a SimClock,
-        if someone else moves time past this block while the writer waits
-        for the reader, the rest of the block is stale: the frame in progress
-        is completed (so no garbage is made) and the remainder is dropped.
+        frames whose time the clock has already passed are stale: while the
+        writer waited for the reader, someone else moved time on (the
+        orchestrator changed the table rate, settled, and flushed its input),
+        so those frames describe conditions that no longer hold and would be
+        read as the first samples of the next step. At every frame boundary
+        the writer therefore skips the frames older than the clock; a frame
+        in progress is always completed, so no garbage is made.
         """
         length = self.layout.length
         view = memoryview(data)
         position = 0
+        skipped = 0
         simulated = isinstance(self.clock, SimClock)
         while position < len(data):
             if self._stop.is_set():
@@ -255,19 +263,24 @@ class SimulatedGyroPort:
             _, writable, _ = select.select([], [self._master_fd], [], _POLL_S)
             if not writable:
                 continue
-            if simulated and position >= frames_from and self.clock.now_s() > t_end_s:
-                next_boundary = frames_from + -(-(position - frames_from) // length) * length
-                if next_boundary < len(data):
-                    data = data[:next_boundary]
-                    view = view[:next_boundary]
-                    if position >= len(data):
-                        break
+            limit = len(data)
+            if simulated and position >= frames_from:
+                offset = (position - frames_from) % length
+                if offset == 0:
+                    k_now = math.ceil(self.clock.now_s() * self.sample_rate_hz - _EPS_FRAMES)
+                    keep_from = min(frames_from + max(0, k_now - k_first) * length, len(data))
+                    if keep_from > position:
+                        skipped += (keep_from - position) // length
+                        position = keep_from
+                        continue
+                else:
+                    limit = position + length - offset   # finish this frame, then look again
             try:
-                position += os.write(self._master_fd, view[position:])
+                position += os.write(self._master_fd, view[position:limit])
             except BlockingIOError:
                 continue
             except OSError as exc:
                 if exc.errno == errno.EIO and self._stop.is_set():
                     return None
                 raise
-        return (len(data) - frames_from) // length
+        return (len(data) - frames_from) // length - skipped
