@@ -211,18 +211,24 @@ def test_chamber_silent_for_good_stops_the_table_and_reports_the_chamber(h: Any,
 def lose_frames_per_block(h: Any, sim: Any, blocks: int | None, per_block: int = 20) -> None:
     """From the +20 °/s command on, drop ``per_block`` frames of each block the gyro writes.
 
-    The simulated gyro writes 512-frame blocks (2 s at 250 Hz): 20 lost frames a block is
-    a 4 % loss, and 3 blocks cover the first 8 s attempt of the step.
+    The simulated gyro writes 512-frame blocks (2 s at 250 Hz). Blocks that start 3 s
+    after the command lie inside the step's first 8 s attempt (it starts after the
+    0.2 s spin-up and 1 s settle); 30 frames a block is 1.5 % of that attempt, and
+    a block that spills past it is dropped as stale before the next attempt.
     """
     port = sim.gyro_port
     source = port.source
-    state = {"on": False, "left": blocks}
+    state = {"on": False, "left": blocks, "from_s": 0.0}
 
     def start() -> None:
+        # Frames before the table reached rate and settled are dropped as stale by the
+        # simulated gyro, so count only blocks that start after the settle time.
         state["on"] = True
+        state["from_s"] = sim.clock.now_s() + 3.0
 
     def lossy_source(t_s):
-        if state["on"] and (state["left"] is None or state["left"] > 0):
+        if (state["on"] and t_s[0] >= state["from_s"]
+                and (state["left"] is None or state["left"] > 0)):
             sim.gyro_faults.arm("lose_frames", count=per_block)
             if state["left"] is not None:
                 state["left"] -= 1
@@ -233,7 +239,7 @@ def lose_frames_per_block(h: Any, sim: Any, blocks: int | None, per_block: int =
 
 
 def test_frame_loss_above_threshold_repeats_the_step(h: Any, tmp_path: Path, sim_capture) -> None:
-    sim_capture.arm.append(lambda sim: lose_frames_per_block(h, sim, blocks=3))
+    sim_capture.arm.append(lambda sim: lose_frames_per_block(h, sim, blocks=3, per_block=30))
     out = tmp_path / "run"
     assert run(h.write_procedure(tmp_path, max_loss=0.01), out) == EXIT_OK
     log = h.events(out)
