@@ -89,7 +89,7 @@ class ChamberPhysics:
     ordinary ramp does not raise it.
     """
 
-    _SEGMENTS_KEPT = 256
+    _SEGMENTS_KEPT = 100_000   # a night of 10 s software-ramp steps is ~10⁴ segments
 
     def __init__(
         self,
@@ -186,12 +186,20 @@ class ChamberPhysics:
         the current segment (valid until someone changes the setpoint).
         """
         times_s = np.atleast_1d(np.asarray(t_s, dtype=float))
+        earliest_s = float(times_s.min()) if times_s.size else np.inf
         with self._lock:
-            segments = list(self._segments)
+            # Walk back from the newest segment only as far as the earliest time asked
+            # for: usually one or two segments, however long the kept history is.
+            segments = []
+            for seg in reversed(self._segments):
+                segments.append(seg)
+                if seg.t0_s <= earliest_s + 1e-9:
+                    break
+        segments.reverse()
         first_t_s = segments[0].t0_s
-        if times_s.size and times_s.min() < first_t_s - 1e-9:
+        if times_s.size and earliest_s < first_t_s - 1e-9:
             raise ValueError(
-                f"chamber history starts at t={first_t_s:.3f} s; cannot evaluate t={times_s.min():.3f} s"
+                f"chamber history starts at t={first_t_s:.3f} s; cannot evaluate t={earliest_s:.3f} s"
             )
         starts_s = np.array([seg.t0_s for seg in segments])
         which = np.clip(np.searchsorted(starts_s, times_s, side="right") - 1, 0, len(segments) - 1)

@@ -235,13 +235,15 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
     def on_finished() -> None:
         results.update(_build_report(folder))
 
+    simulated: Any = None
     try:
-        with station_instruments(procedure, clock, sim, seed, on_retry) as (instruments, _):
+        with station_instruments(procedure, clock, sim, seed, on_retry) as (instruments, simulated):
             engine = RunEngine(folder, list(plan.steps), instruments, _policy(procedure),
                                progress=Progress(), on_finished=on_finished)
             engine.run()
     except RunFaultError as exc:
         print(f"gyrocal: fault: {exc}", file=sys.stderr)
+        _report_simulator_crash(simulated, journal)
         return EXIT_FAULT
     except InstrumentError as exc:
         # Raised while connecting, before the engine owned the instruments.
@@ -259,6 +261,15 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
         value = "not computed" if item["value"] is None else f"{item['value']:.6g}"
         print(f"  {verdict}  {item['name']}: {value} (limit {item['limit']:.6g})")
     return EXIT_ACCEPTANCE_FAILED if failed else EXIT_OK
+
+
+def _report_simulator_crash(simulated: Any, journal) -> None:
+    """A simulator that died shows up to the drivers as silence; say what really happened."""
+    error = getattr(getattr(simulated, "gyro_port", None), "error", None)
+    if error is not None:
+        message = f"simulated gyro stopped: {type(error).__name__}: {error}"
+        journal.append("simulator_error", message=message)
+        print(f"gyrocal: {message}", file=sys.stderr)
 
 
 def _build_report(folder: RunFolder) -> dict[str, Any]:

@@ -263,15 +263,40 @@ class RunEngine:
             self._soak(step, journal_done=False)
 
     def _ramp(self, step: Any, journal_done: bool = True) -> None:
+        """Move the chamber to the step's setpoint at the procedure's ramp rate.
+
+        The ramp is done in software — the setpoint walks from the present
+        air temperature to the target at ``ramp_c_per_min``, re-commanded every
+        ``poll_s`` — so the procedure's rate holds on any controller, whatever
+        its own ramp settings, and the gyro sees the dT/dt the procedure asked
+        for (thermal-lag and dT/dt effects depend on it). Alarms are checked at
+        every step. Without a ramp rate the setpoint is commanded at once.
+        """
+        ramp_c_per_min = getattr(step, "ramp_c_per_min", None)
         self.journal.append("step_started", step_id=step.step_id, kind="ramp",
-                            setpoint_c=step.setpoint_c, attempt=1)
+                            setpoint_c=step.setpoint_c, ramp_c_per_min=ramp_c_per_min, attempt=1)
         self._set_table_rate(0.0)
         self.machine.ramp()
-        self.inst.chamber.set_setpoint_c(step.setpoint_c)
+        target_c = float(step.setpoint_c)
+        t_start = self.clock.now_s()
+        if ramp_c_per_min:
+            start_c = self._poll_chamber()
+            rate_c_per_s = float(ramp_c_per_min) / 60.0
+            duration_s = abs(target_c - start_c) / rate_c_per_s
+            # Compare against an end time with a margin, and never sleep less than 1 ms:
+            # a remainder below the clock's float resolution would not move time at all.
+            while (remaining_s := duration_s - (self.clock.now_s() - t_start)) > 1e-3:
+                walked = (duration_s - remaining_s) * rate_c_per_s
+                setpoint = start_c + np.sign(target_c - start_c) * walked
+                self.inst.chamber.set_setpoint_c(round(float(setpoint), 2))
+                self.clock.sleep(max(min(self.policy.poll_s, remaining_s), 1e-3))
+                self._poll_chamber()
+        self.inst.chamber.set_setpoint_c(target_c)
         self.machine.soak()
         self.machine.stable()
         if journal_done:
-            self.journal.append("step_completed", step_id=step.step_id, attempt=1)
+            self.journal.append("step_completed", step_id=step.step_id, attempt=1,
+                                ramp_s=self.clock.now_s() - t_start)
 
     def _soak(self, step: Any, journal_done: bool = True) -> None:
         """Wait until the chamber stays within ±tolerance for the hold time, or fault."""
