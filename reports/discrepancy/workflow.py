@@ -66,7 +66,11 @@ from gyrocal.reports.measured_log import LogFormatError, MeasuredLog
 
 #: Family-wise false-positive rate of the acceptance threshold in the first pass; pass k
 #: uses ALPHA/k, so an extra effect after a real one is no easier to "find" than a first.
-ALPHA = 0.05
+#: The threshold is calibrated on data simulated from the *estimated* noise model; the
+#: real effect-free distribution is slightly heavier (the noise terms are estimates), so
+#: nominal 5 % gave 5.7 % on 140 simulated controls and nominal 3 % gave 4.0 % on 200.
+#: 2 % keeps the measured rate under the 5 % target with margin (docs/discrepancy-validation.md).
+ALPHA = 0.02
 #: G1 after the refit above this quantile of its effect-free distribution is "unexplained".
 UNEXPLAINED_LEVEL = 0.99
 #: Number of step positions the out-of-catalogue probe tries.
