@@ -35,11 +35,12 @@ apart: 0.56 / 0.70 / 0.89). The covariance is scaled by the Birge ratio
 χ²/E[χ²] when the model fits worse than the weights say, where
 E[χ²] = n − trace(Hρ) (H the weighted hat matrix) holds for correlated points.
 
-Markov inclusion rule ("auto"): include it when its χ² drop, divided by its
+Markov inclusion rule ("auto"): include it when either its χ² drop, divided by its
 expected value per parameter under "no Markov" (trace((H₁−H₀)ρ)/2, at least
 1, so the point correlation does not fake significance), exceeds 5 × the
 99.9 % quantile of χ²(2) times the Birge ratio (the factor 5 is empirical,
-see _MARKOV_THRESHOLD_FACTOR); when its peak 1.89·T lies at least a factor
+see _MARKOV_THRESHOLD_FACTOR), or the fit without it does not fit and the term
+cures that (see _MARKOV_MISFIT_BIRGE); and when its peak 1.89·T lies at least a factor
 8 inside both ends of the measured τ range (otherwise a Markov term only
 mimics N, or K plus the scatter of the last few low-EDF points — on
 simulated N + K data it was wrongly added in 5 of 12 seeds without this
@@ -66,6 +67,15 @@ _HUMP_MARGIN = 8.0
 # on simulated N+K and N+B+K curves a spurious Markov term lowered χ² by up to 46
 # (24 runs), a real hump (σ = 0.5 deg/h, T = 40 s) by ~10⁴. Threshold: 5 × 13.8 = 69.
 _MARKOV_THRESHOLD_FACTOR = 5.0
+#: Second, independent way a hump qualifies: the curve without a Markov term does not fit
+#: (χ² over its correlated-point expectation above 1.5) and the Markov term cuts that
+#: ratio by more than 3×. Measured on simulated records: VG951D (48 h, with its hump)
+#: 1.75–4.4 → 0.25–0.58 (cut 6.4–7.6×); no hump (VG951D without it, KVG25, nominal FOG,
+#: 12 records) 0.48–1.13 with cuts 0.77–1.41×. The χ² rule above alone missed the
+#: VG951D hump in 4 of 5 seeds, because the per-parameter normalisation of the drop
+#: (correlated points) is very conservative for a hump spanning a decade.
+_MARKOV_MISFIT_BIRGE = 1.5
+_MARKOV_BIRGE_DROP = 3.0
 
 
 @dataclass(frozen=True)
@@ -322,9 +332,14 @@ def fit_noise_terms(tau_s, adev_dph, edf=None, markov: str | bool = "auto",
         per_parameter = max((absorbed_markov - absorbed_plain) / 2.0, 1.0)
         birge_markov = max(with_markov.chi2 / max(tau.size - absorbed_markov, 1.0), 1.0)
         peak = MARKOV_PEAK_RATIO * t_best
+        birge_plain = plain.chi2 / max(tau.size - absorbed_plain, 1.0)
+        by_chi2_drop = (delta_chi2 / per_parameter
+                        > _MARKOV_THRESHOLD_FACTOR * stats.chi2.ppf(_MARKOV_SIGNIFICANCE, 2)
+                        * birge_markov)
+        by_misfit = (birge_plain > _MARKOV_MISFIT_BIRGE
+                     and birge_plain > _MARKOV_BIRGE_DROP * max(birge_markov, 1e-12))
         significant = (
-            delta_chi2 / per_parameter
-            > _MARKOV_THRESHOLD_FACTOR * stats.chi2.ppf(_MARKOV_SIGNIFICANCE, 2) * birge_markov
+            (by_chi2_drop or by_misfit)
             and _HUMP_MARGIN * tau[0] < peak < tau[-1] / _HUMP_MARGIN
             and with_markov.coeffs[-1] > 0
         )
