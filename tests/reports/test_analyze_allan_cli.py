@@ -88,14 +88,10 @@ def test_unknown_column_and_time_gap_are_bad_input(tmp_path, capsys):
     assert "row 61" in err and "t_s" in err and "gap" in err
 
 
-def test_run_folder_uses_its_longest_hold(tmp_path, tmp_path_factory, capsys):
+def test_run_folder_uses_its_longest_hold(tmp_path, smoke_run, capsys):
     from gyrocal.orchestrator.run_folder import RunFolder
 
-    root = Path(__file__).resolve().parents[2]
-    run_dir = tmp_path_factory.getbasetemp() / "smoke-run"  # shared with test_build_report
-    if not (run_dir / "report" / "results.json").is_file():
-        assert main(["run", str(root / "procedures" / "smoke.yaml"), "--sim", "--seed", "3",
-                     "--out", str(run_dir), "--operator", "qa-test"]) == 0
+    run_dir = smoke_run
     capsys.readouterr()
     result = _run(tmp_path, run_dir)
     out = capsys.readouterr().out

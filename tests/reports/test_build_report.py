@@ -22,21 +22,6 @@ ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.timeout(120)
 
 
-def _smoke_run(tmp_path_factory) -> Path:
-    """One smoke run per session, shared by every test file that needs it (reused by path)."""
-    run_dir = tmp_path_factory.getbasetemp() / "smoke-run"
-    if not (run_dir / "report" / "results.json").is_file():
-        code = main(["run", str(ROOT / "procedures" / "smoke.yaml"), "--sim", "--seed", "3",
-                     "--out", str(run_dir), "--operator", "qa-test"])
-        assert code == 0
-    return run_dir
-
-
-@pytest.fixture(scope="session")
-def smoke_run(tmp_path_factory) -> Path:
-    return _smoke_run(tmp_path_factory)
-
-
 @pytest.fixture(scope="session")
 def results(smoke_run) -> dict:
     return json.loads((smoke_run / "report" / "results.json").read_text())

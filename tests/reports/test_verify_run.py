@@ -14,20 +14,10 @@ ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.timeout(120)
 
 
-def _smoke_run(tmp_path_factory) -> Path:
-    """One smoke run per session, shared by every test file that needs it (reused by path)."""
-    run_dir = tmp_path_factory.getbasetemp() / "smoke-run"
-    if not (run_dir / "report" / "results.json").is_file():
-        code = main(["run", str(ROOT / "procedures" / "smoke.yaml"), "--sim", "--seed", "3",
-                     "--out", str(run_dir), "--operator", "qa-test"])
-        assert code == 0
-    return run_dir
-
-
 @pytest.fixture
-def run_copy(tmp_path_factory, tmp_path) -> Path:
+def run_copy(smoke_run, tmp_path) -> Path:
     copy = tmp_path / "run"
-    shutil.copytree(_smoke_run(tmp_path_factory), copy)
+    shutil.copytree(smoke_run, copy)
     return copy
 
 

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from crc_reference import bitwise_crc32_mpeg2
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -15,16 +16,6 @@ from gyrocal.instruments.gyro.crc32_mpeg2 import (
 pytestmark = pytest.mark.timeout(60)
 
 
-def bitwise_crc32_mpeg2(data: bytes) -> int:
-    """Textbook shift register, one bit at a time (no tables, no zlib)."""
-    crc = 0xFFFFFFFF
-    for byte in data:
-        for bit in range(7, -1, -1):
-            feedback = ((crc >> 31) & 1) ^ ((byte >> bit) & 1)
-            crc = (crc << 1) & 0xFFFFFFFF
-            if feedback:
-                crc ^= 0x04C11DB7
-    return crc
 
 
 def test_published_check_value():

@@ -9,6 +9,7 @@ import struct
 
 import numpy as np
 import pytest
+from crc_reference import bitwise_crc32_mpeg2 as bitwise_crc
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -30,15 +31,6 @@ pytestmark = pytest.mark.timeout(120)
 LSB = DEFAULT_LSB
 
 
-def bitwise_crc(data: bytes) -> int:
-    crc = 0xFFFFFFFF
-    for byte in data:
-        for bit in range(7, -1, -1):
-            feedback = ((crc >> 31) & 1) ^ ((byte >> bit) & 1)
-            crc = (crc << 1) & 0xFFFFFFFF
-            if feedback:
-                crc ^= 0x04C11DB7
-    return crc
 
 
 def hand_frame_90(raw_rate: int, status: int, counter: int, latency_us: int) -> bytes:

@@ -13,6 +13,7 @@ import time
 
 import numpy as np
 import pytest
+from crc_reference import bitwise_crc32_mpeg2 as bitwise_crc
 
 from gyrocal.instruments.sim.faults import FaultInjector
 from gyrocal.instruments.sim.gyro_pty import FAULTS, SimulatedGyroPort
@@ -28,15 +29,6 @@ def source(t_s):
     return 100.0 * np.sin(2 * np.pi * 1.5 * t_s) - 3.0, 25.0 + 10.0 * np.cos(t_s)
 
 
-def bitwise_crc(data: bytes) -> int:
-    crc = 0xFFFFFFFF
-    for byte in data:
-        for bit in range(7, -1, -1):
-            feedback = ((crc >> 31) & 1) ^ ((byte >> bit) & 1)
-            crc = (crc << 1) & 0xFFFFFFFF
-            if feedback:
-                crc ^= 0x04C11DB7
-    return crc
 
 
 def read_raw(port_name: str, n_bytes: int, timeout_s: float = 5.0) -> bytes:
