@@ -118,11 +118,12 @@ class _Where:
         if line is None:
             line = self.lines.get(())
         where = f"{self.source}:{line}" if line is not None else self.source
-        key = _format_path(path)
+        key = format_key_path(path)
         return ModelError(f"{where}: {key}: {message}" if key else f"{where}: {message}")
 
 
-def _format_path(path: tuple) -> str:
+def format_key_path(path: tuple) -> str:
+    """``("effects", 1, "tau_s")`` -> ``effects[1].tau_s``: how every input error names a field."""
     text = ""
     for part in path:
         if isinstance(part, int):

@@ -9,19 +9,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from gyrocal.models.gyro_model import format_key_path
+
 KeyPath = tuple[str | int, ...]
 """Where a value sits in a document: mapping keys (str) and list indices (int)."""
 
 
 def format_path(path: KeyPath) -> str:
-    """``("sequence", 2, "tests", 0)`` -> ``sequence[2].tests[0]`` (``""`` for the root)."""
-    text = ""
-    for part in path:
-        if isinstance(part, int):
-            text += f"[{part}]"
-        else:
-            text += f".{part}" if text else str(part)
-    return text
+    """``("sequence", 2, "tests", 0)`` -> ``sequence[2].tests[0]`` (``""`` for the root).
+
+    The same spelling as model-file errors, so one convention runs through every input.
+    """
+    return format_key_path(path)
 
 
 @dataclass(frozen=True)
