@@ -37,7 +37,7 @@ def station_problems(tmp_path, text):
 def test_the_sim_station_loads_with_its_values():
     station = load_station(SIM)
     assert station.simulated
-    assert station.site.latitude_deg == pytest.approx(59.93)
+    assert station.site.latitude_deg == pytest.approx(50.46)
     assert station.chamber.driver == "watlow_f4"
     assert station.chamber.limits.max_ramp_c_per_min == 5.0
     assert station.chamber.safe_state.setpoint_c == 25.0
@@ -63,7 +63,7 @@ def test_unknown_missing_and_wrong_values_are_all_reported_at_once(tmp_path):
     text = text.replace("  unit_id: 1\n", "  unit_id: 1\n  baud: 9600\n")
     text = text.replace("  axis: 1\n", "  axis: one\n")
     text = text.replace("  rate_lsb: 6.103515625e-05          # output units per LSB (2**-14)\n", "")
-    text = text.replace("latitude_deg: 59.93", "latitude_deg: 95")
+    text = text.replace("latitude_deg: 50.46", "latitude_deg: 95")
     problems, path = station_problems(tmp_path, text)
     assert problems == [
         f"{path}:{line_of(text, 'latitude_deg')}: site.latitude_deg: 95 is above the maximum 90",

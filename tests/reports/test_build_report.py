@@ -1,8 +1,8 @@
 """build_report on a real simulated run: results.json keys, numbers against the simulated truth.
 
 The smoke station's gyro is gyro-models/nominal-fog.yaml: SF = 1 + 1e-6·(50 + 20·(T_s − 25)),
-bias 2 + 0.03·(T_s − 25) deg/h plus the model's Earth rate 11.6 deg/h, while the analysis removes
-the Earth rate of the station latitude (59.93°: 13.0167 deg/h). T_s is the sensor temperature
+bias 2 + 0.03·(T_s − 25) deg/h plus the model's Earth rate 11.6 deg/h, and the analysis removes
+the Earth rate of the station latitude (read from stations/sim.yaml). T_s is the sensor temperature
 (thermal lag 600 s), measured in the log, so the truth is evaluated there.
 """
 
@@ -78,13 +78,15 @@ def test_scale_factor_matches_the_simulated_truth(results):
 
 
 def test_bias_has_the_station_earth_rate_removed(results):
-    earth_removed = 15.041067 * math.sin(math.radians(59.93))
+    from gyrocal.orchestrator.station import load_station
+
+    latitude = load_station(ROOT / "stations" / "sim.yaml").site.latitude_deg
+    earth_removed = 15.041067 * math.sin(math.radians(latitude))
     assert results["earth_rate_removed_dph"] == pytest.approx(earth_removed, rel=1e-9)
     for point in results["bias"]:
         sensor = point["sensor_temp_c"]
         truth = 2.0 + 0.03 * (sensor - 25.0) + 11.6 - earth_removed
-        # 30 s hold: ARW 0.01 deg/√h → 0.11 deg/h (1σ) plus B 0.03 deg/h;
-        # the model/latitude Earth-rate difference is 1.4 deg/h.
+        # 30 s hold: ARW 0.01 deg/√h → 0.11 deg/h (1σ) plus B 0.03 deg/h.
         assert point["bias_dph"] == pytest.approx(truth, abs=0.45)
         assert point["source"] == "static"
 
