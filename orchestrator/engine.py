@@ -183,8 +183,11 @@ class RunEngine:
                     if step.step_id in done:
                         continue
                     self._step_id = step.step_id
+                    # ETA: the plan's expected duration of this and every later step
+                    eta_s = sum(float(getattr(s, "expected_s", 0.0) or 0.0)
+                                for s in self.steps[index - 1:] if s.step_id not in done)
                     self.progress.update(step_id=step.step_id, step_index=index,
-                                         step_count=len(self.steps))
+                                         step_count=len(self.steps), eta_s=eta_s)
                     self._execute(step)
                 self._step_id = None
                 self._finish()
