@@ -23,7 +23,13 @@ from gyrocal.cli import EXIT_ACCEPTANCE_FAILED, EXIT_FAULT, EXIT_OK, BadInput
 from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments, open_instruments
 from gyrocal.models.clock import RealClock, SimClock, make_clock
-from gyrocal.orchestrator.engine import EnginePolicy, RunEngine, RunFaultError, completed_steps
+from gyrocal.orchestrator.engine import (
+    PAUSE_FILE,
+    EnginePolicy,
+    RunEngine,
+    RunFaultError,
+    completed_steps,
+)
 from gyrocal.orchestrator.journal import sha256_file
 from gyrocal.orchestrator.plan import Plan, expand_plan, format_plan
 from gyrocal.orchestrator.plan_record import write_plan_record
@@ -299,7 +305,8 @@ def cmd_status(args: argparse.Namespace) -> int:
     if state == "running" and not live:
         state = "interrupted (process gone; resumable)"
     print(f"run {manifest.get('run_id')}  {folder.path}")
-    print(f"  state: {state}")
+    print(f"  state: {state}"
+          + (f" (delete {folder.path / PAUSE_FILE} to go on)" if state == "paused" else ""))
     print(f"  unit: {manifest.get('unit_under_test')}")
     print(f"  steps: {len(done)}/{len(steps)} completed"
           + (f"; next: {remaining[0]}" if remaining else ""))

@@ -15,9 +15,11 @@ from __future__ import annotations
 
 import signal
 import threading
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -28,6 +30,9 @@ from gyrocal.instruments.interfaces import Identity
 from gyrocal.orchestrator.machine import RunStateMachine
 from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.run_folder import RunFolder
+
+#: An operator creates this file in the run folder to pause before the next step.
+PAUSE_FILE = "PAUSE"
 
 
 class RunFaultError(Exception):
@@ -55,6 +60,7 @@ class EnginePolicy:
     max_loss_fraction: float = 0.001    # lost + corrupt frames allowed per logged step
     max_repeats: int = 2                # bad logged step (frame loss, gyro read failure) repeated at most this many times
     safe_setpoint_c: float | None = 25.0  # None = chamber standby is not supported: hold setpoint
+    pause_poll_s: float = 0.5           # wall seconds between looks at RUN_DIR/PAUSE while paused
 
 
 @dataclass
@@ -188,6 +194,7 @@ class RunEngine:
                                 for s in self.steps[index - 1:] if s.step_id not in done)
                     self.progress.update(step_id=step.step_id, step_index=index,
                                          step_count=len(self.steps), eta_s=eta_s)
+                    self._pause_if_asked(step)
                     self._execute(step)
                 self._step_id = None
                 self._finish()
@@ -205,6 +212,34 @@ class RunEngine:
                 raise
             finally:
                 self.progress.close()
+
+    # -- operator pause ----------------------------------------------------------------------
+    @property
+    def pause_file(self) -> Path:
+        return self.folder.path / PAUSE_FILE
+
+    def _pause_if_asked(self, step: Any) -> None:
+        """Hold between steps while ``RUN_DIR/PAUSE`` exists (``touch`` it; delete to go on).
+
+        A pause never cuts a step in half: it takes effect before the next
+        step. While paused the table is stopped and the chamber holds its
+        setpoint; the wait is in wall time (an operator's pause, not
+        procedure time). On going on, the next step re-commands what it needs.
+        """
+        if not self.pause_file.exists():
+            return
+        self.machine.pause()
+        self.inst.table.stop()
+        self.journal.append("paused", before_step=step.step_id,
+                            chamber_setpoint_c=self.inst.chamber.read_setpoint_c())
+        self.folder.update_manifest(state="paused")
+        while self.pause_file.exists():
+            self._poll_chamber()
+            time.sleep(self.policy.pause_poll_s)
+        self.inst.table.set_rate_mode()
+        self.journal.append("unpaused", before_step=step.step_id)
+        self.folder.update_manifest(state="running")
+        self.machine.unpause()
 
     # -- connection --------------------------------------------------------------------------
     def _connect_and_preflight(self) -> None:
