@@ -317,8 +317,14 @@ def _instruments(data: RunData, notes: list[str]) -> dict[str, Any]:
     identified = data.manifest.get("instruments") or {}
     run_date = str(data.manifest.get("started_at") or "")[:10]
     out = {}
+    uut = data.plan.get("unit_under_test") or {}
     for role in sorted(set(planned) | set(identified)):
         identity = (planned.get(role) or {}).get("identity") or {}
+        if role == "gyro" and not identity:
+            # The gyro is the unit under test: its identity is the procedure's, and it
+            # has no calibration due date of its own (this run is its calibration).
+            identity = {"make": "unit under test", "model": uut.get("model"),
+                        "serial": uut.get("serial"), "calibration_due": None}
         due = identity.get("calibration_due")
         overdue = bool(due and run_date and str(due) < run_date)
         if overdue:

@@ -33,9 +33,9 @@ th{background:#eee}.pass{color:#070;font-weight:bold}.fail{color:#b00;font-weigh
 <h2>Instruments</h2>
 <table><tr><th>Role</th><th>Make / model</th><th>Serial</th><th>Calibration due</th><th>Driver</th><th>Address</th><th>Identified as</th></tr>
 {% for role, i in r.instruments.items() %}
-<tr{% if i.calibration_overdue %} class="warn"{% endif %}><td>{{ role }}</td><td>{{ i.make }} {{ i.model }}</td><td>{{ i.serial }}</td>
-<td>{{ i.calibration_due }}{% if i.calibration_overdue %} <span class="fail">OVERDUE</span>{% endif %}</td>
-<td>{{ i.driver }}</td><td><code>{{ i.address }}</code></td><td>{{ i.description }}</td></tr>
+<tr{% if i.calibration_overdue %} class="warn"{% endif %}><td>{{ role }}</td><td>{{ i.make or "" }} {{ i.model or "—" }}</td><td>{{ i.serial or "—" }}</td>
+<td>{{ i.calibration_due or "—" }}{% if i.calibration_overdue %} <span class="fail">OVERDUE</span>{% endif %}</td>
+<td>{{ i.driver or "—" }}</td><td><code>{{ i.address or "—" }}</code></td><td>{{ i.description or "—" }}</td></tr>
 {% endfor %}</table>
 
 <h2>Acceptance</h2>
