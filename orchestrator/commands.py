@@ -154,8 +154,10 @@ def cmd_run(args: argparse.Namespace) -> int:
                                    procedure.station.table.address, procedure.station.gyro.port)):
         raise BadInput(f"{procedure.station.file}: instrument address 'sim' needs --sim "
                        "(or a station file with real addresses)")
-    if args.speed is not None and args.speed != "max" and args.sim is False:
-        pass  # scaled real time against real hardware is the operator's choice
+    if not args.sim and args.speed not in (None, "1", "1.0"):
+        # Real chambers and tables live in real time: a faster clock would cut soaks short.
+        raise BadInput(f"--speed {args.speed}: only --sim runs can change the clock; "
+                       "real instruments run at --speed 1")
     clock = _clock_for(args.speed, args.sim)
     run_dir = Path(args.out) if args.out else Path("runs") / new_run_id()
     files = _input_files(procedure)

@@ -31,3 +31,17 @@ def test_demo_runs_the_smoke_procedure_and_names_the_hidden_effect(tmp_path, cap
     updated = load_model(tmp_path / "discrepancy" / "updated-model.yaml")
     assert updated.has_effect("sf_asymmetry")
     assert "named: sf_asymmetry" in out
+
+
+def test_real_instruments_refuse_a_fast_clock(tmp_path, capsys):
+    station = (REPO / "stations" / "sim.yaml").read_text()
+    station = station.replace("address: sim  ", "address: socket://127.0.0.1:9  ", 1)
+    station = station.replace("  address: sim\n", "  address: TCPIP0::127.0.0.1::9::SOCKET\n", 1)
+    station = station.replace("port: sim", "port: /dev/ttyUSB9")
+    station = station.replace("../gyro-models/", str(REPO / "gyro-models") + "/")
+    (tmp_path / "lab.yaml").write_text(station)
+    code = main(["run", str(REPO / "procedures" / "smoke.yaml"), "--station",
+                 str(tmp_path / "lab.yaml"), "--speed", "max", "--out", str(tmp_path / "r")])
+    assert code == 2
+    assert "only --sim runs can change the clock" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()
