@@ -52,6 +52,7 @@ def main() -> int:
         samples = sum(e.get("samples", 0) for e in events if e["event"] == "step_completed")
         manifest = json.loads((out / "manifest.json").read_text())
         data_mib = sum(p.stat().st_size for p in (out / "samples").rglob("*.parquet")) / 2**20
+        results = json.loads((out / "report" / "results.json").read_text())
 
     rows = [
         ("procedure", args.procedure),
@@ -68,7 +69,35 @@ def main() -> int:
     width = max(len(name) for name, _ in rows)
     for name, value in rows:
         print(f"{name:<{width}}  {value}")
+    print()
+    print(_truth_table(procedure, results))
     return 0
+
+
+def _truth_table(procedure, results: dict) -> str:
+    """The report's figures beside the simulated gyro's model (the known truth)."""
+    from gyrocal.models.gyro_model import load_model
+
+    sim = procedure.station.simulation
+    if sim is None:
+        return ""
+    model = load_model(sim.gyro_model)
+    reference = min(results["scale_factor"], key=lambda e: abs(e["temp_c"] - model.reference_temp_c))
+    sf_truth = 1.0 + 1e-6 * (model.sf_error_ppm + model.sf_tempco_ppm_per_c
+                             * (reference["sensor_temp_c"] - model.reference_temp_c))
+    rows = [
+        ("SF at the reference temperature", reference["sf"], sf_truth),
+        ("SF sensitivity (ppm/°C)", results["sf_temperature"]["sensitivity_ppm_per_c"],
+         model.sf_tempco_ppm_per_c),
+        ("bias sensitivity (deg/h/°C)", results["bias_temperature"]["sensitivity_dph_per_c"],
+         model.bias_tempco_dph_per_c),
+        ("ARW N (deg/√h)", results["allan"]["fit"]["N_deg_per_rth"], model.noise.arw_deg_per_rth),
+        ("bias instability B (deg/h)", results["allan"]["fit"]["B_dph"],
+         model.noise.bias_instability_dph),
+    ]
+    lines = [f"{'figure (report vs simulated truth)':<34}  {'report':>12}  {'truth':>12}"]
+    lines += [f"{name:<34}  {got:>12.7g}  {truth:>12.7g}" for name, got, truth in rows]
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":
