@@ -76,7 +76,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--speed", default=None, help="X (real time × X) or max (simulated time; default with --sim)")
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--operator", default=None)
-    p.add_argument("--sim-station", default=None, help="station file for --sim (default stations/sim.yaml)")
+    p.add_argument("--sim-station", default=None,
+                   help="with --sim: simulate this station instead of the procedure's")
+    p.add_argument("--inject", action="append", metavar="SPEC",
+                   help="with --sim: arm a simulator fault, ROLE.FAULT[:COUNT|:always]"
+                        "[:key=value…][@STEP], e.g. chamber.no_reply:3@T02.soak (repeatable)")
     p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_run"))
 
     p = sub.add_parser("resume", help="continue a faulted or interrupted run")

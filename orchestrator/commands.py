@@ -159,6 +159,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise BadInput(f"--speed {args.speed}: only --sim runs can change the clock; "
                        "real instruments run at --speed 1")
     clock = _clock_for(args.speed, args.sim)
+    fault_plan = _fault_plan(getattr(args, "inject", None) or [], args.sim, plan)
     run_dir = Path(args.out) if args.out else Path("runs") / new_run_id()
     files = _input_files(procedure)
     folder = RunFolder.create(
@@ -182,7 +183,27 @@ def cmd_run(args: argparse.Namespace) -> int:
     record = write_plan_record(folder.path, procedure, plan)
     folder.update_manifest(plan_sha256=sha256_file(record))
     print(f"run folder: {folder.path}", file=sys.stderr)
-    return _execute(folder, procedure, plan, clock, args.sim, args.seed)
+    return _execute(folder, procedure, plan, clock, args.sim, args.seed, fault_plan)
+
+
+def _fault_plan(specs: list[str], sim: bool, plan: Plan):
+    """Parse ``--inject`` values (dry runs only) and check the steps they name exist."""
+    if not specs:
+        return None
+    if not sim:
+        raise BadInput("--inject arms faults in the simulators; it needs --sim")
+    from gyrocal.instruments.sim.chamber_server import FAULTS as CHAMBER_FAULTS
+    from gyrocal.instruments.sim.fault_plan import FaultPlan, FaultSpecError, parse_injection
+    from gyrocal.instruments.sim.gyro_pty import FAULTS as GYRO_FAULTS
+    from gyrocal.instruments.sim.table_server import FAULTS as TABLE_FAULTS
+
+    known = {"chamber": CHAMBER_FAULTS, "table": TABLE_FAULTS, "gyro": GYRO_FAULTS}
+    try:
+        fault_plan = FaultPlan([parse_injection(spec, known) for spec in specs])
+        fault_plan.check_steps([step.step_id for step in plan.steps])
+    except FaultSpecError as exc:
+        raise BadInput(str(exc)) from None
+    return fault_plan
 
 
 def cmd_resume(args: argparse.Namespace) -> int:
@@ -228,7 +249,7 @@ def _operator() -> str:
 
 
 def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bool,
-             seed: int | None) -> int:
+             seed: int | None, fault_plan=None) -> int:
     journal = folder.open_journal()
     if journal.count == 0:
         journal.append("run_started", run_id=folder.read_manifest()["run_id"],
@@ -246,8 +267,16 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
     simulated: Any = None
     try:
         with station_instruments(procedure, clock, sim, seed, on_retry) as (instruments, simulated):
+            before_step = None
+            if fault_plan is not None and simulated is not None:
+                fault_plan.arm_due(simulated, None, journal)
+
+                def before_step(step: Any) -> None:
+                    fault_plan.arm_due(simulated, step.step_id, journal)
+
             engine = RunEngine(folder, list(plan.steps), instruments, _policy(procedure),
-                               progress=Progress(), on_finished=on_finished)
+                               progress=Progress(), on_finished=on_finished,
+                               before_step=before_step)
             engine.run()
     except RunFaultError as exc:
         print(f"gyrocal: fault: {exc}", file=sys.stderr)

@@ -153,6 +153,7 @@ class RunEngine:
         policy: EnginePolicy,
         progress: Progress | None = None,
         on_finished: Callable[[], None] | None = None,
+        before_step: Callable[[Any], None] | None = None,
     ) -> None:
         self.folder = folder
         self.steps = steps
@@ -163,6 +164,7 @@ class RunEngine:
         self.machine = RunStateMachine()
         self.progress = progress or Progress(enabled=False)
         self.on_finished = on_finished
+        self.before_step = before_step      # e.g. a dry run's planned fault injections
         self._chamber_c: float | None = None
         self._table_dps: float | None = None
         self._step_id: str | None = None    # the plan step being executed (for fault events)
@@ -195,6 +197,8 @@ class RunEngine:
                     self.progress.update(step_id=step.step_id, step_index=index,
                                          step_count=len(self.steps), eta_s=eta_s)
                     self._pause_if_asked(step)
+                    if self.before_step is not None:
+                        self.before_step(step)
                     self._execute(step)
                 self._step_id = None
                 self._finish()
