@@ -102,9 +102,18 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("analyze", help="analyse a measured log")
     asub = p.add_subparsers(dest="analysis", required=True, metavar="ANALYSIS")
-    a = asub.add_parser("allan", help="Allan deviation and noise terms of a log")
-    a.add_argument("log")
-    a.add_argument("--column", default="gyro")
+    a = asub.add_parser("allan", help="Allan deviation and noise terms of a log",
+                        description="Exact overlapping Allan deviation, streamed in bounded "
+                        "memory: one run folder (its longest static hold), or one or more CSV/"
+                        "Parquet logs in time order (the spec's log, or any time+rate export).")
+    a.add_argument("log", nargs="+", help="a run folder, or log files in time order")
+    a.add_argument("--column", default=None,
+                   help="the rate column (default: gyro, else a common rate name, else the "
+                   "only non-time column)")
+    a.add_argument("--rate-hz", type=float, default=None,
+                   help="sample rate, for logs without a time column")
+    a.add_argument("--tmp-dir", default=None,
+                   help="where a long record's phase is spilled (default: the system's)")
     a.add_argument("--units", default="deg/s", choices=["deg/s", "deg/h", "rad/s"])
     a.add_argument("--scale-factor", type=float, default=1.0)
     a.add_argument("--json", dest="json_out")

@@ -19,12 +19,21 @@ random walk (max|x| ~ N^1.5·σ) loses relative precision ~ ε·N^1.5 at τ0.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from gyrocal.reports.allan_edf import ONE_SIGMA_CONFIDENCE, chi2_interval, edf_greenhall
-from gyrocal.reports.allan_kernel import second_difference_sums
-from gyrocal.reports.noise_id import identify_alpha_per_m
+from gyrocal.reports.allan_stream import (
+    BLOCK,
+    FilePhase,
+    MemoryPhase,
+    RateBlocks,
+    record_stats,
+    second_difference_totals,
+    write_phase,
+)
+from gyrocal.reports.noise_id import alpha_per_m_from_decimated, identify_alpha_per_m
 
 _CHUNK = 1 << 16  # elements per pass: 3 input slices + 1 buffer stay inside L2 cache
 
@@ -140,29 +149,66 @@ def overlapping_adev(y, rate_hz: float, m=None, taus_s=None,
     ``m`` (averaging factors) or ``taus_s`` choose the τ grid, default
     :func:`log_spaced_m`. With ``confidence`` (default 68.3 %), each τ gets
     a noise type, Greenhall's EDF and a chi-squared interval; pass None to
-    skip them. ``compiled=False`` forces the pure-numpy path (the oracle for
-    the compiled kernel in :mod:`gyrocal.reports.allan_kernel`).
+    skip them. ``compiled=False`` forces the independent pure-numpy path (the
+    oracle for the compiled, tiled kernels of :mod:`gyrocal.reports.allan_kernel`).
+    Exact at any length that fits in memory; for longer records stream them
+    with :func:`adev_from_blocks`.
     """
     data = _validated_rate(y, rate_hz)
+    if compiled:
+        return adev_from_blocks(lambda: (data,), rate_hz, m=m, taus_s=taus_s,
+                                confidence=confidence, in_memory=True)
     m_values = _resolve_m(data.size, rate_hz, m, taus_s)
     phase = _phase_from_rate(data, rate_hz)
     buffer = np.empty(min(_CHUNK, phase.size), dtype=np.float64)
+    totals = np.array([_sum_second_differences_squared(phase, int(mj), buffer)
+                       for mj in m_values])
+    alpha = identify_alpha_per_m(phase, m_values) if confidence is not None else None
+    return _result(totals, m_values, data.size, rate_hz, confidence, alpha)
 
-    n_terms = phase.size - 2 * m_values
-    totals = second_difference_sums(phase, m_values) if compiled else None
-    if totals is None:
-        totals = np.array([_sum_second_differences_squared(phase, int(mj), buffer)
-                           for mj in m_values])
+
+def adev_from_blocks(blocks: RateBlocks, rate_hz: float, m=None, taus_s=None,
+                     confidence: float | None = ONE_SIGMA_CONFIDENCE,
+                     in_memory: bool = False, tmp_dir: str | Path | None = None,
+                     block: int = BLOCK) -> AllanResult:
+    """Exact overlapping ADEV of a record given as a re-iterable stream of rate blocks.
+
+    ``blocks()`` must yield the record from its start each time it is called
+    (it is read twice: for the mean, then for the phase). With
+    ``in_memory=False`` the phase goes to a temporary file in ``tmp_dir``
+    (default: the system's), so peak memory is a few 64 MiB buffers whatever
+    the length; the result is bit-for-bit the in-memory one
+    (:mod:`gyrocal.reports.allan_stream`). ``block`` (a multiple of the
+    kernel's tile) sets the buffers' size; tests make it small to exercise
+    the long-τ path on short records.
+    """
+    if not rate_hz > 0:
+        raise ValueError(f"sample rate must be positive, got {rate_hz} Hz")
+    stats = record_stats(blocks())
+    if stats.n_samples < 8:
+        raise ValueError(f"{stats.n_samples} samples are too few for an Allan curve")
+    m_values = _resolve_m(stats.n_samples, rate_hz, m, taus_s)
+    store = MemoryPhase(stats.n_samples + 1) if in_memory else FilePhase(tmp_dir)
+    try:
+        decimated = write_phase(blocks(), stats, rate_hz, store,
+                                m_values if confidence is not None else None)
+        totals = second_difference_totals(store, m_values, block=block)
+    finally:
+        store.close()
+    alpha = alpha_per_m_from_decimated(decimated) if confidence is not None else None
+    return _result(totals, m_values, stats.n_samples, rate_hz, confidence, alpha)
+
+
+def _result(totals: np.ndarray, m_values: np.ndarray, n_samples: int, rate_hz: float,
+            confidence: float | None, alpha: np.ndarray | None) -> AllanResult:
+    n_terms = n_samples + 1 - 2 * m_values
     adev = np.sqrt(totals / (2.0 * n_terms)) / m_values * rate_hz
     tau_s = m_values / float(rate_hz)
-
-    if confidence is None:
-        return AllanResult(tau_s, adev, n_terms, m_values, float(rate_hz), data.size)
-
-    alpha = identify_alpha_per_m(phase, m_values)
-    edf = np.array([edf_greenhall(int(a), 2, int(mj), phase.size)
+    if confidence is None or alpha is None:
+        return AllanResult(tau_s, adev, n_terms, m_values, float(rate_hz), n_samples)
+    edf = np.array([edf_greenhall(int(a), 2, int(mj), n_samples + 1)
                     for a, mj in zip(alpha, m_values, strict=True)])
     adev_lo, adev_hi = chi2_interval(adev, edf, confidence)
-    return AllanResult(tau_s, adev, n_terms, m_values, float(rate_hz), data.size,
+    return AllanResult(tau_s, adev, n_terms, m_values, float(rate_hz), n_samples,
                        alpha=alpha, edf=edf, adev_lo=adev_lo, adev_hi=adev_hi,
                        confidence=confidence)

@@ -1,32 +1,29 @@
-"""Allan curve plus noise-term fit of one rate record, sized for an overnight hold.
+"""Allan curve plus noise-term fit of one rate record, at any length, exact.
 
-The exact fully overlapping estimator (:func:`gyrocal.reports.allan.overlapping_adev`)
-costs one pass over the record per τ; with its compiled kernel a 3 h hold at
-2 kHz (2.2·10⁷ samples, ~100 τ) takes about 3–4 s on a 2-core machine, so it
-is used up to :data:`EXACT_LIMIT_SAMPLES` (longer than any overnight hold).
-Above that the curve is computed on a
-pyramid of block averages: τ = m·τ0 is evaluated on the record averaged in
-blocks of d samples (d a power of two, d ≤ m/:data:`MIN_M_PER_BLOCK` = m/4), with
-m rounded to a multiple of d. Each Allan difference used is still exact
-(an average of d·m' samples is an average of m samples); only the start
-points are spaced d ≤ m/4 apart instead of 1, which costs some
-EDF, and the confidence interval is computed for the estimator actually
-used (Greenhall EDF of the block-averaged series), so it stays honest.
-Below the limit the curve is the exact one, equal to allantools.oadev.
+Every curve is the fully overlapping estimator at every τ — no block
+averages, no thinned start points. A record held in memory is analysed in
+place (:func:`allan_curve`); a record too long for memory — a 72 h hold at
+2 kHz is 5·10⁸ samples — is streamed from its files in bounded memory
+(:func:`allan_curve_streamed`, :mod:`gyrocal.reports.allan_stream`), with the
+same result to the bit.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from gyrocal.reports.allan import log_spaced_m, overlapping_adev
+from gyrocal.reports.allan import AllanResult, adev_from_blocks, log_spaced_m, overlapping_adev
+from gyrocal.reports.allan_stream import RateBlocks
 from gyrocal.reports.noise_fit import TERM_NAMES, NoiseFit, fit_noise_terms
 
-EXACT_LIMIT_SAMPLES = 25_000_000
-MIN_M_PER_BLOCK = 4
 POINTS_PER_DECADE = 10
+#: Up to this many samples the phase of a streamed record is kept in memory (128 MiB);
+#: beyond, in a temporary file. The result is the same to the bit either way.
+IN_MEMORY_SAMPLES = 16_000_000
+METHOD = "fully overlapping, exact"
 
 
 @dataclass(frozen=True)
@@ -44,51 +41,28 @@ class AllanCurve:
     method: str
 
 
-def _block_means(y: np.ndarray, block: int) -> np.ndarray:
-    usable = (y.size // block) * block
-    return y[:usable].reshape(-1, block).mean(axis=1)
-
-
-def _pyramid_m(n_samples: int) -> dict[int, np.ndarray]:
-    """Averaging factors grouped by block size d: {d: m/d values}."""
+def curve_m(n_samples: int) -> np.ndarray:
+    """The report's τ grid: :data:`POINTS_PER_DECADE` log-spaced m per decade up to N/4."""
     decades = np.log10(max(n_samples // 4, 1))
-    wanted = log_spaced_m(n_samples, count=max(int(decades * POINTS_PER_DECADE), 10))
-    groups: dict[int, set[int]] = {}
-    for m in wanted:
-        block = 1
-        while block * 2 * MIN_M_PER_BLOCK <= m:
-            block *= 2
-        groups.setdefault(block, set()).add(max(int(round(m / block)), 1))
-    return {block: np.array(sorted(ms)) for block, ms in sorted(groups.items())}
+    return log_spaced_m(n_samples, count=max(int(decades * POINTS_PER_DECADE), 10))
+
+
+def _curve(result: AllanResult) -> AllanCurve:
+    return AllanCurve(result.tau_s, result.adev, result.adev_lo, result.adev_hi, result.edf,
+                      result.alpha, result.n_samples, result.rate_hz, METHOD)
 
 
 def allan_curve(y, rate_hz: float) -> AllanCurve:
-    """Overlapping ADEV with intervals; exact below :data:`EXACT_LIMIT_SAMPLES` (module doc)."""
+    """Overlapping ADEV with intervals of an in-memory record (exact at any length)."""
     data = np.asarray(y, dtype=np.float64)
-    if data.size <= EXACT_LIMIT_SAMPLES:
-        result = overlapping_adev(data, rate_hz)
-        return AllanCurve(result.tau_s, result.adev, result.adev_lo, result.adev_hi, result.edf,
-                          result.alpha, data.size, float(rate_hz), "overlapping (exact)")
-    parts = []
-    level, level_block = data, 1
-    for block, m_values in _pyramid_m(data.size).items():
-        while level_block < block:
-            level = _block_means(level, 2)
-            level_block *= 2
-        m_ok = m_values[2 * m_values <= level.size]
-        if m_ok.size == 0:
-            continue
-        parts.append(overlapping_adev(level, rate_hz / block, m=m_ok))
-    tau = np.concatenate([p.tau_s for p in parts])
-    order = np.argsort(tau, kind="stable")
-    keep = order[np.concatenate([[True], np.diff(tau[order]) > 0])]
+    return _curve(overlapping_adev(data, rate_hz, m=curve_m(data.size)))
 
-    def joined(name: str) -> np.ndarray:
-        return np.concatenate([getattr(p, name) for p in parts])[keep]
 
-    return AllanCurve(tau[keep], joined("adev"), joined("adev_lo"), joined("adev_hi"),
-                      joined("edf"), joined("alpha"), data.size, float(rate_hz),
-                      f"overlapping on block averages (start stride ≤ m/{MIN_M_PER_BLOCK})")
+def allan_curve_streamed(blocks: RateBlocks, n_samples: int, rate_hz: float,
+                         tmp_dir: str | Path | None = None) -> AllanCurve:
+    """The same curve for a record streamed block by block (``blocks()`` re-iterable)."""
+    return _curve(adev_from_blocks(blocks, rate_hz, m=curve_m(n_samples), tmp_dir=tmp_dir,
+                                   in_memory=n_samples <= IN_MEMORY_SAMPLES))
 
 
 def fit_curve(curve: AllanCurve) -> NoiseFit:

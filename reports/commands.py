@@ -18,7 +18,6 @@ from gyrocal.cli import EXIT_ACCEPTANCE_FAILED, EXIT_OK
 
 #: Factor from each ``--units`` to deg/h.
 TO_DPH = {"deg/s": 3600.0, "deg/h": 1.0, "rad/s": math.degrees(1.0) * 3600.0}
-_GAP_FACTOR = 1.5
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -50,72 +49,34 @@ def cmd_verify(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _allan_input(log, column: str) -> tuple[np.ndarray, float, str]:
-    """The samples to analyse, their rate and a description.
-
-    A run folder holds holds and dwells at several temperatures back to back;
-    its Allan record is the longest static/allan hold (as in the report).
-    A plain log is used whole but must be evenly sampled.
-    """
-    from gyrocal.reports.measured_log import LogFormatError
-
-    values = getattr(log, column, None) if column in log.__dataclass_fields__ else None
-    if column in ("source", "segment", "extra") or values is None:
-        available = [n for n in ("gyro", "table_rate_dps", "chamber_temp_c", "sensor_temp_c",
-                                 "table_angle_deg") if getattr(log, n) is not None]
-        raise LogFormatError(f"{log.source}: column {column!r} not in the log; "
-                             f"available: {', '.join(available)}")
-    values = np.asarray(values, dtype=float)
-    if log.segment is not None:
-        labels, counts = np.unique(log.segment, return_counts=True)
-        holds = _hold_steps(Path(log.source))
-        candidates = [(c, lab) for lab, c in zip(labels, counts, strict=True) if lab in holds]
-        if not candidates:
-            raise LogFormatError(f"{log.source}: no completed static or allan hold to analyse")
-        _, label = max(candidates)
-        mask = log.segment == label
-        fs_hz = float(1.0 / np.median(np.diff(log.t_s[mask])))
-        return values[mask], fs_hz, f"{log.source} step {label}"
-    dt = np.diff(log.t_s)
-    median = float(np.median(dt))
-    gaps = np.flatnonzero(dt > _GAP_FACTOR * median)
-    if gaps.size:
-        row = int(gaps[0]) + 1
-        raise LogFormatError(
-            f"{log.source}: row {row + 1}: column t_s: gap of {dt[gaps[0]]:.6g} s after "
-            f"{float(log.t_s[row - 1])!r} (median spacing {median:.6g} s, {gaps.size} gap(s)); "
-            "the Allan deviation needs evenly spaced samples")
-    return values, 1.0 / median, log.source
-
-
-def _hold_steps(run_dir: Path) -> set[str]:
-    from gyrocal.orchestrator.plan_record import read_plan_record
-
-    try:
-        steps = read_plan_record(run_dir).get("steps", [])
-    except (OSError, ValueError):
-        return set()
-    return {s["step_id"] for s in steps if s.get("kind") in ("static", "allan")}
-
-
 def cmd_analyze_allan(args: argparse.Namespace) -> int:
     from gyrocal.cli import BadInput
-    from gyrocal.reports.allan_summary import allan_curve, curve_json, fit_curve
-    from gyrocal.reports.measured_log import read_measured_log
+    from gyrocal.reports.allan_sources import open_record
+    from gyrocal.reports.allan_summary import allan_curve_streamed, curve_json, fit_curve
+    from gyrocal.reports.measured_log import LogFormatError
 
     if not (args.scale_factor > 0 and math.isfinite(args.scale_factor)):
         raise BadInput(f"--scale-factor: must be a positive number, got {args.scale_factor!r}")
-    log = read_measured_log(args.log)
-    values, fs_hz, described = _allan_input(log, args.column)
-    rate_dph = values / args.scale_factor * TO_DPH[args.units]
+    if args.rate_hz is not None and not (args.rate_hz > 0 and math.isfinite(args.rate_hz)):
+        raise BadInput(f"--rate-hz: must be a positive number, got {args.rate_hz!r}")
+    record = open_record(args.log, args.column, args.rate_hz)
+    to_dph = TO_DPH[args.units] / args.scale_factor
+
+    def rate_dph():
+        for block in record.blocks():
+            yield block * to_dph
+
     try:
-        curve = allan_curve(rate_dph, fs_hz)
+        curve = allan_curve_streamed(rate_dph, record.n_samples, record.rate_hz,
+                                     tmp_dir=args.tmp_dir)
         fit = fit_curve(curve)
     except ValueError as exc:
-        raise BadInput(f"{described}: column {args.column}: {exc}") from None
-    print(f"Allan deviation of {described}, column {args.column} ÷ {args.scale_factor:g}, "
-          f"from {args.units} to deg/h: {rate_dph.size} samples at {fs_hz:g} Hz "
-          f"({rate_dph.size / fs_hz:.6g} s); {curve.method}")
+        if isinstance(exc, LogFormatError):
+            raise
+        raise BadInput(f"{record.description}: column {record.column}: {exc}") from None
+    print(f"Allan deviation of {record.description}, column {record.column} ÷ "
+          f"{args.scale_factor:g}, from {args.units} to deg/h: {curve.n_samples} samples at "
+          f"{record.rate_hz:g} Hz ({curve.n_samples / record.rate_hz:.6g} s); {curve.method}")
     print(f"  {'tau_s':>12} {'adev_dph':>12} {'lo_dph':>12} {'hi_dph':>12}")
     shown = np.unique(np.linspace(0, curve.tau_s.size - 1, min(15, curve.tau_s.size)).astype(int))
     for i in shown:

@@ -69,15 +69,25 @@ def identify_alpha_per_m(phase: np.ndarray, m_values: np.ndarray,
     ȳ_k = (x[(k+1)m] − x[km]) / (m·τ0); the τ0 factor does not change r1.
     """
     n_rate = phase.size - 1
-    alphas = np.empty(len(m_values), dtype=int)
+    decimated = [phase[: min(n_rate // int(m), max_points) * int(m) + 1 : int(m)]
+                 for m in m_values]
+    return alpha_per_m_from_decimated(decimated)
+
+
+def alpha_per_m_from_decimated(decimated: list[np.ndarray]) -> np.ndarray:
+    """α per τ from the decimated phase x[0], x[m], x[2m], … of each averaging factor.
+
+    The streaming Allan pass (:mod:`gyrocal.reports.allan_stream`) collects
+    these points on its way through the record, so a record that does not fit
+    in memory is identified exactly as an in-memory one.
+    """
+    alphas = np.empty(len(decimated), dtype=int)
     last_known: int | None = None
     pending: list[int] = []
-    for index, m in enumerate(m_values):
-        m = int(m)
-        n_avg = min(n_rate // m, max_points)
+    for index, points in enumerate(decimated):
         alpha = None
-        if n_avg >= MIN_POINTS:
-            alpha = identify_alpha_from_averages(np.diff(phase[: n_avg * m + 1 : m]))
+        if points.size - 1 >= MIN_POINTS:
+            alpha = identify_alpha_from_averages(np.diff(points))
         if alpha is None:
             if last_known is None:
                 pending.append(index)

@@ -1,0 +1,309 @@
+"""Rate records for the Allan analysis, opened without loading them: files, file sets, run folders.
+
+`gyrocal analyze allan` is pointed at whatever a lab has: the spec's measured
+log, a plain two-column export (time, rate) from another tool, a day's worth
+of hourly Parquet files, or a run folder. This module finds the time and rate
+columns (by the spec's names, by common names, or by position in a two-column
+file — and says so plainly when the choice is ambiguous), checks that the
+record is one evenly sampled stretch (across file boundaries too), and hands
+the analysis a re-iterable stream of rate blocks, so a record of any length is
+analysed in bounded memory.
+
+Every problem is a :class:`~gyrocal.reports.measured_log.LogFormatError`
+naming the file, the row (1-based data row counting a header as row 1, as a
+spreadsheet shows it) and the column.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from gyrocal.reports.allan_stream import RateBlocks
+from gyrocal.reports.measured_log import LogFormatError
+
+#: Column names taken for time, in order of preference (the spec's first).
+TIME_NAMES = ("t_s", "time_s", "time", "t", "timestamp", "seconds", "sec")
+#: Column names taken for the rate when --column is not given (the spec's first).
+RATE_NAMES = ("gyro", "rate", "rate_dps", "rate_dph", "rate_rad_s", "omega", "gyro_rate",
+              "angular_rate", "w")
+#: A spacing more than this × the median is a gap: the Allan deviation needs even sampling.
+GAP_FACTOR = 1.5
+#: Rows per batch read from a file.
+BATCH_ROWS = 1 << 20
+
+
+@dataclass(frozen=True)
+class RateRecord:
+    """A rate record ready for streaming: ``blocks()`` yields it from the start each call."""
+
+    description: str
+    column: str
+    n_samples: int
+    rate_hz: float
+    blocks: RateBlocks
+
+
+@dataclass(frozen=True)
+class _Columns:
+    time: str | None
+    rate: str
+
+
+def _pick_columns(names: list[str], column: str | None, source: str) -> _Columns:
+    lowered = {n.strip().lower(): n for n in names}
+    time = next((lowered[n] for n in TIME_NAMES if n in lowered), None)
+    if column is not None:
+        if column not in names:
+            raise LogFormatError(f"{source}: column {column!r} not in the log; "
+                                 f"columns: {', '.join(names)}")
+        return _Columns(time, column)
+    if "gyro" in names:
+        return _Columns(time, "gyro")
+    candidates = [lowered[n] for n in RATE_NAMES if n in lowered]
+    if len(candidates) == 1:
+        return _Columns(time, candidates[0])
+    others = [n for n in names if n != time]
+    if not candidates and time is not None and len(others) == 1:
+        return _Columns(time, others[0])  # a plain two-column log: time and one rate
+    if not candidates and time is None and len(names) == 2:
+        return _Columns(names[0], names[1])
+    listed = ", ".join(candidates or others)
+    raise LogFormatError(f"{source}: which column is the rate is ambiguous ({listed}); "
+                         "name it with --column")
+
+
+def _csv_has_header(path: Path) -> bool:
+    with open(path, encoding="utf-8", errors="replace") as handle:
+        first = handle.readline()
+    cells = [c.strip() for c in first.replace(";", ",").split(",") if c.strip()]
+    if not cells:
+        raise LogFormatError(f"{path}: line 1: empty; expected a header or two numbers")
+    try:
+        [float(c) for c in cells]
+    except ValueError:
+        return True
+    return False
+
+
+class _File:
+    """One CSV or Parquet file of a record: its columns, row count and batched reader."""
+
+    def __init__(self, path: Path, column: str | None) -> None:
+        self.path = path
+        suffix = path.suffix.lower()
+        if not path.is_file():
+            raise LogFormatError(f"{path}: no such file")
+        if suffix in (".parquet", ".pq"):
+            self.kind = "parquet"
+            import pyarrow.parquet as pq
+
+            try:
+                meta = pq.ParquetFile(path)
+            except Exception as exc:  # noqa: BLE001 - pyarrow raises many types for bad files
+                raise LogFormatError(f"{path}: not a readable Parquet file: {exc}") from None
+            names = list(meta.schema_arrow.names)
+            self.rows = int(meta.metadata.num_rows)
+            self.first_row = 2  # as a spreadsheet export of it would show, header = row 1
+        elif suffix in (".csv", ".txt", ".dat"):
+            self.kind = "csv"
+            self.header = _csv_has_header(path)
+            if self.header:
+                with open(path, encoding="utf-8", errors="replace") as handle:
+                    names = [n.strip() for n in handle.readline().strip().split(",")]
+            else:
+                names = ["time", "rate"]
+            self.rows = -1  # counted in the first pass
+            self.first_row = 2 if self.header else 1
+        else:
+            raise LogFormatError(f"{path}: unknown log format {suffix!r}; use .csv or .parquet")
+        self.names = names
+        self.columns = _pick_columns(names, column, str(path))
+
+    def batches(self, with_time: bool) -> Iterator[tuple[np.ndarray | None, np.ndarray]]:
+        """(time, rate) float64 batches in order; time is None unless asked for."""
+        wanted = [self.columns.rate] + ([self.columns.time] if with_time and self.columns.time
+                                        else [])
+        if self.kind == "parquet":
+            import pyarrow.parquet as pq
+
+            reader = pq.ParquetFile(self.path)
+            for batch in reader.iter_batches(batch_size=BATCH_ROWS, columns=wanted):
+                yield self._arrays(batch, wanted)
+            return
+        import pyarrow as pa
+        import pyarrow.csv as pcsv
+
+        names = self.names
+        read = pcsv.ReadOptions(block_size=1 << 24, column_names=None if self.header else names)
+        convert = pcsv.ConvertOptions(include_columns=wanted,
+                                      column_types={n: pa.float64() for n in wanted})
+        try:
+            reader = pcsv.open_csv(self.path, read_options=read, convert_options=convert)
+            for batch in reader:
+                yield self._arrays(batch, wanted)
+        except pa.ArrowInvalid as exc:
+            raise LogFormatError(self._locate_bad_cell(wanted, exc)) from None
+
+    def _arrays(self, batch, wanted: list[str]) -> tuple[np.ndarray | None, np.ndarray]:
+        rate = batch.column(wanted[0]).to_numpy(zero_copy_only=False).astype(np.float64)
+        time = (batch.column(wanted[1]).to_numpy(zero_copy_only=False).astype(np.float64)
+                if len(wanted) > 1 else None)
+        return time, rate
+
+    def _locate_bad_cell(self, wanted: list[str], exc: Exception) -> str:
+        """The CSV reader says only *that* a cell is bad; find which row and column."""
+        import csv
+
+        with open(self.path, newline="", encoding="utf-8", errors="replace") as handle:
+            reader = csv.reader(handle)
+            names = next(reader) if self.header else self.names
+            names = [n.strip() for n in names]
+            index = {n: names.index(n) for n in wanted if n in names}
+            for line_no, row in enumerate(reader, start=self.first_row):
+                for name, i in index.items():
+                    cell = row[i].strip() if i < len(row) else ""
+                    try:
+                        float(cell)
+                    except ValueError:
+                        return f"{self.path}: line {line_no}: column {name}: {cell!r} is not a number"
+        return f"{self.path}: not a readable CSV log: {exc}"
+
+
+class _TimeChecker:
+    """Checks, batch by batch, that time increases evenly across all files of a record."""
+
+    def __init__(self) -> None:
+        self.dt: float | None = None
+        self.last: float | None = None
+
+    def check(self, file: _File, row0: int, time: np.ndarray) -> None:
+        if time.size == 0:
+            return
+        where = np.concatenate([[self.last], time]) if self.last is not None else time
+        steps = np.diff(where)
+        if self.dt is None and steps.size:
+            self.dt = float(np.median(steps))
+            if not self.dt > 0:
+                raise LogFormatError(f"{file.path}: column {file.columns.time}: time does not "
+                                     "increase")
+        if self.dt is not None and steps.size:
+            bad = np.flatnonzero((steps <= 0) | (steps > GAP_FACTOR * self.dt)
+                                 | (steps < self.dt / GAP_FACTOR))
+            if bad.size:
+                k = int(bad[0])
+                index = row0 + k + (0 if self.last is not None else 1)  # the offending sample
+                what = "gap" if steps[k] > 0 else "time does not increase"
+                raise LogFormatError(
+                    f"{file.path}: line {index + file.first_row} (data row {index + 1}): column "
+                    f"{file.columns.time}: {what}: spacing {steps[k]:.6g} s after "
+                    f"{float(where[k])!r}, {self.dt:.6g} s elsewhere; the Allan deviation "
+                    "needs one evenly sampled record (split it at the gap)")
+        self.last = float(time[-1])
+
+
+def open_log_files(paths: list[Path], column: str | None = None,
+                   rate_hz: float | None = None) -> RateRecord:
+    """One record from one or more files, in the order given (a day of hourly files).
+
+    The first pass (the record's statistics) also checks time: strictly
+    increasing, evenly spaced, continuous from each file into the next. Without
+    a time column the sample rate must be given.
+    """
+    files = [_File(Path(p), column) for p in paths]
+    rate_names = {f.columns.rate for f in files}
+    if len(rate_names) > 1:
+        raise LogFormatError(f"{paths[0]}: the files name the rate differently "
+                             f"({', '.join(sorted(rate_names))}); name it with --column")
+    has_time = all(f.columns.time is not None for f in files)
+    if rate_hz is None:
+        if not has_time:
+            missing = next(f for f in files if f.columns.time is None)
+            raise LogFormatError(f"{missing.path}: no time column ({', '.join(TIME_NAMES)}); "
+                                 "give the sample rate with --rate-hz")
+        rate_hz = _rate_from_time(files[0])
+    counted = {"done": False, "rows": 0}
+
+    def blocks() -> Iterator[np.ndarray]:
+        checking = has_time and not counted["done"]
+        checker = _TimeChecker()
+        total = 0
+        for file in files:
+            row0 = 0
+            for time, rate in file.batches(with_time=checking):
+                if checking and time is not None:
+                    checker.check(file, row0, time)
+                bad = np.flatnonzero(~np.isfinite(rate))
+                if bad.size:
+                    raise LogFormatError(
+                        f"{file.path}: line {row0 + int(bad[0]) + file.first_row}: column "
+                        f"{file.columns.rate}: non-finite value {float(rate[bad[0]])!r}")
+                row0 += rate.size
+                total += rate.size
+                yield rate
+        counted["done"] = True
+        counted["rows"] = total
+
+    n_rows = sum(f.rows for f in files) if all(f.rows >= 0 for f in files) else -1
+    if n_rows < 0:  # CSV: count once (the check pass), then stream
+        n_rows = sum(b.size for b in blocks())
+    names = ", ".join(str(p) for p in paths[:3]) + (f" and {len(paths) - 3} more"
+                                                     if len(paths) > 3 else "")
+    return RateRecord(names, files[0].columns.rate, n_rows, float(rate_hz), blocks)
+
+
+def _rate_from_time(file: _File) -> float:
+    """1 / median spacing of the first batch, snapped to 9 significant digits when that close.
+
+    Time stamps are sums of a float spacing (t = k·τ0 carries rounding), so the
+    spacing of a 200 Hz log reads 200.00000000004 Hz; the snap keeps a log's
+    result identical to the same samples analysed at their nominal rate.
+    """
+    for time, _ in file.batches(with_time=True):
+        if time is not None and time.size >= 2:
+            spacing = float(np.median(np.diff(time)))
+            if not spacing > 0:
+                raise LogFormatError(f"{file.path}: column {file.columns.time}: time does not "
+                                     "increase; the sample rate cannot be read from it")
+            rate = 1.0 / spacing
+            snapped = float(f"{rate:.9g}")
+            return snapped if abs(snapped / rate - 1.0) < 1e-9 else rate
+    raise LogFormatError(f"{file.path}: fewer than 2 rows; no sample rate")
+
+
+def open_run_folder(run_dir: Path, column: str | None = None) -> RateRecord:
+    """The longest completed static/allan hold of a run folder, streamed from its chunks."""
+    from gyrocal.orchestrator.plan_record import read_plan_record
+    from gyrocal.orchestrator.run_folder import RunFolder
+
+    folder = RunFolder.open(run_dir)
+    try:
+        steps = read_plan_record(run_dir).get("steps", [])
+    except (OSError, ValueError) as exc:
+        raise LogFormatError(f"{run_dir}: plan.json unreadable: {exc}") from None
+    holds = {s["step_id"] for s in steps if s.get("kind") in ("static", "allan")}
+    completed = [e for e in folder.journal_events()
+                 if e.get("event") == "step_completed" and e.get("step_id") in holds
+                 and e.get("chunks")]
+    if not completed:
+        raise LogFormatError(f"{run_dir}: no completed static or allan hold to analyse")
+    longest = max(completed, key=lambda e: int(e.get("samples", 0)) or len(e["chunks"]))
+    paths = [run_dir / rel for rel in longest["chunks"]]
+    record = open_log_files(paths, column or "gyro")
+    return RateRecord(f"{run_dir} step {longest['step_id']}", record.column, record.n_samples,
+                      record.rate_hz, record.blocks)
+
+
+def open_record(paths: list[str | Path], column: str | None = None,
+                rate_hz: float | None = None) -> RateRecord:
+    """A run folder (one path that is a directory) or one or more log files."""
+    as_paths = [Path(p) for p in paths]
+    if len(as_paths) == 1 and as_paths[0].is_dir():
+        return open_run_folder(as_paths[0], column)
+    dirs = [p for p in as_paths if p.is_dir()]
+    if dirs:
+        raise LogFormatError(f"{dirs[0]}: a run folder is analysed on its own, not with other logs")
+    return open_log_files(as_paths, column, rate_hz)
