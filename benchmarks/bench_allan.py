@@ -1,7 +1,7 @@
 """Overlapping ADEV: gyrocal.reports.allan against allantools.oadev, side by side.
 
-Prints one table: wall time of each on the same data and τ grid, the
-speed-up, the largest relative difference between the two curves, and the
+Prints one table: wall time of each on the same data and τ grid (runs
+interleaved, median of --repeats), the pairwise speed-up, the largest relative difference between the two curves, and the
 peak memory that our function allocates (tracemalloc) relative to the input.
 
     .venv/bin/python benchmarks/bench_allan.py            # 10 M samples, ~100 τ
@@ -11,6 +11,7 @@ peak memory that our function allocates (tracemalloc) relative to the input.
 from __future__ import annotations
 
 import argparse
+import statistics
 import time
 import tracemalloc
 
@@ -26,6 +27,7 @@ def _args() -> argparse.Namespace:
     parser.add_argument("--rate-hz", type=float, default=100.0)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--skip-allantools", action="store_true")
+    parser.add_argument("--repeats", type=int, default=3, help="interleaved runs of each")
     return parser.parse_args()
 
 
@@ -48,41 +50,55 @@ def _peak_bytes(call) -> int:
         tracemalloc.stop()
 
 
+def _timed(call) -> tuple[float, object]:
+    start = time.perf_counter()
+    result = call()
+    return time.perf_counter() - start, result
+
+
 def main() -> None:
     args = _args()
     n = int(args.n)
     y = _gyro_like_rate(n, args.rate_hz, args.seed)
     m = log_spaced_m(n, count=args.taus)
+    overlapping_adev(y[:100_000], args.rate_hz, confidence=None)  # compile / load the kernel
+    import allantools
 
-    start = time.perf_counter()
-    ours_plain = overlapping_adev(y, args.rate_hz, m=m, confidence=None)
-    ours_plain_s = time.perf_counter() - start
-    start = time.perf_counter()
-    ours_ci = overlapping_adev(y, args.rate_hz, m=m)
-    ours_ci_s = time.perf_counter() - start
+    plain, with_ci, reference = [], [], []
+    for _ in range(args.repeats):  # interleaved, so drift of a shared machine hits all alike
+        seconds, ours_plain = _timed(lambda: overlapping_adev(y, args.rate_hz, m=m,
+                                                              confidence=None))
+        plain.append(seconds)
+        seconds, ours_ci = _timed(lambda: overlapping_adev(y, args.rate_hz, m=m))
+        with_ci.append(seconds)
+        if not args.skip_allantools:
+            seconds, (taus_ref, adev_ref, _, _) = _timed(lambda: allantools.oadev(
+                y, rate=args.rate_hz, data_type="freq", taus=m / args.rate_hz))
+            reference.append(seconds)
     assert np.array_equal(ours_plain.adev, ours_ci.adev)
     # Memory in separate calls: tracemalloc's bookkeeping must not distort the timings.
     peak_plain = _peak_bytes(lambda: overlapping_adev(y, args.rate_hz, m=m, confidence=None))
     peak_ci = _peak_bytes(lambda: overlapping_adev(y, args.rate_hz, m=m))
 
-    print(f"samples: {n:,}   τ values: {m.size}   input: {y.nbytes / 1e6:.0f} MB")
-    print(f"{'implementation':<34}{'wall s':>10}{'peak mem / input':>20}")
-    print(f"{'gyrocal overlapping_adev':<34}{ours_plain_s:>10.2f}{peak_plain / y.nbytes:>20.2f}")
-    print(f"{'gyrocal overlapping_adev + CI':<34}{ours_ci_s:>10.2f}{peak_ci / y.nbytes:>20.2f}")
+    med = statistics.median
+    print(f"samples: {n:,}   τ values: {m.size}   input: {y.nbytes / 1e6:.0f} MB   "
+          f"median of {args.repeats} interleaved runs")
+    print(f"{'implementation':<34}{'wall s (min-med-max)':>24}{'peak mem / input':>20}")
+    for name, times, peak in (("gyrocal overlapping_adev", plain, peak_plain),
+                              ("gyrocal overlapping_adev + CI", with_ci, peak_ci)):
+        spread = f"{min(times):.2f}-{med(times):.2f}-{max(times):.2f}"
+        print(f"{name:<34}{spread:>24}{peak / y.nbytes:>20.2f}")
     if args.skip_allantools:
         return
-    import allantools
-
-    start = time.perf_counter()
-    taus_ref, adev_ref, _, _ = allantools.oadev(y, rate=args.rate_hz, data_type="freq",
-                                                taus=m / args.rate_hz)
-    ref_s = time.perf_counter() - start
-    print(f"{'allantools.oadev':<34}{ref_s:>10.2f}{'-':>20}")
+    spread = f"{min(reference):.2f}-{med(reference):.2f}-{max(reference):.2f}"
+    print(f"{'allantools.oadev':<34}{spread:>24}{'-':>20}")
     if not np.allclose(taus_ref, ours_plain.tau_s, rtol=0, atol=0):
         raise SystemExit("τ grids differ between implementations")
     max_rel = float(np.max(np.abs(ours_plain.adev / adev_ref - 1.0)))
-    print(f"speed-up (plain): {ref_s / ours_plain_s:.1f}x   speed-up (with CI): "
-          f"{ref_s / ours_ci_s:.1f}x   max relative difference: {max_rel:.2e}")
+    ratios = [r / p for r, p in zip(reference, plain, strict=True)]
+    ratios_ci = [r / p for r, p in zip(reference, with_ci, strict=True)]
+    print(f"speed-up (plain): {med(ratios):.1f}x (pairwise median)   speed-up (with CI): "
+          f"{med(ratios_ci):.1f}x   max relative difference: {max_rel:.2e}")
 
 
 if __name__ == "__main__":

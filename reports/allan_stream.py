@@ -73,8 +73,13 @@ class MemoryPhase(PhaseStore):
         self._filled = 0
 
     def append(self, block: np.ndarray) -> None:
-        self.array[self._filled : self._filled + block.size] = block
+        if block.base is not self.array:  # a block made by claim() is already in place
+            self.array[self._filled : self._filled + block.size] = block
         self._filled += block.size
+
+    def claim(self, count: int) -> np.ndarray:
+        """The next ``count`` slots, to compute the phase in place (no second copy)."""
+        return self.array[self._filled : self._filled + count]
 
     def read(self, start: int, count: int, out: np.ndarray | None = None) -> np.ndarray:
         return self.array[start : start + count]
@@ -186,9 +191,13 @@ def write_phase(blocks: Iterable[np.ndarray], stats: RecordStats, rate_hz: float
     _pick(first, 0, m_list, wanted, decimated, taken)
     written = 1
     for block in blocks:
-        body = np.asarray(block, dtype=np.float64) - stats.mean
-        if body.size == 0:
+        block = np.asarray(block, dtype=np.float64)
+        if block.size == 0:
             continue
+        if isinstance(store, MemoryPhase):
+            body = np.subtract(block, stats.mean, out=store.claim(block.size))
+        else:
+            body = block - stats.mean
         body[0] += carry  # the running sum continues exactly as one cumsum would
         np.cumsum(body, out=body)
         carry = float(body[-1])
@@ -229,12 +238,13 @@ def second_difference_totals(store: PhaseStore, m_values: np.ndarray,
     m_short, m_long = m_values[short], m_values[~short]
     totals_short = np.zeros(m_short.size)
     totals_long = np.zeros(m_long.size)
-    window_buf = buffers = None
+    window_buf = stream_bufs = None
     if not isinstance(store, MemoryPhase):
         window_buf = np.empty(block + 2 * (int(m_short.max()) if m_short.size else 0))
-        buffers = (np.empty(block), np.empty(block), np.empty(block)) if m_long.size else None
+        stream_bufs = (np.empty(block), np.empty(block)) if m_long.size else None
     for start in range(0, n_phase, block):
         counts = np.clip(n_phase - 2 * m_short - start, 0, block)
+        window = None
         if counts.size and counts.max() > 0:
             need = int(np.max(np.where(counts > 0, counts + 2 * m_short, 0)))
             window = store.read(start, need, window_buf)
@@ -244,11 +254,13 @@ def second_difference_totals(store: PhaseStore, m_values: np.ndarray,
             count = int(min(block, n_phase - 2 * m - start))
             if count <= 0:
                 continue
-            a_buf, b_buf, c_buf = buffers if buffers is not None else (None, None, None)
-            a = store.read(start, count, a_buf)
+            if window is None or window.size < count:  # x[s…] is the window's start
+                window = store.read(start, count, window_buf)
+            b_buf, c_buf = stream_bufs if stream_bufs is not None else (None, None)
             b = store.read(start + m, count, b_buf)
             c = store.read(start + 2 * m, count, c_buf)
-            totals_long[j] = three_stream_sum(a, b, c, count, totals_long[j], compiled=compiled)
+            totals_long[j] = three_stream_sum(window[:count], b, c, count, totals_long[j],
+                                              compiled=compiled)
     totals = np.empty(m_values.size)
     totals[short] = totals_short
     totals[~short] = totals_long
