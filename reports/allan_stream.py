@@ -160,11 +160,15 @@ def record_stats(blocks: Iterable[np.ndarray]) -> RecordStats:
     total = 0.0
     n = 0
     for block in rechunk(blocks, MEAN_BLOCK):
-        finite = np.isfinite(block)
-        if not finite.all():
-            bad = int(np.flatnonzero(~finite)[0])
-            raise ValueError(f"rate data has a non-finite value at sample {n + bad}: {block[bad]}")
-        total += float(np.add.reduce(block))
+        block_sum = float(np.add.reduce(block))
+        if not np.isfinite(block_sum):  # a NaN or ±inf sample makes the sum non-finite
+            finite = np.isfinite(block)
+            if not finite.all():
+                bad = int(np.flatnonzero(~finite)[0])
+                raise ValueError(f"rate data has a non-finite value at sample {n + bad}: "
+                                 f"{block[bad]}")
+            raise ValueError(f"rate data sum overflows near sample {n}")
+        total += block_sum
         n += block.size
     if n == 0:
         raise ValueError("no rate samples")
