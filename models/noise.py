@@ -25,10 +25,12 @@ from typing import Protocol
 import numpy as np
 from scipy.signal import lfilter
 
+from gyrocal.models.allan_theory import (  # noqa: F401 - re-exported for the simulator's users
+    FLICKER_FLOOR_PER_B,
+    MARKOV_PEAK_TAU_PER_TC,
+    markov_avar,
+)
 from gyrocal.models.gyro_model import NoiseParams
-
-#: Allan floor of flicker (bias-instability) noise, in units of B: √(2 ln2 / π).
-FLICKER_FLOOR_PER_B = math.sqrt(2.0 * math.log(2.0) / math.pi)  # 0.6643
 
 #: Correlation-time band of the Gauss-Markov bank that makes the flicker noise.
 #: 0.1 s .. 1e6 s keeps the Allan floor flat from ~1 s to ~1e4 s (overnight
@@ -37,9 +39,6 @@ FLICKER_TAU_MIN_S = 0.1
 FLICKER_TAU_MAX_S = 1.0e6
 FLICKER_PER_DECADE = 3
 
-#: Allan deviation peak of a first-order Gauss-Markov process: at τ ≈ 1.89·T_c,
-#: σ_A ≈ 0.6174·σ (see :func:`markov_allan_variance`).
-MARKOV_PEAK_TAU_PER_TC = 1.89
 
 
 class NoiseTerm(Protocol):
@@ -155,15 +154,8 @@ class GaussMarkov:
 
 
 def markov_allan_variance(tau_s, sigma_dph: float, tc_s: float) -> np.ndarray:
-    """Allan variance (deg/h)² of a Gauss-Markov process at averaging times ``tau_s``.
-
-    σ²(τ) = (2σ²T/τ)·[1 − (T/2τ)(3 − 4e^{−τ/T} + e^{−2τ/T})] (IEEE 952 Annex C,
-    with q_c²·T/2 = σ²). Exposed for the analysis fits and for the flicker bank.
-    """
-    tau = np.asarray(tau_s, dtype=float)
-    x = tau / tc_s
-    bracket = 1.0 - (3.0 - 4.0 * np.exp(-x) + np.exp(-2.0 * x)) / (2.0 * x)
-    return 2.0 * sigma_dph**2 * bracket / x
+    """Allan variance (deg/h)² of a Gauss-Markov process: :func:`allan_theory.markov_avar`."""
+    return markov_avar(tau_s, sigma_dph, tc_s)
 
 
 def flicker_bank(bias_instability_dph: float) -> tuple[np.ndarray, np.ndarray]:

@@ -55,9 +55,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, stats
 
-TERM_NAMES = ("Q_arcsec", "N_deg_per_rth", "B_dph", "K_dph_per_rth", "R_dph_per_h")
-MARKOV_PEAK_RATIO = 1.8926  # τ_peak / T for a first-order Gauss–Markov process
-_B_FACTOR = 2.0 * math.log(2.0) / math.pi
+from gyrocal.models.allan_theory import (
+    MARKOV_PEAK_TAU_PER_TC,
+    TERM_KEYS,
+    markov_avar,
+    term_avar_columns,
+)
+
+TERM_NAMES = TERM_KEYS
+MARKOV_PEAK_RATIO = MARKOV_PEAK_TAU_PER_TC  # τ_peak / T for a first-order Gauss–Markov process
 _MARKOV_SIGNIFICANCE = 0.999
 _IRLS_ROUNDS = 4
 # The hump must be seen on both sides: a peak within the last factor of 8 of the curve
@@ -136,24 +142,12 @@ class NoiseFit:
 
 def markov_avar_unit(tau_s, correlation_time_s: float) -> np.ndarray:
     """Allan variance of a unit-variance first-order Gauss–Markov process."""
-    x = np.asarray(tau_s, dtype=float) / float(correlation_time_s)
-    # 3 − 4e^{−x} + e^{−2x} = 2x − (2/3)x³ + … cancels badly for small x: use a series there.
-    small = x < 1e-3
-    xs = np.where(small, 1.0, x)
-    bracket = 1.0 - (3.0 - 4.0 * np.exp(-xs) + np.exp(-2.0 * xs)) / (2.0 * xs)
-    bracket = np.where(small, x**2 / 3.0 - x**3 / 4.0, bracket)
-    return 2.0 * bracket / np.where(small, np.maximum(x, 1e-300), xs)
+    return markov_avar(tau_s, 1.0, correlation_time_s)
 
 
 def _design(tau_s: np.ndarray) -> np.ndarray:
     """Columns: AVAR per unit squared coefficient, in the order of TERM_NAMES."""
-    return np.column_stack([
-        3.0 / tau_s**2,
-        3600.0 / tau_s,
-        np.full_like(tau_s, _B_FACTOR),
-        tau_s / 10800.0,
-        tau_s**2 / (2.0 * 3600.0**2),
-    ])
+    return term_avar_columns(tau_s)
 
 
 @dataclass

@@ -24,8 +24,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.linalg import toeplitz
 
+from gyrocal.models.allan_theory import noise_avar
 from gyrocal.models.gyro_model import GyroModel, NoiseParams
-from gyrocal.models.noise import flicker_bank, markov_allan_variance
+from gyrocal.models.noise import flicker_bank
 from gyrocal.reports.allan import log_spaced_m, overlapping_adev
 from gyrocal.reports.noise_fit import NoiseFit, fit_noise_terms
 
@@ -94,14 +95,9 @@ class NoiseModel:
 
     def allan_deviation_dph(self, tau_s) -> np.ndarray:
         """The model's Allan deviation (deg/h), the reference the residual's curve is held against."""
-        tau = np.asarray(tau_s, dtype=float)
-        avar = (3.0 * self.quantization_arcsec**2 / tau**2
-                + 3600.0 * self.arw_deg_per_rth**2 / tau
-                + (2.0 * math.log(2.0) / math.pi) * self.bias_instability_dph**2
-                + self.rrw_deg_per_h_rth**2 * tau / 10800.0
-                + self.rate_ramp_dph_per_h**2 * tau**2 / (2.0 * 3600.0**2))
-        if self.has_markov:
-            avar = avar + markov_allan_variance(tau, self.markov_sigma_dph, self.markov_tau_s)
+        avar = noise_avar(tau_s, self.quantization_arcsec, self.arw_deg_per_rth,
+                          self.bias_instability_dph, self.rrw_deg_per_h_rth,
+                          self.rate_ramp_dph_per_h, markov=self.markov_tuple())
         return np.sqrt(avar)
 
     def psd_two_sided(self, f_hz, fs_hz: float) -> np.ndarray:
