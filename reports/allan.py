@@ -26,6 +26,7 @@ import numpy as np
 from gyrocal.reports.allan_edf import ONE_SIGMA_CONFIDENCE, chi2_interval, edf_greenhall
 from gyrocal.reports.allan_stream import (
     BLOCK,
+    WINDOW,
     FilePhase,
     MemoryPhase,
     RateBlocks,
@@ -170,7 +171,7 @@ def overlapping_adev(y, rate_hz: float, m=None, taus_s=None,
 def adev_from_blocks(blocks: RateBlocks, rate_hz: float, m=None, taus_s=None,
                      confidence: float | None = ONE_SIGMA_CONFIDENCE,
                      in_memory: bool = False, tmp_dir: str | Path | None = None,
-                     block: int = BLOCK) -> AllanResult:
+                     block: int = BLOCK, window: int = WINDOW) -> AllanResult:
     """Exact overlapping ADEV of a record given as a re-iterable stream of rate blocks.
 
     ``blocks()`` must yield the record from its start each time it is called
@@ -179,8 +180,8 @@ def adev_from_blocks(blocks: RateBlocks, rate_hz: float, m=None, taus_s=None,
     (default: the system's), so peak memory is a few 64 MiB buffers whatever
     the length; the result is bit-for-bit the in-memory one
     (:mod:`gyrocal.reports.allan_stream`). ``block`` (a multiple of the
-    kernel's tile) sets the buffers' size; tests make it small to exercise
-    the long-τ path on short records.
+    kernel's tile) and ``window`` set the buffers' sizes; tests make them
+    small to exercise the rolling window and the long-τ path on short records.
     """
     if not rate_hz > 0:
         raise ValueError(f"sample rate must be positive, got {rate_hz} Hz")
@@ -192,7 +193,8 @@ def adev_from_blocks(blocks: RateBlocks, rate_hz: float, m=None, taus_s=None,
     try:
         decimated = write_phase(blocks(), stats, rate_hz, store,
                                 m_values if confidence is not None else None)
-        totals = second_difference_totals(store, m_values, block=block)
+        totals = second_difference_totals(store, m_values, block=block,
+                                          window=max(block, window))
     finally:
         store.close()
     alpha = alpha_per_m_from_decimated(decimated) if confidence is not None else None

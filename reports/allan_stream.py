@@ -18,9 +18,9 @@ rate blocks, in three sequential passes:
    the process, holds it); the decimated phase points the noise-type
    identification needs are picked up on the way;
 3. **sums**: the phase is walked in blocks of :data:`BLOCK` samples. Every τ
-   with m ≤ BLOCK is evaluated on one window x[s … s+B+2m) per block; longer
-   τ read their three streams x[s…], x[s+m…], x[s+2m…] separately. Peak
-   memory is a few BLOCK-sized buffers, whatever the record's length.
+   with BLOCK + 2m ≤ :data:`WINDOW` is evaluated on one rolling window
+   x[s … s+B+2m); longer τ read x[s+m…] and x[s+2m…] separately. Peak
+   memory is the window plus two blocks, whatever the record's length.
 
 The sums use the tiled kernels of :mod:`gyrocal.reports.allan_kernel`; tiles
 are aligned to global sample indices and added in order, so the streamed
@@ -39,8 +39,11 @@ import numpy as np
 
 from gyrocal.reports.allan_kernel import TILE, three_stream_sum, window_sums
 
-#: Phase samples per block of the sums pass (64 MiB of float64); a multiple of TILE.
-BLOCK = 1 << 23
+#: Phase samples per block of the sums pass (32 MiB of float64); a multiple of TILE.
+BLOCK = 1 << 22
+#: Phase samples held for the short τ (320 MiB): every m with BLOCK + 2m ≤ WINDOW
+#: (m ≤ 18 M samples, 2.5 h at 2 kHz) is evaluated from it without extra reads.
+WINDOW = 40 << 20
 #: Samples per block of the mean: fixed, so the mean does not depend on the source's chunking.
 MEAN_BLOCK = 1 << 20
 #: Decimated points per τ kept for noise-type identification (see noise_id).
@@ -230,42 +233,72 @@ def _pick(block: np.ndarray, offset: int, m_list: list[int], wanted: list[int],
 
 
 def second_difference_totals(store: PhaseStore, m_values: np.ndarray,
-                             block: int = BLOCK, compiled: bool = True) -> np.ndarray:
-    """Σ_i (x[i+2m] − 2x[i+m] + x[i])² for each m, walking the phase block by block."""
+                             block: int = BLOCK, window: int = WINDOW,
+                             compiled: bool = True) -> np.ndarray:
+    """Σ_i (x[i+2m] − 2x[i+m] + x[i])² for each m, walking the phase block by block.
+
+    A τ is *short* when block + 2m fits the ``window``: its three reads share
+    one window x[s … s+block+2m), which rolls forward (the overlap is moved,
+    only the new block is read), so the phase is read about once for all of
+    them. A *long* τ reads x[s+m…] and x[s+2m…] separately: two more passes
+    over the phase each, which is what bounds the time of a record that does
+    not fit in memory (README, "Measured figures").
+    """
     if block % TILE:
         raise ValueError(f"block {block} is not a multiple of the tile ({TILE})")
     n_phase = store.n_phase
     m_values = np.asarray(m_values, dtype=np.int64)
-    if isinstance(store, MemoryPhase):
-        block = max(block, -(-n_phase // TILE) * TILE)  # one window: the array is already here
-    short = m_values <= block
+    if isinstance(store, MemoryPhase):  # one window: the array is already here
+        block = window = max(block, -(-n_phase // TILE) * TILE)
+    window = max(window, block)
+    short = block + 2 * m_values <= window
     m_short, m_long = m_values[short], m_values[~short]
     totals_short = np.zeros(m_short.size)
     totals_long = np.zeros(m_long.size)
-    window_buf = stream_bufs = None
-    if not isinstance(store, MemoryPhase):
-        window_buf = np.empty(block + 2 * (int(m_short.max()) if m_short.size else 0))
-        stream_bufs = (np.empty(block), np.empty(block)) if m_long.size else None
+    rolling = None if isinstance(store, MemoryPhase) else _RollingWindow(store, window)
+    stream_bufs = (np.empty(block), np.empty(block)) if m_long.size and rolling else None
     for start in range(0, n_phase, block):
         counts = np.clip(n_phase - 2 * m_short - start, 0, block)
-        window = None
+        need = min(block if m_long.size else 0, n_phase - start)
         if counts.size and counts.max() > 0:
-            need = int(np.max(np.where(counts > 0, counts + 2 * m_short, 0)))
-            window = store.read(start, need, window_buf)
-            window_sums(window, counts, m_short, totals_short, compiled=compiled)
+            need = max(need, int(np.max(np.where(counts > 0, counts + 2 * m_short, 0))))
+        view = store.read(start, need) if rolling is None else rolling.read(start, need)
+        if counts.size and counts.max() > 0:
+            window_sums(view, counts, m_short, totals_short, compiled=compiled)
         for j, m in enumerate(m_long):
             m = int(m)
             count = int(min(block, n_phase - 2 * m - start))
             if count <= 0:
                 continue
-            if window is None or window.size < count:  # x[s…] is the window's start
-                window = store.read(start, count, window_buf)
             b_buf, c_buf = stream_bufs if stream_bufs is not None else (None, None)
             b = store.read(start + m, count, b_buf)
             c = store.read(start + 2 * m, count, c_buf)
-            totals_long[j] = three_stream_sum(window[:count], b, c, count, totals_long[j],
+            totals_long[j] = three_stream_sum(view[:count], b, c, count, totals_long[j],
                                               compiled=compiled)
     totals = np.empty(m_values.size)
     totals[short] = totals_short
     totals[~short] = totals_long
     return totals
+
+
+class _RollingWindow:
+    """x[start … start+count) of a phase file, reusing what the previous window already read."""
+
+    def __init__(self, store: PhaseStore, size: int) -> None:
+        self.store = store
+        self.buffer = np.empty(size)
+        self.start = 0
+        self.filled = 0
+
+    def read(self, start: int, count: int) -> np.ndarray:
+        keep = self.start + self.filled - start
+        if keep > 0 and start >= self.start:
+            keep = min(keep, count)
+            offset = start - self.start
+            self.buffer[:keep] = self.buffer[offset : offset + keep]  # numpy handles the overlap
+        else:
+            keep = 0
+        if count > keep:
+            self.store.read(start + keep, count - keep, self.buffer[keep:count])
+        self.start, self.filled = start, count
+        return self.buffer[:count]

@@ -60,8 +60,10 @@ def test_streamed_is_bit_identical_to_in_memory_across_block_sizes(tmp_path):
     rng = np.random.default_rng(8)
     y = 11.0 + rng.standard_normal(123_457) + np.cumsum(rng.standard_normal(123_457)) * 1e-3
     reference = overlapping_adev(y, 100.0)
-    for block, chunk in [(TILE, 1000), (3 * TILE, 65_536), (16 * TILE, 123_457)]:
-        streamed = adev_from_blocks(_chunks(y, chunk), 100.0, tmp_dir=tmp_path, block=block)
+    for block, window, chunk in [(TILE, TILE, 1000), (TILE, 5 * TILE, 4096),
+                                 (3 * TILE, 8 * TILE, 65_536), (16 * TILE, 40 * TILE, 123_457)]:
+        streamed = adev_from_blocks(_chunks(y, chunk), 100.0, tmp_dir=tmp_path, block=block,
+                                    window=window)
         np.testing.assert_array_equal(streamed.adev, reference.adev)
         np.testing.assert_array_equal(streamed.alpha, reference.alpha)
     assert not list(tmp_path.iterdir())  # the phase file is removed afterwards
