@@ -36,6 +36,7 @@ def _bad_input_types() -> tuple[type[BaseException], ...]:
         ("gyrocal.orchestrator.yaml_source", "ProcedureError"),
         ("gyrocal.orchestrator.procedure", "ProcedureError"),
         ("gyrocal.reports.measured_log", "LogFormatError"),
+        ("gyrocal.orchestrator.signing", "SigningKeyError"),
     ):
         try:
             mod = __import__(module, fromlist=[name])
@@ -81,11 +82,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--inject", action="append", metavar="SPEC",
                    help="with --sim: arm a simulator fault, ROLE.FAULT[:COUNT|:always]"
                         "[:key=value…][@STEP], e.g. chamber.no_reply:3@T02.soak (repeatable)")
+    p.add_argument("--signing-key", default=None,
+                   help="the station's private key (default: the station file's signing_key, "
+                   "or $GYROCAL_SIGNING_KEY)")
     p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_run"))
 
     p = sub.add_parser("resume", help="continue a faulted or interrupted run")
     p.add_argument("run_dir")
     p.add_argument("--speed", default=None)
+    p.add_argument("--signing-key", default=None, help="as for run")
     p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_resume"))
 
     p = sub.add_parser("status", help="where a run is")
@@ -94,11 +99,19 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("report", help="(re)build RUN_DIR/report/")
     p.add_argument("run_dir")
+    p.add_argument("--signing-key", default=None, help="seal the rebuilt report (as for run)")
     p.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_report"))
 
-    p = sub.add_parser("verify", help="audit: recompute every hash")
+    p = sub.add_parser("verify", help="audit: completeness, every hash, the numbers, the signature")
     p.add_argument("run_dir")
+    p.add_argument("--key", default=None,
+                   help="the station's public key (PEM): check authenticity, not only integrity")
     p.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_verify"))
+
+    p = sub.add_parser("keys", help="generate the station's Ed25519 signing key pair")
+    p.add_argument("--out", default="keys", help="folder for NAME.key (mode 0600) and NAME.pub")
+    p.add_argument("--name", default="station")
+    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_keys"))
 
     p = sub.add_parser("analyze", help="analyse a measured log")
     asub = p.add_subparsers(dest="analysis", required=True, metavar="ANALYSIS")

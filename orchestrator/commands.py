@@ -35,7 +35,10 @@ from gyrocal.orchestrator.plan import Plan, expand_plan, format_plan
 from gyrocal.orchestrator.plan_record import write_plan_record
 from gyrocal.orchestrator.procedure import Procedure, load_procedure
 from gyrocal.orchestrator.progress import Progress
-from gyrocal.orchestrator.run_folder import RunFolder, new_run_id
+from gyrocal.orchestrator.run_folder import IDENTITY_KEYS, RunFolder, new_run_id
+from gyrocal.orchestrator.signing import Signer, generate_key_pair, signer_from
+from gyrocal.orchestrator.station import load_station
+from gyrocal.orchestrator.yaml_source import ProcedureError
 
 DEFAULT_SIM_STATION = Path("stations/sim.yaml")
 
@@ -183,7 +186,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     record = write_plan_record(folder.path, procedure, plan)
     folder.update_manifest(plan_sha256=sha256_file(record))
     print(f"run folder: {folder.path}", file=sys.stderr)
-    return _execute(folder, procedure, plan, clock, args.sim, args.seed, fault_plan)
+    signer = run_signer(getattr(args, "signing_key", None), procedure.station.signing_key)
+    return _execute(folder, procedure, plan, clock, args.sim, args.seed, fault_plan, signer)
 
 
 def _fault_plan(specs: list[str], sim: bool, plan: Plan):
@@ -238,7 +242,8 @@ def cmd_resume(args: argparse.Namespace) -> int:
         # A fresh simulator noise stream per resume: a restarted rig does not replay its noise.
         base = seed if seed is not None else (procedure.station.simulation.seed or 0)
         seed = base + 7919 * resumes
-    return _execute(folder, procedure, plan, clock, sim, seed)
+    signer = run_signer(getattr(args, "signing_key", None), procedure.station.signing_key)
+    return _execute(folder, procedure, plan, clock, sim, seed, signer=signer)
 
 
 def _operator() -> str:
@@ -248,12 +253,64 @@ def _operator() -> str:
         return "unknown"
 
 
+def run_signer(cli_key: str | None, station_key: Path | None) -> Signer | None:
+    """The key that seals this run: --signing-key, else $GYROCAL_SIGNING_KEY, else the station's."""
+    if cli_key is not None:
+        return signer_from(cli_key)
+    from_env = signer_from(None)
+    if from_env is not None:
+        return from_env
+    return signer_from(station_key) if station_key is not None else None
+
+
+def report_signer(run_dir: Path, cli_key: str | None) -> Signer | None:
+    """The key that seals a rebuilt report: as for run, with the run's own station file."""
+    station_key = None
+    try:
+        source = RunFolder.open(run_dir).read_manifest()["inputs"]["station"]["source"]
+        station_key = load_station(source).signing_key
+    except (KeyError, OSError, ValueError, ProcedureError):
+        station_key = None  # no usable station file: only --signing-key or the env var
+    return run_signer(cli_key, station_key)
+
+
+def cmd_keys(args: argparse.Namespace) -> int:
+    """``gyrocal keys``: the station's Ed25519 pair; the private half readable by its owner only."""
+    pair = generate_key_pair(Path(args.out), args.name)
+    print(f"private key: {pair.private} (mode 600: keep it on the station, never in a run "
+          "folder)")
+    print(f"public key:  {pair.public} (give it to QA: gyrocal verify RUN_DIR --key "
+          f"{pair.public})")
+    print(f"fingerprint: {pair.fingerprint}")
+    print(f"use it: station file `signing_key: {pair.private}` or "
+          f"GYROCAL_SIGNING_KEY={pair.private}")
+    return EXIT_OK
+
+
 def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bool,
-             seed: int | None, fault_plan=None) -> int:
+             seed: int | None, fault_plan=None, signer: Signer | None = None) -> int:
     journal = folder.open_journal()
+    manifest = folder.read_manifest()
     if journal.count == 0:
-        journal.append("run_started", run_id=folder.read_manifest()["run_id"],
-                       procedure=procedure.name, steps=len(plan.steps), sim=sim, seed=seed)
+        # What the auditor must be able to tie to this history: the inputs, the frozen
+        # plan and who/what the run was for. The manifest stays mutable run state.
+        journal.append("run_started", run_id=manifest["run_id"],
+                       procedure=procedure.name, steps=len(plan.steps), sim=sim, seed=seed,
+                       inputs={role: entry["sha256"]
+                               for role, entry in (manifest.get("inputs") or {}).items()},
+                       plan_sha256=manifest.get("plan_sha256"),
+                       identity={key: manifest.get(key) for key in IDENTITY_KEYS},
+                       signing_key=None if signer is None else signer.fingerprint)
+    try:
+        return _execute_journaled(folder, journal, procedure, plan, clock, sim, seed, fault_plan)
+    finally:
+        if signer is not None and not journal.closed:
+            signer.seal(journal, manifest["run_id"], reason="controller exit")
+        folder.close()
+
+
+def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: Plan, clock,
+                       sim: bool, seed: int | None, fault_plan=None) -> int:
 
     def on_retry(role: str, attempt: int, exc: InstrumentError) -> None:
         journal.append("retry", instrument=role, attempt=attempt, command=exc.command,
@@ -278,6 +335,7 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
                                progress=Progress(), on_finished=on_finished,
                                before_step=before_step)
             engine.run()
+        journal.append("run_closed", outcome="completed")
     except RunFaultError as exc:
         print(f"gyrocal: fault: {exc}", file=sys.stderr)
         _report_simulator_crash(simulated, journal)
@@ -289,8 +347,6 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
         print(f"gyrocal: fault: {exc}; nothing was commanded. Resume with "
               f"`gyrocal resume {folder.path}` when the instrument answers", file=sys.stderr)
         return EXIT_FAULT
-    finally:
-        folder.close()
     failed = [a for a in results.get("acceptance", []) if not a.get("pass")]
     print(f"run complete: {folder.path}")
     for item in results.get("acceptance", []):
@@ -383,12 +439,17 @@ def cmd_demo(args: argparse.Namespace) -> int:
     debug = getattr(args, "debug", False)
 
     print(f"== 1/2  {procedure.relative_to(root)} against simulated instruments ==")
+    # A demo station key, made for this demo only: a real station keeps its key on the
+    # station (gyrocal keys), and QA keeps the public half.
+    keys = generate_key_pair(out / "demo-station-keys")
+    print(f"demo station key {keys.fingerprint} (public half: {keys.public})")
     code = cmd_run(argparse.Namespace(
         procedure=str(procedure), station=None, sim=True, out=str(out / "smoke"), speed="max",
-        seed=1, operator="demo", sim_station=None, debug=debug))
+        seed=1, operator="demo", sim_station=None, debug=debug,
+        signing_key=str(keys.private)))
     if code == EXIT_FAULT:
         return code
-    audit = verify_run_folder(out / "smoke")
+    audit = verify_run_folder(out / "smoke", public_key=keys.public)
     print(f"report: {out / 'smoke' / 'report' / 'report.html'}")
     print(f"audit (gyrocal verify): {audit.summary() if audit.ok else audit.failure}")
 
@@ -398,7 +459,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
           f"{nominal.relative_to(root)} lacks ==")
     hidden_code = cmd_run(argparse.Namespace(
         procedure=str(procedure), station=None, sim=True, out=str(out / "hidden-effect"),
-        speed="max", seed=2, operator="demo", sim_station=str(station), debug=debug))
+        speed="max", seed=2, operator="demo", sim_station=str(station), debug=debug,
+        signing_key=str(keys.private)))
     if hidden_code == EXIT_FAULT:
         return hidden_code
     document = run_discrepancy(nominal, out / "hidden-effect", out / "discrepancy")

@@ -61,6 +61,11 @@ def read_journal(path: Path) -> Iterator[JournalEntry]:
                 event = json.loads(raw)
             except json.JSONDecodeError as exc:
                 raise JournalError(f"{path}:{line_no}: not JSON: {exc.msg}") from None
+            except ValueError:  # bytes that are not UTF-8 text
+                raise JournalError(f"{path}:{line_no}: not JSON text (invalid UTF-8 bytes)") from None
+            if not isinstance(event, dict):
+                raise JournalError(f"{path}:{line_no}: not a journal event (a JSON "
+                                   f"{type(event).__name__}, expected an object)")
             if event.get("prev_sha256") != prev:
                 raise JournalError(
                     f"{path}:{line_no}: hash chain broken: prev_sha256 is "
@@ -111,6 +116,26 @@ class Journal:
         self._last_sha256 = sha256_bytes(raw)
         self.count += 1
         return event
+
+    def append_signed(self, name: str, sign, /, **fields: Any) -> dict[str, Any]:
+        """Append an event whose ``signature`` field is ``sign(event)`` over its other fields.
+
+        Used for the seal (:mod:`gyrocal.orchestrator.signing`): the event's
+        ``prev_sha256`` is the chain head the signature vouches for.
+        """
+        event = {"seq": self.count + 1, "wall_time": time.time(), "event": name, **fields}
+        event["prev_sha256"] = self._last_sha256
+        event["signature"] = sign(event)
+        raw = _encode(event)
+        self._handle.write(raw)
+        os.fsync(self._handle.fileno())
+        self._last_sha256 = sha256_bytes(raw)
+        self.count += 1
+        return event
+
+    @property
+    def closed(self) -> bool:
+        return self._handle.closed
 
     def close(self) -> None:
         if not self._handle.closed:

@@ -40,6 +40,11 @@ SAMPLE_COLUMNS = (
 )
 
 
+#: Manifest fields that say whose run this is; journaled in run_started so an edit shows.
+IDENTITY_KEYS = ("run_id", "operator", "unit_under_test", "station_name", "mode", "seed",
+                 "software")
+
+
 class RunFolderError(Exception):
     """The folder is not a usable run folder (names the file)."""
 

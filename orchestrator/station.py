@@ -169,6 +169,10 @@ class Station:
     simulation: SimulationConfig | None
     file: str                 # as given (for messages); "<inline in ...>" when inline
     path: Path | None         # resolved file, None when written inline in a procedure
+    #: the station's Ed25519 private key (gyrocal keys), resolved against the station file;
+    #: runs are sealed with it (orchestrator/signing.py). None: unsigned unless
+    #: --signing-key or $GYROCAL_SIGNING_KEY names one.
+    signing_key: Path | None = None
 
     @property
     def simulated(self) -> bool:
@@ -210,13 +214,15 @@ def parse_station(
     gyro = _gyro(ctx, fields)
     present, raw = fields.raw("simulation")
     simulation = _simulation(ctx, fields.child("simulation"), raw, base_dir) if present else None
+    key_text = fields.take("signing_key", text, required=False)
+    signing_key = (base_dir / key_text) if key_text else None
     fields.finish()
     if simulation is None and SIM_ADDRESS in (
         getattr(chamber, "address", None), getattr(table, "address", None),
         getattr(gyro, "port", None),
     ):
         ctx.report(where, "an instrument address is 'sim' but there is no simulation section")
-    return Station(version, name, site, chamber, table, gyro, simulation, file, path)
+    return Station(version, name, site, chamber, table, gyro, simulation, file, path, signing_key)
 
 
 def _site(ctx: Context, parent: Fields) -> Site:

@@ -40,6 +40,7 @@ from gyrocal.orchestrator.atomic import write_bytes_atomic
 from gyrocal.orchestrator.journal import Journal, sha256_bytes
 from gyrocal.orchestrator.plan_record import PLAN_RECORD
 from gyrocal.orchestrator.run_folder import RunFolder, RunFolderError
+from gyrocal.orchestrator.signing import Signer
 from gyrocal.reports import bias as bias_mod
 from gyrocal.reports import compensation as comp
 from gyrocal.reports.allan_summary import allan_curve, curve_json, fit_curve, fit_uncertainty_json
@@ -433,11 +434,14 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
 
 # -- writing ------------------------------------------------------------------------------
 
-def build_report(run_dir: str | Path, journal: Journal | None = None) -> dict[str, Any]:
+def build_report(run_dir: str | Path, journal: Journal | None = None,
+                 signer: Signer | None = None) -> dict[str, Any]:
     """Compute, write report/results.json and report/report.html, journal their SHA-256.
 
     ``journal``: the engine's open journal when called at the end of a run
-    (a second writer would fork the hash chain); None opens and closes one.
+    (a second writer would fork the hash chain; the run seals it when it
+    exits); None opens one, and seals it with ``signer`` when given, so a
+    rebuilt report is as authenticated as the run.
     """
     from gyrocal.reports.html_report import render_html
 
@@ -445,6 +449,9 @@ def build_report(run_dir: str | Path, journal: Journal | None = None) -> dict[st
     data = read_run(Path(run_dir), notes)
     results = finite_or_none(compute_results(data, notes))
     results["report_built_at"] = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+    started = next((e for e in data.events if e.get("event") == "run_started"), {})
+    results["signature"] = {"key_fingerprint": started.get("signing_key"),
+                            "signed": bool(started.get("signing_key"))}
     encoded = results_bytes(results)
     html = render_html(results).encode()
     root = data.folder.path
@@ -456,4 +463,6 @@ def build_report(run_dir: str | Path, journal: Journal | None = None) -> dict[st
     else:
         with Journal(root / "journal.jsonl") as own:
             own.append("report_written", files=files)
+            if signer is not None:
+                signer.seal(own, data.manifest.get("run_id", ""), reason="report rebuilt")
     return results

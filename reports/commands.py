@@ -21,9 +21,11 @@ TO_DPH = {"deg/s": 3600.0, "deg/h": 1.0, "rad/s": math.degrees(1.0) * 3600.0}
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    from gyrocal.orchestrator.commands import report_signer
     from gyrocal.reports.build import HTML_FILE, build_report
 
-    results = build_report(Path(args.run_dir))
+    results = build_report(Path(args.run_dir),
+                           signer=report_signer(Path(args.run_dir), args.signing_key))
     print(f"report: {Path(args.run_dir) / HTML_FILE}")
     for note in results.get("notes", []):
         print(f"  note: {note}")
@@ -41,9 +43,9 @@ def _print_acceptance(acceptance: list[dict]) -> int:
 def cmd_verify(args: argparse.Namespace) -> int:
     from gyrocal.reports.verify import verify_run_folder
 
-    result = verify_run_folder(Path(args.run_dir))
+    result = verify_run_folder(Path(args.run_dir), public_key=args.key)
     if not result.ok:
-        print(f"gyrocal verify: MISMATCH: {result.failure}", file=sys.stderr)
+        print(f"gyrocal verify: FAILED: {result.failure}", file=sys.stderr)
         return EXIT_ACCEPTANCE_FAILED
     print(result.summary())
     return EXIT_OK

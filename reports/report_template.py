@@ -99,10 +99,13 @@ SF over temperature: {% if r.sf_temperature %}instability {{ fmt(r.sf_temperatur
 
 <h2>Hashes (SHA-256)</h2>
 <table><tr><th>Input</th><th>Copy</th><th>SHA-256</th></tr>
-{% for role, i in r.inputs.items() %}<tr><td>{{ role }}</td><td><code>{{ i.copy }}</code></td><td><code>{{ i.sha256 }}</code></td></tr>{% endfor %}
+{% for role, i in r.inputs.items() %}<tr><td>{{ role }}</td><td><code>{{ i['copy'] }}</code></td><td><code>{{ i['sha256'] }}</code></td></tr>{% endfor %}
 <tr><td>plan record</td><td><code>plan.json</code></td><td><code>{{ r.run.plan_sha256 }}</code></td></tr>
 <tr><td>samples ({{ r.journal.chunks }} chunks)</td><td>hash of the journal's chunk list</td><td><code>{{ r.journal.samples_sha256 }}</code></td></tr>
 </table>
 <p>Check every hash with <code>gyrocal verify RUN_DIR</code>.</p>
+<h2>Signature</h2>
+{% if r.signature and r.signature.key_fingerprint %}<p>This run's journal is sealed with the station's Ed25519 key <code>{{ r.signature.key_fingerprint }}</code>: every controller session ends with a signature over the chain head. Check its authenticity with <code>gyrocal verify RUN_DIR --key station.pub</code> against the public key on QA's record.</p>
+{% else %}<p class="warn">Not signed: the station has no signing key (<code>gyrocal keys</code>), so <code>gyrocal verify</code> can show integrity only, not authenticity.</p>{% endif %}
 </body></html>
 """

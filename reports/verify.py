@@ -1,32 +1,71 @@
-"""``gyrocal verify``: recompute every hash a run folder records, stop at the first mismatch.
+"""``gyrocal verify``: is this run folder the complete, unedited history the station wrote?
 
-An auditor must be able to show that the report, the samples behind it and
-the inputs it was run with are the ones the run produced. The chain is:
-the journal's own hash chain; the chunks it lists (chunk_written events);
-the input copies against the manifest; plan.json against the manifest's
-plan_sha256; the report files against the last report_written event.
-The manifest itself is mutable run state (state, pid, resumes) and carries
-no hash of its own; what matters in it is cross-checked through the files.
+An auditor signs off on a folder, so verify must catch what an editor of the
+folder could do — not only a changed byte, but a shortened history, forged
+events, a loosened limit with its hash "fixed", a report that no longer
+follows from the samples. In order, first failure wins:
+
+1. **the journal**: every line JSON, every ``prev_sha256`` the hash of the
+   line before (a malformed line is named by number, never a traceback);
+2. **its shape**: it opens with ``run_started`` (seq 1) and — for a finished
+   run — contains ``run_closed``; after that only report rebuilds and seals;
+   a run without ``run_closed`` is INCOMPLETE, never OK;
+3. **what run_started fixed**: the SHA-256 of every input copy and of
+   ``plan.json``, and the run's identity (operator, unit, station, mode,
+   seed, software); the manifest must agree with them (it is mutable run
+   state, so it is checked against the journal, not trusted);
+4. **samples**: every journaled chunk on disk with its hash, every chunk on
+   disk journaled, every completed step's chunks journaled;
+5. **the report**: every file of ``report/`` recorded by the last
+   ``report_written`` with its hash, and the report's numbers recomputed from
+   the samples (a report that does not follow from the data fails);
+6. **the seals**: the journal's last line is a ``sealed`` event whose Ed25519
+   signature covers the chain head. With ``--key`` (the station's public key
+   from QA's records) every seal must verify with it: a history recomputed by
+   someone without the private key fails. Without ``--key`` verify says
+   plainly that it checked integrity, not authenticity.
+
+What it cannot catch: someone holding the station's private key can write a
+consistent, signed, false history. Keep the key with the station.
 """
 
 from __future__ import annotations
 
+import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from gyrocal.orchestrator.journal import JournalError, read_journal, sha256_file
 from gyrocal.orchestrator.plan_record import PLAN_RECORD
-from gyrocal.orchestrator.run_folder import JOURNAL, RunFolder
+from gyrocal.orchestrator.run_folder import IDENTITY_KEYS, JOURNAL, SAMPLES, RunFolder
+from gyrocal.orchestrator.signing import (
+    SEAL_EVENT,
+    fingerprint,
+    load_public_key,
+    seal_signature_valid,
+)
+
+#: Events a finished run may still gain after ``run_closed``: report rebuilds and their seals.
+AFTER_CLOSE = ("report_written", SEAL_EVENT)
+#: results.json keys that are numbers computed from the samples (interfaces.md).
+RECOMPUTED_KEYS = ("unit_under_test", "scale_factor", "scale_factor_ls", "nonlinearity",
+                   "asymmetry_ppm", "sf_temperature", "bias", "bias_temperature", "allan",
+                   "compensation", "acceptance")
+#: Relative tolerance of the recomputation (the same code on the same samples: rounding only).
+RECOMPUTE_RTOL = 1e-9
 
 
 @dataclass
 class VerifyResult:
-    """``failure`` names the first file that does not match (None when all do)."""
+    """``failure`` names the first problem (None when everything checks)."""
 
     run_dir: Path
     failure: str | None = None
     checked: dict[str, int] = field(default_factory=dict)
     unchecked: list[str] = field(default_factory=list)
+    authenticity: str = ""
 
     @property
     def ok(self) -> bool:
@@ -35,7 +74,7 @@ class VerifyResult:
     def summary(self) -> str:
         counts = ", ".join(f"{n} {what}" for what, n in self.checked.items())
         extra = f" (not checked: {'; '.join(self.unchecked)})" if self.unchecked else ""
-        return f"{self.run_dir}: OK — every hash matches: {counts}{extra}"
+        return f"{self.run_dir}: OK — {counts}{extra}\n  {self.authenticity}"
 
 
 class _Mismatch(Exception):
@@ -45,57 +84,233 @@ class _Mismatch(Exception):
 def _check_file(path: Path, expected: str | None, what: str) -> None:
     if not path.is_file():
         raise _Mismatch(f"{path}: missing ({what})")
-    if expected is None:
+    if not expected:
         raise _Mismatch(f"{path}: no recorded SHA-256 to check it against ({what})")
     actual = sha256_file(path)
     if actual != expected:
         raise _Mismatch(f"{path}: SHA-256 {actual} does not match {expected} recorded in {what}")
 
 
-def verify_run_folder(run_dir: str | Path) -> VerifyResult:
-    """Check every recorded hash; raises RunFolderError when this is not a run folder."""
+def verify_run_folder(run_dir: str | Path, public_key: str | Path | None = None,
+                      recompute: bool = True) -> VerifyResult:
+    """Check a run folder; raises RunFolderError when this is not a run folder at all.
+
+    ``public_key``: the station's PEM public key; without it, authenticity is
+    not checked (and the result says so). ``recompute=False`` skips step 5's
+    recomputation of the numbers (for callers that just built them).
+    """
     folder = RunFolder.open(Path(run_dir))
     result = VerifyResult(folder.path)
     try:
-        _verify(folder, result)
+        key = load_public_key(Path(public_key)) if public_key is not None else None
+        events = _journal(folder, result)
+        started = _shape(folder, events, result)
+        _inputs_and_identity(folder, started, result)
+        _samples(folder, events, result)
+        _report(folder, events, result, recompute)
+        _seals(events, key, result)
     except _Mismatch as exc:
         result.failure = str(exc)
     return result
 
 
-def _verify(folder: RunFolder, result: VerifyResult) -> None:
-    root = folder.path
-    journal_path = root / JOURNAL
-    if not journal_path.is_file():
-        raise _Mismatch(f"{journal_path}: missing")
+def _journal(folder: RunFolder, result: VerifyResult) -> list[dict[str, Any]]:
+    path = folder.path / JOURNAL
+    if not path.is_file():
+        raise _Mismatch(f"{path}: missing")
     try:
-        events = [entry.event for entry in read_journal(journal_path)]
+        events = [entry.event for entry in read_journal(path)]
     except JournalError as exc:
         raise _Mismatch(str(exc)) from None
+    except OSError as exc:
+        raise _Mismatch(f"{path}: unreadable: {exc}") from None
+    if not events:
+        raise _Mismatch(f"{path}: empty; a run's journal opens with run_started")
+    for index, event in enumerate(events, start=1):
+        if event.get("seq") != index:
+            raise _Mismatch(f"{path}:{index}: seq is {event.get('seq')!r}, expected {index}")
     result.checked["journal lines"] = len(events)
+    return events
 
-    chunks = [e for e in events if e.get("event") == "chunk_written"]
-    for event in chunks:
-        _check_file(root / event["path"], event.get("sha256"),
-                    f"{JOURNAL} event #{event.get('seq')} chunk_written")
+
+def _shape(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResult
+           ) -> dict[str, Any]:
+    path = folder.path / JOURNAL
+    first = events[0]
+    if first.get("event") != "run_started":
+        raise _Mismatch(f"{path}:1: the journal opens with {first.get('event')!r}, "
+                        "not run_started")
+    closed = [i for i, e in enumerate(events, start=1) if e.get("event") == "run_closed"]
+    if not closed:
+        last = events[-1]
+        raise _Mismatch(f"{path}: INCOMPLETE: no run_closed; the history ends at line "
+                        f"{len(events)} ({last.get('event')}) — a faulted, interrupted or "
+                        "truncated run")
+    for line, event in enumerate(events[closed[0]:], start=closed[0] + 1):
+        if event.get("event") not in AFTER_CLOSE:
+            raise _Mismatch(f"{path}:{line}: {event.get('event')!r} after run_closed "
+                            f"(line {closed[0]}); a closed run gains only report rebuilds")
+    return first
+
+
+def _inputs_and_identity(folder: RunFolder, started: dict[str, Any], result: VerifyResult
+                         ) -> None:
+    root = folder.path
+    where = f"{JOURNAL}:1 run_started"
+    try:
+        manifest = folder.read_manifest()
+    except (OSError, ValueError) as exc:
+        raise _Mismatch(f"{root / 'manifest.json'}: unreadable: {exc}") from None
+    if not isinstance(manifest, dict):
+        raise _Mismatch(f"{root / 'manifest.json'}: not a JSON object")
+    journaled_inputs = started.get("inputs")
+    identity = started.get("identity")
+    if journaled_inputs is None or identity is None:
+        raise _Mismatch(f"{where}: records no input hashes or identity (a run from a gyrocal "
+                        "older than the audit trail, or an edited journal)")
+    inputs = manifest.get("inputs") or {}
+    if set(inputs) != set(journaled_inputs):
+        raise _Mismatch(f"{root / 'manifest.json'}: inputs {sorted(inputs)} differ from "
+                        f"{sorted(journaled_inputs)} recorded in {where}")
+    for role, digest in journaled_inputs.items():
+        entry = inputs[role]
+        _check_file(root / str(entry.get("copy", "")), digest, f"{where} inputs.{role}")
+        if entry.get("sha256") != digest:
+            raise _Mismatch(f"{root / 'manifest.json'}: inputs.{role}.sha256 differs from "
+                            f"{where}")
+    result.checked["input copies"] = len(journaled_inputs)
+    _check_file(root / PLAN_RECORD, started.get("plan_sha256"), f"{where} plan_sha256")
+    if manifest.get("plan_sha256") != started.get("plan_sha256"):
+        raise _Mismatch(f"{root / 'manifest.json'}: plan_sha256 differs from {where}")
+    result.checked["plan record"] = 1
+    for key in IDENTITY_KEYS:
+        if manifest.get(key) != identity.get(key):
+            raise _Mismatch(f"{root / 'manifest.json'}: {key} is {manifest.get(key)!r}, "
+                            f"{where} recorded {identity.get(key)!r}")
+    result.checked["identity fields"] = len(IDENTITY_KEYS)
+
+
+def _samples(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResult) -> None:
+    root = folder.path
+    chunks = [(i, e) for i, e in enumerate(events, start=1) if e.get("event") == "chunk_written"]
+    journaled: set[str] = set()
+    for line, event in chunks:
+        _check_file(root / str(event.get("path", "")), event.get("sha256"),
+                    f"{JOURNAL}:{line} chunk_written")
+        journaled.add(str(event.get("path")))
+    on_disk = {str(p.relative_to(root)) for p in (root / SAMPLES).rglob("*") if p.is_file()}
+    extra = sorted(on_disk - journaled)
+    if extra:
+        raise _Mismatch(f"{root / extra[0]}: on disk but not journaled "
+                        f"({len(extra)} such file(s)); samples may not be added afterwards")
+    for line, event in enumerate(events, start=1):
+        if event.get("event") == "step_completed":
+            missing = [c for c in event.get("chunks") or [] if c not in journaled]
+            if missing:
+                raise _Mismatch(f"{JOURNAL}:{line}: step {event.get('step_id')} lists chunk "
+                                f"{missing[0]} that no chunk_written event recorded")
     result.checked["sample chunks"] = len(chunks)
 
-    manifest = folder.read_manifest()
-    inputs = manifest.get("inputs") or {}
-    for role, entry in inputs.items():
-        _check_file(root / entry["copy"], entry.get("sha256"), f"manifest.json inputs.{role}")
-    result.checked["input copies"] = len(inputs)
 
-    if (root / PLAN_RECORD).exists() or manifest.get("plan_sha256"):
-        _check_file(root / PLAN_RECORD, manifest.get("plan_sha256"), "manifest.json plan_sha256")
-        result.checked["plan record"] = 1
+def _report(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResult,
+            recompute: bool) -> None:
+    root = folder.path
+    reports = [(i, e) for i, e in enumerate(events, start=1) if e.get("event") == "report_written"]
+    if not reports:
+        raise _Mismatch(f"{root / 'report'}: no report_written event: the report was never "
+                        "built; a closed run always has one")
+    line, last = reports[-1]
+    files = last.get("files") or {}
+    for rel, digest in files.items():
+        _check_file(root / rel, digest, f"{JOURNAL}:{line} report_written")
+    present = {str(p.relative_to(root)) for p in (root / "report").rglob("*") if p.is_file()}
+    extra = sorted(present - set(files))
+    if extra:
+        raise _Mismatch(f"{root / extra[0]}: in report/ but not recorded by {JOURNAL}:{line} "
+                        "report_written")
+    result.checked["report files"] = len(files)
+    if recompute and "report/results.json" in files:
+        _recompute(folder, root / "report/results.json", result)
 
-    reports = [e for e in events if e.get("event") == "report_written"]
-    if reports:
-        files = reports[-1].get("files") or {}
-        for rel, digest in files.items():
-            _check_file(root / rel, digest,
-                        f"{JOURNAL} event #{reports[-1].get('seq')} report_written")
-        result.checked["report files"] = len(files)
+
+def _recompute(folder: RunFolder, results_path: Path, result: VerifyResult) -> None:
+    from gyrocal.reports.build import compute_results, read_run
+    from gyrocal.reports.results import finite_or_none
+
+    try:
+        stored = json.loads(results_path.read_text())
+    except (OSError, ValueError) as exc:
+        raise _Mismatch(f"{results_path}: unreadable: {exc}") from None
+    notes: list[str] = []
+    fresh = json.loads(json.dumps(finite_or_none(compute_results(read_run(folder.path, notes),
+                                                                 notes))))
+    for key in RECOMPUTED_KEYS:
+        difference = _first_difference(stored.get(key), fresh.get(key), key)
+        if difference is not None:
+            raise _Mismatch(f"{results_path}: {difference}: the report does not follow from "
+                            "the samples")
+    result.checked["numbers recomputed"] = len(RECOMPUTED_KEYS)
+
+
+def _first_difference(stored: Any, fresh: Any, where: str) -> str | None:
+    if isinstance(fresh, dict) and isinstance(stored, dict):
+        for key in sorted(set(fresh) | set(stored)):
+            found = _first_difference(stored.get(key), fresh.get(key), f"{where}.{key}")
+            if found:
+                return found
+        return None
+    if isinstance(fresh, list) and isinstance(stored, list):
+        if len(fresh) != len(stored):
+            return f"{where} has {len(stored)} entries, recomputed {len(fresh)}"
+        for index, (a, b) in enumerate(zip(stored, fresh, strict=True)):
+            found = _first_difference(a, b, f"{where}[{index}]")
+            if found:
+                return found
+        return None
+    both_numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                       for v in (stored, fresh))
+    if both_numbers:
+        if math.isclose(float(stored), float(fresh), rel_tol=RECOMPUTE_RTOL, abs_tol=1e-300):
+            return None
+    elif stored == fresh:
+        return None
+    return f"{where} is {stored!r}, recomputed {fresh!r}"
+
+
+def _seals(events: list[dict[str, Any]], key, result: VerifyResult) -> None:
+    seals = [(i, e) for i, e in enumerate(events, start=1) if e.get("event") == SEAL_EVENT]
+    started_key = events[0].get("signing_key")
+    if not seals:
+        if key is not None:
+            raise _Mismatch(f"{JOURNAL}: not signed (no {SEAL_EVENT} event), but --key was given: "
+                            "authenticity cannot be shown")
+        if started_key:
+            raise _Mismatch(f"{JOURNAL}: run_started names signing key {started_key} but no "
+                            f"{SEAL_EVENT} event is left: the sealed tail was removed")
+        result.authenticity = ("integrity only, not authenticity: the run is not signed "
+                               "(the station has no signing key)")
+        return
+    last_line = seals[-1][0]
+    if last_line != len(events):
+        raise _Mismatch(f"{JOURNAL}:{last_line + 1}: lines {last_line + 1}–{len(events)} follow "
+                        f"the last seal (line {last_line}) and are not signed")
+    fingerprints = set()
+    for line, seal in seals:
+        if not seal_signature_valid(seal):
+            raise _Mismatch(f"{JOURNAL}:{line}: the seal's signature does not verify: the "
+                            "history before it was changed after it was signed")
+        if key is not None and not seal_signature_valid(seal, key):
+            raise _Mismatch(f"{JOURNAL}:{line}: sealed by key {seal.get('key_fingerprint')}, "
+                            f"not by the given key {fingerprint(key)}: NOT AUTHENTIC")
+        fingerprints.add(str(seal.get("key_fingerprint")))
+    if started_key and fingerprints != {started_key}:
+        raise _Mismatch(f"{JOURNAL}: sealed by {', '.join(sorted(fingerprints))}, but run_started "
+                        f"names signing key {started_key}")
+    result.checked["seals"] = len(seals)
+    if key is not None:
+        result.authenticity = (f"authentic: {len(seals)} seal(s) verified with the given key "
+                               f"{fingerprint(key)}")
     else:
-        result.unchecked.append("no report_written event: the report was never built")
+        result.authenticity = (f"integrity only, not authenticity: signed by key "
+                               f"{', '.join(sorted(fingerprints))} (unverified; pass --key "
+                               "station.pub to check it is the station's)")
