@@ -113,6 +113,32 @@ def _runs(codes: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:], strict=True)]
 
 
+def _merge_short_runs(runs: list[tuple[int, int]], rate_run: np.ndarray, fs: float
+                      ) -> list[list[int]]:
+    """Absorb only what cannot spoil a segment: flicker of the temperature-trend detector.
+
+    A short run at the *same* table rate as the segment before it (the trend
+    detector flickering across its threshold) joins that segment. A short run
+    at another rate is a table slew: merged into a constant-rate segment it
+    would make the whole segment "table moving" and lose it from the noise
+    estimate (a 1 h static followed by a 10-sample slew used to count as 0
+    quiet seconds), so consecutive short slew runs become one segment of
+    their own, never quiet.
+    """
+    merged: list[list[int]] = []
+    slewing = False
+    for a, b in runs:
+        short = (b - a) / fs < MIN_SEGMENT_S
+        if short and merged and not slewing and rate_run[a] == rate_run[merged[-1][0]]:
+            merged[-1][1] = b                      # trend flicker at the same table rate
+        elif short and merged and slewing:
+            merged[-1][1] = b                      # the slew goes on
+        else:
+            merged.append([a, b])
+            slewing = short and (not merged[:-1] or rate_run[a] != rate_run[merged[-2][0]])
+    return merged
+
+
 def derive_segments(t_s: np.ndarray, table_rate_dps: np.ndarray, chamber_temp_c: np.ndarray,
                     labels: np.ndarray | None = None) -> Segments:
     """Segments from step labels (if any), table-rate changes and the chamber trend."""
@@ -128,16 +154,7 @@ def derive_segments(t_s: np.ndarray, table_rate_dps: np.ndarray, chamber_temp_c:
         _, label_code = np.unique(labels.astype(str), return_inverse=True)
         code = code * (label_code.max() + 1) + label_code
     runs = _runs(code)
-    # merge short runs into the previous one (accelerations, trend-detector flicker)
-    merged: list[list[int]] = []
-    for a, b in runs:
-        if merged and (b - a) / fs < MIN_SEGMENT_S:
-            merged[-1][1] = b
-        else:
-            merged.append([a, b])
-    if len(merged) > 1 and (merged[0][1] - merged[0][0]) / fs < MIN_SEGMENT_S:
-        merged[1][0] = merged[0][0]
-        merged.pop(0)
+    merged = _merge_short_runs(runs, rate_run, fs)
     slices: list[slice] = []
     names: list[str] = []
     quiet: list[bool] = []
