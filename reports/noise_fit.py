@@ -81,6 +81,9 @@ _MARKOV_THRESHOLD_FACTOR = 5.0
 #: VG951D hump in 4 of 5 seeds, because the per-parameter normalisation of the drop
 #: (correlated points) is very conservative for a hump spanning a decade.
 _MARKOV_MISFIT_BIRGE = 1.5
+#: Beyond this 1-σ error of ln T (a factor of 10¹²) the correlation time is unconstrained:
+#: its interval is reported as (0, ∞) instead of overflowing exp() (seen on quantized data).
+_MARKOV_TIME_UNCONSTRAINED = math.log(1e12)
 _MARKOV_BIRGE_DROP = 3.0
 
 
@@ -351,10 +354,14 @@ def fit_noise_terms(tau_s, adev_dph, edf=None, markov: str | bool = "auto",
     if t_markov is not None:
         sigma = _estimate(chosen.coeffs[-1], cov[-1, -1])
         t_err = _markov_time_error(tau, avar, edf_arr, rho, design, t_markov, birge)
+        if t_err > _MARKOV_TIME_UNCONSTRAINED:  # a flat χ²(ln T): say so, never overflow
+            tau_estimate = TermEstimate(t_markov, math.inf, 0.0, math.inf)
+        else:
+            tau_estimate = TermEstimate(t_markov, t_markov * t_err, t_markov * math.exp(-t_err),
+                                        t_markov * math.exp(t_err))
         markov_estimate = MarkovEstimate(
             sigma_dph=sigma,
-            tau_s=TermEstimate(t_markov, t_markov * t_err, t_markov * math.exp(-t_err),
-                               t_markov * math.exp(t_err)),
+            tau_s=tau_estimate,
             tau_peak_s=MARKOV_PEAK_RATIO * t_markov,
             delta_chi2=delta_chi2,
         )

@@ -48,6 +48,7 @@ from gyrocal.reports.discrepancy.periodic import (
     periodic_scan,
     sine_dph,
 )
+from gyrocal.reports.discrepancy.quantization import detect_pulse, line_within_quantization
 from gyrocal.reports.discrepancy.scoring import (
     EffectScores,
     Fit,
@@ -319,11 +320,25 @@ def _analyse(model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
                                allow_markov=not model.has_effect("markov_bias"))
     noise = noise_est.model
     noise_before = replace(noise, markov_sigma_dph=prior.markov_sigma_dph, markov_tau_s=prior.markov_tau_s)
+    current = model
+    found: list[FoundEffect] = []
+    lattice = (None if model.has_effect("quantization")
+               else detect_pulse(log.gyro, model.scale_factor, analysis.fs_hz))
+    if lattice is not None:
+        spec = EffectSpec("quantization", {"pulse_arcsec": lattice.pulse_arcsec})
+        current = current.with_effect(spec)
+        found.append(FoundEffect("quantization", dict(spec.params), lattice.on_lattice, [], "",
+                                 0.0, 0.0, 0.0))
+        # white angle noise of a pulse q: Q = q/√12 (IEEE Std 647); keeps the whitening honest
+        noise = replace(noise, quantization_arcsec=max(noise.quantization_arcsec,
+                                                       lattice.pulse_arcsec / math.sqrt(12.0)))
+        notes.append(f"quantization: {100 * lattice.on_lattice:.2f} % of the samples are whole "
+                     f"multiples of a {lattice.pulse_arcsec:.4g}\" pulse ({lattice.levels} output "
+                     "levels): found from the output lattice, not scored by χ²; lines whose angle "
+                     "amplitude is within two pulses are its beat, not interference")
     analysis.use_noise(noise)
     notes.append(f"noise model: {noise_est.source}")
 
-    current = model
-    found: list[FoundEffect] = []
     if noise.has_markov and not model.has_effect("markov_bias"):
         spec = EffectSpec("markov_bias", {"sigma_dph": noise.markov_sigma_dph, "tau_s": noise.markov_tau_s})
         current = current.with_effect(spec)
@@ -344,6 +359,10 @@ def _analyse(model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
         if log.sensor_temp_c is not None:
             scores.pop("thermal_lag", None)
         scan = None if current.has_effect("periodic_interference") else analysis.scan(fit)
+        if (scan is not None and lattice is not None
+                and line_within_quantization(scan.amplitude_dph, scan.freq_hz,
+                                             lattice.pulse_arcsec)):
+            scan = None  # the quantization's beat, bounded in angle: not interference
         z = analysis.rng.standard_normal((analysis.bins.n_bins, analysis.n_null))
         threshold = _library_threshold(scores, fit, z, scan, analysis.rng, ALPHA / iteration)
         step = _step_probe(fit, analysis.whitener, analysis.bins, z)
