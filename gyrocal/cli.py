@@ -48,8 +48,9 @@ def _bad_input_types() -> tuple[type[BaseException], ...]:
 
 def _fault_types() -> tuple[type[BaseException], ...]:
     from gyrocal.instruments.errors import InstrumentError
+    from gyrocal.orchestrator.locks import LockBusyError
 
-    return (RunFault, InstrumentError)
+    return (RunFault, InstrumentError, LockBusyError)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -31,6 +31,7 @@ from gyrocal.orchestrator.engine import (
     completed_steps,
 )
 from gyrocal.orchestrator.journal import sha256_file
+from gyrocal.orchestrator.locks import FileLock, instrument_locks, run_folder_lock
 from gyrocal.orchestrator.plan import Plan, expand_plan, format_plan
 from gyrocal.orchestrator.plan_record import write_plan_record
 from gyrocal.orchestrator.procedure import Procedure, load_procedure
@@ -165,7 +166,36 @@ def cmd_run(args: argparse.Namespace) -> int:
     fault_plan = _fault_plan(getattr(args, "inject", None) or [], args.sim, plan)
     run_dir = Path(args.out) if args.out else Path("runs") / new_run_id()
     files = _input_files(procedure)
-    folder = RunFolder.create(
+    with contextlib.ExitStack() as held:
+        # The station's instruments first: a refused second run leaves no folder behind.
+        held.enter_context(_station_locks(procedure, args.sim))
+        folder = _create_folder(run_dir, procedure, plan, files, args)
+        _announce_stale(held.enter_context(run_folder_lock(folder.path)))
+        record = write_plan_record(folder.path, procedure, plan)
+        folder.update_manifest(plan_sha256=sha256_file(record))
+        print(f"run folder: {folder.path}", file=sys.stderr)
+        signer = run_signer(getattr(args, "signing_key", None), procedure.station.signing_key)
+        return _execute(folder, procedure, plan, clock, args.sim, args.seed, fault_plan, signer)
+
+
+def _station_locks(procedure: Procedure, sim: bool) -> contextlib.AbstractContextManager:
+    """Exclusive locks on the station's instrument addresses (``--sim`` instruments are private)."""
+    if sim:
+        return contextlib.nullcontext([])
+    station = procedure.station
+    return instrument_locks({"chamber": station.chamber.address, "table": station.table.address,
+                             "gyro": station.gyro.port})
+
+
+def _announce_stale(lock: FileLock) -> None:
+    if lock.stale is not None:
+        print(f"gyrocal: note: {lock.what}: the previous controller ({lock.stale.describe()}) "
+              "ended without releasing its lock (a crash); taking over", file=sys.stderr)
+
+
+def _create_folder(run_dir: Path, procedure: Procedure, plan: Plan, files: dict[str, Path],
+                   args: argparse.Namespace) -> RunFolder:
+    return RunFolder.create(
         run_dir,
         procedure_path=files.pop("procedure"),
         station_path=files.pop("station", None),
@@ -183,11 +213,6 @@ def cmd_run(args: argparse.Namespace) -> int:
             "pid": os.getpid(),
         },
     )
-    record = write_plan_record(folder.path, procedure, plan)
-    folder.update_manifest(plan_sha256=sha256_file(record))
-    print(f"run folder: {folder.path}", file=sys.stderr)
-    signer = run_signer(getattr(args, "signing_key", None), procedure.station.signing_key)
-    return _execute(folder, procedure, plan, clock, args.sim, args.seed, fault_plan, signer)
 
 
 def _fault_plan(specs: list[str], sim: bool, plan: Plan):
@@ -213,6 +238,13 @@ def _fault_plan(specs: list[str], sim: bool, plan: Plan):
 def cmd_resume(args: argparse.Namespace) -> int:
     quiet_library_logs(getattr(args, "debug", False))
     folder = RunFolder.open(Path(args.run_dir))
+    with contextlib.ExitStack() as held:
+        # Before reading the manifest: a live controller may be writing it.
+        _announce_stale(held.enter_context(run_folder_lock(folder.path)))
+        return _resume_locked(args, folder, held)
+
+
+def _resume_locked(args: argparse.Namespace, folder: RunFolder, held: contextlib.ExitStack) -> int:
     manifest = folder.read_manifest()
     if manifest.get("state") == "done":
         print(f"{folder.path}: run already complete; nothing to resume")
@@ -236,6 +268,7 @@ def cmd_resume(args: argparse.Namespace) -> int:
     speed = args.speed if args.speed is not None else manifest.get("speed")
     clock = _clock_for(speed, sim)
     seed = manifest.get("seed")
+    held.enter_context(_station_locks(procedure, sim))
     resumes = int(manifest.get("resumes", 0)) + 1
     folder.update_manifest(resumes=resumes, pid=os.getpid())
     if sim:

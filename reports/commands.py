@@ -22,10 +22,14 @@ TO_DPH = {"deg/s": 3600.0, "deg/h": 1.0, "rad/s": math.degrees(1.0) * 3600.0}
 
 def cmd_report(args: argparse.Namespace) -> int:
     from gyrocal.orchestrator.commands import report_signer
+    from gyrocal.orchestrator.locks import run_folder_lock
     from gyrocal.reports.build import HTML_FILE, build_report
 
-    results = build_report(Path(args.run_dir),
-                           signer=report_signer(Path(args.run_dir), args.signing_key))
+    # The folder's lock: a report rebuilt while a controller writes the folder would
+    # append to its journal from a second process and break the hash chain.
+    with run_folder_lock(args.run_dir):
+        results = build_report(Path(args.run_dir),
+                               signer=report_signer(Path(args.run_dir), args.signing_key))
     print(f"report: {Path(args.run_dir) / HTML_FILE}")
     for note in results.get("notes", []):
         print(f"  note: {note}")

@@ -1,0 +1,189 @@
+"""One controller per run folder and per instrument: OS file locks with a holder record.
+
+Two controllers on one rig are worse than none: their commands interleave (one
+``stop`` halts the other's table) and their journal lines interleave until the
+hash chain breaks. So a controller takes, for its whole life, an exclusive
+``fcntl.flock`` on
+
+* the run folder (``RUN_DIR/controller.lock``): run, resume and a report
+  rebuild take it, so none of them runs while another writes the folder;
+* every instrument address of the station (one file per address in the lock
+  directory: ``$GYROCAL_LOCK_DIR``, else ``$XDG_RUNTIME_DIR/gyrocal-locks``,
+  else ``/tmp/gyrocal-locks``), so two runs on one station cannot both drive it.
+
+The kernel drops an ``flock`` when its process ends however it ends (kill -9,
+power loss takes the whole machine), so a crashed controller never leaves a
+lock that blocks the next one. The JSON holder record (pid, host, start time,
+command) written into the locked file is what a refused controller prints, and
+a record found in a lock that was free is a *stale* record: the previous
+holder ended without releasing (a crash); the caller journals it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import hashlib
+import json
+import os
+import re
+import socket
+import sys
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+RUN_LOCK_FILE = "controller.lock"
+LOCK_DIR_ENV = "GYROCAL_LOCK_DIR"
+
+
+class LockBusyError(Exception):
+    """Another live controller holds the lock (exit 3: nothing was commanded)."""
+
+    def __init__(self, what: str, holder: LockHolder | None) -> None:
+        self.what = what
+        self.holder = holder
+        who = holder.describe() if holder is not None else "another process (no holder record)"
+        super().__init__(f"{what} is in use by {who}; refusing to start a second controller")
+
+
+@dataclass(frozen=True)
+class LockHolder:
+    """Who holds a lock: enough to find the process (or to know it is gone)."""
+
+    pid: int
+    host: str
+    started_utc: str
+    command: str
+
+    def describe(self) -> str:
+        return f"pid {self.pid} on {self.host} since {self.started_utc} ({self.command})"
+
+    @staticmethod
+    def me() -> LockHolder:
+        return LockHolder(
+            pid=os.getpid(),
+            host=socket.gethostname(),
+            started_utc=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            command=" ".join(["gyrocal", *sys.argv[1:]])[:300],
+        )
+
+
+def _parse_holder(text: str) -> LockHolder | None:
+    try:
+        data = json.loads(text)
+        return LockHolder(pid=int(data["pid"]), host=str(data["host"]),
+                          started_utc=str(data["started_utc"]), command=str(data["command"]))
+    except (ValueError, KeyError, TypeError):
+        return None
+
+
+def _read_record(fd: int) -> LockHolder | None:
+    os.lseek(fd, 0, os.SEEK_SET)
+    return _parse_holder(os.read(fd, 4096).decode("utf-8", "replace"))
+
+
+class FileLock:
+    """An exclusive flock on ``path`` holding a JSON :class:`LockHolder` record."""
+
+    def __init__(self, path: Path, what: str, create_dir: bool = False) -> None:
+        self.path = Path(path)
+        self.what = what
+        self.create_dir = create_dir
+        self.stale: LockHolder | None = None   # record left by a holder that crashed
+        self._fd: int | None = None
+
+    def acquire(self) -> FileLock:
+        if self.create_dir:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        elif not self.path.parent.is_dir():
+            raise FileNotFoundError(f"{self.path.parent}: no such folder")
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _read_record(fd)
+            os.close(fd)
+            raise LockBusyError(self.what, holder) from None
+        self.stale = _read_record(fd)
+        record = json.dumps(asdict(LockHolder.me())).encode()
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, record, 0)
+        os.fsync(fd)
+        self._fd = fd
+        return self
+
+    def release(self) -> None:
+        if self._fd is None:
+            return
+        fd, self._fd = self._fd, None
+        with contextlib.suppress(OSError):
+            os.ftruncate(fd, 0)    # an empty record: released cleanly, nothing stale
+        os.close(fd)               # closing drops the flock
+
+    def __enter__(self) -> FileLock:
+        return self.acquire()
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+
+def holder(path: str | os.PathLike[str]) -> LockHolder | None:
+    """Who holds the lock of a run folder (or a lock file), or None when it is free.
+
+    For ``gyrocal status``: a probe with a shared lock, never blocking, never
+    writing. A record in a free lock is stale and not a holder.
+    """
+    target = Path(path)
+    if target.is_dir():
+        target = target / RUN_LOCK_FILE
+    try:
+        fd = os.open(target, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        return None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return _read_record(fd) or LockHolder(pid=0, host="?", started_utc="?", command="?")
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)
+
+
+def run_folder_lock(run_dir: str | os.PathLike[str]) -> FileLock:
+    return FileLock(Path(run_dir) / RUN_LOCK_FILE, f"run folder {run_dir}")
+
+
+def lock_dir() -> Path:
+    explicit = os.environ.get(LOCK_DIR_ENV)
+    if explicit:
+        return Path(explicit)
+    runtime = os.environ.get("XDG_RUNTIME_DIR")
+    if runtime and Path(runtime).is_dir():
+        return Path(runtime) / "gyrocal-locks"
+    return Path("/tmp/gyrocal-locks")
+
+
+def address_lock_path(address: str) -> Path:
+    """One file per instrument address; readable name plus a hash (addresses hold ``/`` and ``:``)."""
+    readable = re.sub(r"[^A-Za-z0-9._-]+", "_", address.strip())[:60]
+    digest = hashlib.sha256(address.strip().encode()).hexdigest()[:12]
+    return lock_dir() / f"{readable}-{digest}.lock"
+
+
+@contextlib.contextmanager
+def instrument_locks(addresses: dict[str, str]) -> Iterator[list[FileLock]]:
+    """Exclusive locks on every ``role -> address`` for the life of the block (sorted: no deadlock)."""
+    held: list[FileLock] = []
+    try:
+        for address in sorted(set(addresses.values())):
+            roles = ", ".join(r for r, a in addresses.items() if a == address)
+            held.append(FileLock(address_lock_path(address), f"{roles} at {address}",
+                                 create_dir=True).acquire())
+        yield held
+    finally:
+        for lock in reversed(held):
+            lock.release()
