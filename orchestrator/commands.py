@@ -37,7 +37,14 @@ from gyrocal.orchestrator.plan_record import write_plan_record
 from gyrocal.orchestrator.procedure import Procedure, load_procedure
 from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.run_folder import IDENTITY_KEYS, RunFolder, new_run_id
-from gyrocal.orchestrator.signing import Signer, generate_key_pair, signer_from
+from gyrocal.orchestrator.signing import (
+    KeyPairFiles,
+    Signer,
+    fingerprint,
+    generate_key_pair,
+    load_public_key,
+    signer_from,
+)
 from gyrocal.orchestrator.station import load_station
 from gyrocal.orchestrator.yaml_source import ProcedureError
 
@@ -335,7 +342,8 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
                        identity={key: manifest.get(key) for key in IDENTITY_KEYS},
                        signing_key=None if signer is None else signer.fingerprint)
     try:
-        return _execute_journaled(folder, journal, procedure, plan, clock, sim, seed, fault_plan)
+        return _execute_journaled(folder, journal, procedure, plan, clock, sim, seed, fault_plan,
+                                  signer)
     finally:
         if signer is not None and not journal.closed:
             signer.seal(journal, manifest["run_id"], reason="controller exit")
@@ -343,7 +351,8 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
 
 
 def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: Plan, clock,
-                       sim: bool, seed: int | None, fault_plan=None) -> int:
+                       sim: bool, seed: int | None, fault_plan=None,
+                       signer: Signer | None = None) -> int:
 
     def on_retry(role: str, attempt: int, exc: InstrumentError) -> None:
         journal.append("retry", instrument=role, attempt=attempt, command=exc.command,
@@ -352,7 +361,7 @@ def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: P
     results: dict[str, Any] = {}
 
     def on_finished() -> None:
-        results.update(_build_report(folder))
+        results.update(_build_report(folder, signer))
 
     simulated: Any = None
     try:
@@ -398,13 +407,13 @@ def _report_simulator_crash(simulated: Any, journal) -> None:
         print(f"gyrocal: {message}", file=sys.stderr)
 
 
-def _build_report(folder: RunFolder) -> dict[str, Any]:
+def _build_report(folder: RunFolder, signer: Signer | None) -> dict[str, Any]:
     try:
         from gyrocal.reports.build import build_report
     except ImportError:
         return {}
     # The engine holds the journal open; appending through it keeps the hash chain whole.
-    return build_report(folder.path, journal=folder.open_journal())
+    return build_report(folder.path, journal=folder.open_journal(), signer=signer)
 
 
 def _text(reply: Any) -> Any:
@@ -472,10 +481,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
     debug = getattr(args, "debug", False)
 
     print(f"== 1/2  {procedure.relative_to(root)} against simulated instruments ==")
-    # A demo station key, made for this demo only: a real station keeps its key on the
-    # station (gyrocal keys), and QA keeps the public half.
-    keys = generate_key_pair(out / "demo-station-keys")
-    print(f"demo station key {keys.fingerprint} (public half: {keys.public})")
+    # A demo station key, made for this demo and kept beside its runs: it shows the
+    # mechanism, not authenticity (whoever has the folder has the private key too). A real
+    # station keeps its key on the station (gyrocal keys), and QA keeps the public half.
+    keys = _demo_keys(out / "demo-station-keys")
+    print(f"demo station key {keys.fingerprint} (public half: {keys.public}; kept beside "
+          "the runs, so it demonstrates signing, not authenticity)")
     code = cmd_run(argparse.Namespace(
         procedure=str(procedure), station=None, sim=True, out=str(out / "smoke"), speed="max",
         seed=1, operator="demo", sim_station=None, debug=debug,
@@ -484,7 +495,6 @@ def cmd_demo(args: argparse.Namespace) -> int:
         return code
     audit = verify_run_folder(out / "smoke", public_key=keys.public)
     print(f"report: {out / 'smoke' / 'report' / 'report.html'}")
-    print(f"audit (gyrocal verify): {audit.summary() if audit.ok else audit.failure}")
 
     station = root / "stations" / "sim-hidden-effect.yaml"
     nominal = root / "gyro-models" / "nominal-fog.yaml"
@@ -506,6 +516,19 @@ def cmd_demo(args: argparse.Namespace) -> int:
     print(f"gap ({gap['metric']}): before {gap['before']:.4g} → after {gap['after']:.4g} "
           f"(noise floor {gap['noise_floor']:.4g})")
     print(f"story: {out / 'discrepancy' / 'discrepancy.html'}")
-    if not audit.ok:
+
+    print(f"\n== audit: gyrocal verify RUN_DIR --key {keys.public} ==")
+    audits = [audit, verify_run_folder(out / "hidden-effect", public_key=keys.public)]
+    for each in audits:
+        print(each.summary() if each.ok else f"{each.run_dir}: FAILED: {each.failure}")
+    if not all(each.ok for each in audits):
         return EXIT_ACCEPTANCE_FAILED
     return code
+
+
+def _demo_keys(folder: Path) -> KeyPairFiles:
+    """The demo's key pair: made on the first demo into this folder, reused after."""
+    private, public = folder / "station.key", folder / "station.pub"
+    if private.exists() and public.exists():
+        return KeyPairFiles(private, public, fingerprint(load_public_key(public)))
+    return generate_key_pair(folder)

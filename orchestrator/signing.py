@@ -120,6 +120,18 @@ def signed_bytes(event: dict[str, Any]) -> bytes:
     return json.dumps(payload, sort_keys=True, separators=(",", ":")).encode()
 
 
+#: What a report's signature covers: the run, the chain head when the report was
+#: built (the line the following ``report_written`` event chains to) and the SHA-256
+#: of results.json without its ``signature`` field — so the report alone is signed.
+REPORT_SIGNED_FIELDS = ("run_id", "chain_head", "results_sha256", "key_fingerprint",
+                        "public_key")
+
+
+def report_signed_bytes(signature: dict[str, Any]) -> bytes:
+    payload = {"purpose": "gyrocal report", **{n: signature.get(n) for n in REPORT_SIGNED_FIELDS}}
+    return json.dumps(payload, sort_keys=True, separators=(",", ":")).encode()
+
+
 class Signer:
     """Seals a journal: appends a ``sealed`` event signing the current chain head."""
 
@@ -137,16 +149,34 @@ class Signer:
         return journal.append_signed(SEAL_EVENT, sign, run_id=run_id, reason=reason,
                                      key_fingerprint=self.fingerprint, public_key=self._public)
 
+    def sign_report(self, run_id: str, chain_head: str, results_sha256: str) -> dict[str, Any]:
+        """The report's own signature block (results.json ``signature``, shown in the HTML)."""
+        block: dict[str, Any] = {"run_id": run_id, "chain_head": chain_head,
+                                 "results_sha256": results_sha256,
+                                 "key_fingerprint": self.fingerprint, "public_key": self._public}
+        block["signature"] = base64.b64encode(self._key.sign(report_signed_bytes(block))).decode()
+        return block
+
 
 def seal_signature_valid(event: dict[str, Any], public_key: Ed25519PublicKey | None = None
                          ) -> bool:
     """Whether the seal's signature verifies, with ``public_key`` or the key the seal embeds."""
+    return _valid(event, signed_bytes(event), public_key)
+
+
+def report_signature_valid(block: dict[str, Any], public_key: Ed25519PublicKey | None = None
+                           ) -> bool:
+    """Whether a report's signature block verifies (``public_key`` or the one it embeds)."""
+    return _valid(block, report_signed_bytes(block), public_key)
+
+
+def _valid(signed: dict[str, Any], message: bytes, public_key: Ed25519PublicKey | None) -> bool:
     try:
         if public_key is None:
-            raw = base64.b64decode(str(event.get("public_key", "")), validate=True)
+            raw = base64.b64decode(str(signed.get("public_key", "")), validate=True)
             public_key = Ed25519PublicKey.from_public_bytes(raw)
-        signature = base64.b64decode(str(event.get("signature", "")), validate=True)
-        public_key.verify(signature, signed_bytes(event))
+        signature = base64.b64decode(str(signed.get("signature", "")), validate=True)
+        public_key.verify(signature, message)
         return True
     except (InvalidSignature, ValueError, TypeError):
         return False

@@ -441,28 +441,39 @@ def build_report(run_dir: str | Path, journal: Journal | None = None,
     ``journal``: the engine's open journal when called at the end of a run
     (a second writer would fork the hash chain; the run seals it when it
     exits); None opens one, and seals it with ``signer`` when given, so a
-    rebuilt report is as authenticated as the run.
+    rebuilt report is as authenticated as the run. With ``signer`` the report
+    itself carries a signature over the chain head and its own numbers.
     """
-    from gyrocal.reports.html_report import render_html
-
     notes: list[str] = []
     data = read_run(Path(run_dir), notes)
     results = finite_or_none(compute_results(data, notes))
     results["report_built_at"] = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+    root = data.folder.path
+    if journal is not None:
+        _write_report(data, results, journal, signer)
+    else:
+        with Journal(root / "journal.jsonl") as own:
+            _write_report(data, results, own, signer)
+            if signer is not None:
+                signer.seal(own, data.manifest.get("run_id", ""), reason="report rebuilt")
+    return results
+
+
+def _write_report(data: RunData, results: dict[str, Any], journal: Journal,
+                  signer: Signer | None) -> None:
+    from gyrocal.reports.html_report import render_html
+
     started = next((e for e in data.events if e.get("event") == "run_started"), {})
-    results["signature"] = {"key_fingerprint": started.get("signing_key"),
-                            "signed": bool(started.get("signing_key"))}
+    if signer is not None:
+        unsigned = sha256_bytes(results_bytes(results))
+        results["signature"] = {"signed": True, **signer.sign_report(
+            str(data.manifest.get("run_id", "")), journal.last_sha256, unsigned)}
+    else:
+        results["signature"] = {"signed": False, "key_fingerprint": started.get("signing_key")}
     encoded = results_bytes(results)
     html = render_html(results).encode()
     root = data.folder.path
     write_bytes_atomic(root / RESULTS_FILE, encoded)
     write_bytes_atomic(root / HTML_FILE, html)
-    files = {RESULTS_FILE: sha256_bytes(encoded), HTML_FILE: sha256_bytes(html)}
-    if journal is not None:
-        journal.append("report_written", files=files)
-    else:
-        with Journal(root / "journal.jsonl") as own:
-            own.append("report_written", files=files)
-            if signer is not None:
-                signer.seal(own, data.manifest.get("run_id", ""), reason="report rebuilt")
-    return results
+    journal.append("report_written", files={RESULTS_FILE: sha256_bytes(encoded),
+                                            HTML_FILE: sha256_bytes(html)})

@@ -105,7 +105,12 @@ SF over temperature: {% if r.sf_temperature %}instability {{ fmt(r.sf_temperatur
 </table>
 <p>Check every hash with <code>gyrocal verify RUN_DIR</code>.</p>
 <h2>Signature</h2>
-{% if r.signature and r.signature.key_fingerprint %}<p>This run's journal is sealed with the station's Ed25519 key <code>{{ r.signature.key_fingerprint }}</code>: every controller session ends with a signature over the chain head. Check its authenticity with <code>gyrocal verify RUN_DIR --key station.pub</code> against the public key on QA's record.</p>
+{% if r.signature and r.signature.signed %}<p>Signed with the station's Ed25519 key <code>{{ r.signature.key_fingerprint }}</code>.</p>
+<table><tr><td>chain head signed</td><td><code>{{ r.signature.chain_head }}</code></td></tr>
+<tr><td>numbers signed (SHA-256 of results.json without its signature)</td><td><code>{{ r.signature.results_sha256 }}</code></td></tr>
+<tr><td>signature</td><td><code>{{ r.signature['signature'] }}</code></td></tr></table>
+<p>Every controller session also ends the journal with a signature over its chain head. This page cannot vouch for itself: authenticity is shown only by <code>gyrocal verify RUN_DIR --key station.pub</code> with the public key from QA's own record, whose fingerprint must be the one above.</p>
+{% elif r.signature and r.signature.key_fingerprint %}<p class="warn">Not signed: this report was rebuilt without the station's key <code>{{ r.signature.key_fingerprint }}</code>, which signed the run; <code>gyrocal verify</code> will fail it.</p>
 {% else %}<p class="warn">Not signed: the station has no signing key (<code>gyrocal keys</code>), so <code>gyrocal verify</code> can show integrity only, not authenticity.</p>{% endif %}
 </body></html>
 """

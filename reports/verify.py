@@ -17,8 +17,10 @@ follows from the samples. In order, first failure wins:
 4. **samples**: every journaled chunk on disk with its hash, every chunk on
    disk journaled, every completed step's chunks journaled;
 5. **the report**: every file of ``report/`` recorded by the last
-   ``report_written`` with its hash, and the report's numbers recomputed from
-   the samples (a report that does not follow from the data fails);
+   ``report_written`` with its hash; the report's own signature block (over
+   the chain head that ``report_written`` chains to and the numbers); and the
+   report's numbers recomputed from the samples (a report that does not
+   follow from the data fails);
 6. **the seals**: the journal's last line is a ``sealed`` event whose Ed25519
    signature covers the chain head. With ``--key`` (the station's public key
    from QA's records) every seal must verify with it: a history recomputed by
@@ -37,15 +39,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from gyrocal.orchestrator.journal import JournalError, read_journal, sha256_file
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
+
+from gyrocal.orchestrator.journal import JournalError, read_journal, sha256_bytes, sha256_file
 from gyrocal.orchestrator.plan_record import PLAN_RECORD
 from gyrocal.orchestrator.run_folder import IDENTITY_KEYS, JOURNAL, SAMPLES, RunFolder
 from gyrocal.orchestrator.signing import (
     SEAL_EVENT,
     fingerprint,
     load_public_key,
+    report_signature_valid,
     seal_signature_valid,
 )
+from gyrocal.reports.results import finite_or_none, results_bytes
 
 #: Events a finished run may still gain after ``run_closed``: report rebuilds and their seals.
 AFTER_CLOSE = ("report_written", SEAL_EVENT)
@@ -108,7 +114,7 @@ def verify_run_folder(run_dir: str | Path, public_key: str | Path | None = None,
         started = _shape(folder, events, result)
         _inputs_and_identity(folder, started, result)
         _samples(folder, events, result)
-        _report(folder, events, result, recompute)
+        _report(folder, events, result, recompute, key)
         _seals(events, key, result)
     except _Mismatch as exc:
         result.failure = str(exc)
@@ -214,7 +220,7 @@ def _samples(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResu
 
 
 def _report(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResult,
-            recompute: bool) -> None:
+            recompute: bool, key: Ed25519PublicKey | None) -> None:
     root = folder.path
     reports = [(i, e) for i, e in enumerate(events, start=1) if e.get("event") == "report_written"]
     if not reports:
@@ -230,18 +236,61 @@ def _report(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResul
         raise _Mismatch(f"{root / extra[0]}: in report/ but not recorded by {JOURNAL}:{line} "
                         "report_written")
     result.checked["report files"] = len(files)
-    if recompute and "report/results.json" in files:
-        _recompute(folder, root / "report/results.json", result)
+    results_path = root / "report/results.json"
+    if "report/results.json" not in files:
+        raise _Mismatch(f"{results_path}: not recorded by {JOURNAL}:{line} report_written")
+    stored = _load_results(results_path)
+    _report_signature(stored, results_path, events, line, key, result)
+    if recompute:
+        _recompute(folder, stored, results_path, result)
 
 
-def _recompute(folder: RunFolder, results_path: Path, result: VerifyResult) -> None:
-    from gyrocal.reports.build import compute_results, read_run
-    from gyrocal.reports.results import finite_or_none
-
+def _load_results(path: Path) -> dict[str, Any]:
     try:
-        stored = json.loads(results_path.read_text())
+        stored = json.loads(path.read_text())
     except (OSError, ValueError) as exc:
-        raise _Mismatch(f"{results_path}: unreadable: {exc}") from None
+        raise _Mismatch(f"{path}: unreadable: {exc}") from None
+    if not isinstance(stored, dict):
+        raise _Mismatch(f"{path}: not a JSON object")
+    return stored
+
+
+def _report_signature(stored: dict[str, Any], path: Path, events: list[dict[str, Any]],
+                      line: int, key: Ed25519PublicKey | None, result: VerifyResult) -> None:
+    """The report's own signature: over the chain head its report_written chains to."""
+    block = stored.get("signature")
+    started_key = events[0].get("signing_key")
+    if not isinstance(block, dict) or not block.get("signed"):
+        if started_key or key is not None:
+            raise _Mismatch(f"{path}: signature: the report is not signed, but "
+                            + (f"run_started names signing key {started_key}" if started_key
+                               else "--key was given"))
+        return
+    head = events[line - 1].get("prev_sha256")
+    if block.get("chain_head") != head:
+        raise _Mismatch(f"{path}: signature.chain_head {block.get('chain_head')} is not the "
+                        f"head {head} that {JOURNAL}:{line} report_written chains to")
+    if block.get("run_id") != events[0].get("run_id"):
+        raise _Mismatch(f"{path}: signature.run_id {block.get('run_id')!r} is not the run's "
+                        f"{events[0].get('run_id')!r}")
+    unsigned = sha256_bytes(results_bytes({k: v for k, v in stored.items() if k != "signature"}))
+    if block.get("results_sha256") != unsigned:
+        raise _Mismatch(f"{path}: signature.results_sha256 does not match the report's numbers")
+    if not report_signature_valid(block):
+        raise _Mismatch(f"{path}: the report's signature does not verify")
+    if key is not None and not report_signature_valid(block, key):
+        raise _Mismatch(f"{path}: report signed by key {block.get('key_fingerprint')}, not by "
+                        f"the given key {fingerprint(key)}: NOT AUTHENTIC")
+    if block.get("key_fingerprint") != started_key:
+        raise _Mismatch(f"{path}: report signed by key {block.get('key_fingerprint')}, but "
+                        f"run_started names signing key {started_key}")
+    result.checked["report signature"] = 1
+
+
+def _recompute(folder: RunFolder, stored: dict[str, Any], results_path: Path,
+               result: VerifyResult) -> None:
+    from gyrocal.reports.build import compute_results, read_run
+
     notes: list[str] = []
     fresh = json.loads(json.dumps(finite_or_none(compute_results(read_run(folder.path, notes),
                                                                  notes))))
@@ -278,7 +327,8 @@ def _first_difference(stored: Any, fresh: Any, where: str) -> str | None:
     return f"{where} is {stored!r}, recomputed {fresh!r}"
 
 
-def _seals(events: list[dict[str, Any]], key, result: VerifyResult) -> None:
+def _seals(events: list[dict[str, Any]], key: Ed25519PublicKey | None, result: VerifyResult
+           ) -> None:
     seals = [(i, e) for i, e in enumerate(events, start=1) if e.get("event") == SEAL_EVENT]
     started_key = events[0].get("signing_key")
     if not seals:

@@ -17,6 +17,11 @@ def test_demo_runs_the_smoke_procedure_and_names_the_hidden_effect(tmp_path, cap
     out = capsys.readouterr().out
     assert "every hash matches" in out
     assert "authentic: 1 seal(s) verified with the given key" in out
+    # The demo ends with the audit of both runs: OK, with the signature status.
+    tail = out.strip().splitlines()[-4:]
+    assert tail[0].startswith(str(tmp_path / "smoke")) and ": OK" in tail[0]
+    assert tail[2].startswith(str(tmp_path / "hidden-effect")) and ": OK" in tail[2]
+    assert all("authentic: 1 seal(s) verified" in line for line in (tail[1], tail[3]))
     results = json.loads((tmp_path / "smoke" / "report" / "results.json").read_text())
     assert all(item["pass"] for item in results["acceptance"])
 

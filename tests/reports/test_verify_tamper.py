@@ -26,6 +26,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
 from gyrocal.cli import main
@@ -96,7 +97,7 @@ def _write_rechained(run: Path, events: list[dict]) -> None:
 
 
 def _resign(run: Path, events: list[dict], key: Ed25519PrivateKey) -> None:
-    """Recompute the chain and replace every seal by one signed with ``key``."""
+    """Recompute the chain, replace every seal and the report's signature by ones with ``key``."""
     fp = fingerprint(key.public_key())
     raw_public = base64.b64encode(key.public_key().public_bytes_raw()).decode()
     prev, out = GENESIS, b""
@@ -104,6 +105,8 @@ def _resign(run: Path, events: list[dict], key: Ed25519PrivateKey) -> None:
         event = dict(event, seq=seq, prev_sha256=prev)
         if event["event"] == "run_started":
             event["signing_key"] = fp
+        if event["event"] == "report_written":
+            event["files"] = _resign_report(run, key, event["files"], events[0]["run_id"], prev)
         if event["event"] == "sealed":
             event.update(key_fingerprint=fp, public_key=raw_public)
             payload = json.dumps({k: event.get(k) for k in SIGNED_FIELDS}, sort_keys=True,
@@ -113,6 +116,29 @@ def _resign(run: Path, events: list[dict], key: Ed25519PrivateKey) -> None:
         out += raw
         prev = hashlib.sha256(raw).hexdigest()
     _journal(run).write_bytes(out)
+
+
+def _resign_report(run: Path, key: Ed25519PrivateKey, files: dict, run_id: str,
+                   head: str) -> dict:
+    """Re-sign results.json (its ``signature`` block) and patch the HTML to match."""
+    path, html_path = run / "report/results.json", run / "report/report.html"
+    results = json.loads(path.read_text())
+    old = results.pop("signature")
+    unsigned = json.dumps(results, indent=2).encode() + b"\n"
+    block = {"run_id": run_id, "chain_head": head,
+             "results_sha256": hashlib.sha256(unsigned).hexdigest(),
+             "key_fingerprint": fingerprint(key.public_key()),
+             "public_key": base64.b64encode(key.public_key().public_bytes_raw()).decode()}
+    payload = json.dumps({"purpose": "gyrocal report", **block}, sort_keys=True,
+                         separators=(",", ":")).encode()
+    block["signature"] = base64.b64encode(key.sign(payload)).decode()
+    results["signature"] = {"signed": True, **block}
+    path.write_bytes(json.dumps(results, indent=2).encode() + b"\n")
+    html = html_path.read_text()
+    for name in ("key_fingerprint", "chain_head", "results_sha256", "signature"):
+        html = html.replace(str(old[name]), str(block[name]))
+    html_path.write_text(html)
+    return dict(files, **{"report/results.json": _sha(path), "report/report.html": _sha(html_path)})
 
 
 def _sha(path: Path) -> str:
@@ -367,6 +393,24 @@ def t_seals_and_key_name_stripped_and_rechained(run):
     _write_rechained(run, events)
 
 
+def _rewrite_results_and_rechain(run: Path, change: Callable[[dict], None]) -> None:
+    path = run / "report/results.json"
+    _edit_json(path, change)
+    events = _events(run)
+    for e in events:
+        if e["event"] == "report_written":
+            e["files"]["report/results.json"] = _sha(path)
+    _write_rechained(run, events)
+
+
+def t_report_signature_stripped_and_rechained(run):
+    _rewrite_results_and_rechain(run, lambda r: r.update(signature={"signed": False}))
+
+
+def t_report_signature_moved_to_another_head_and_rechained(run):
+    _rewrite_results_and_rechain(run, lambda r: r["signature"].update(chain_head="0" * 64))
+
+
 def t_wall_times_shifted_and_rechained(run):
     events = _events(run)
     for e in events:
@@ -484,7 +528,21 @@ def test_report_shows_the_signing_key(signed_run, keys):
     assert keys.fingerprint in html
     assert "&lt;built-in method" not in html and "<built-in method" not in html
     results = json.loads((signed_run / "report/results.json").read_text())
-    assert results["signature"] == {"key_fingerprint": keys.fingerprint, "signed": True}
+    block = results.pop("signature")
+    assert block["signed"] is True and block["key_fingerprint"] == keys.fingerprint
+    assert block["signature"] in html and block["chain_head"] in html
+    # Checked here from the documented format with the station's PEM, not with verify's code:
+    # the head is the line report_written chains to, the digest is results.json unsigned.
+    report_line = next(e for e in reversed(_events(signed_run)) if e["event"] == "report_written")
+    assert block["chain_head"] == report_line["prev_sha256"]
+    unsigned = json.dumps(results, indent=2).encode() + b"\n"
+    assert block["results_sha256"] == hashlib.sha256(unsigned).hexdigest()
+    station = serialization.load_pem_public_key(keys.public.read_bytes())
+    payload = {"purpose": "gyrocal report",
+               **{k: block[k] for k in ("run_id", "chain_head", "results_sha256",
+                                        "key_fingerprint", "public_key")}}
+    station.verify(base64.b64decode(block["signature"]),
+                   json.dumps(payload, sort_keys=True, separators=(",", ":")).encode())
 
 
 def test_a_rebuilt_report_is_sealed_again_and_verifies(signed_run, keys, tmp_path):
