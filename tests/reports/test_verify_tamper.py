@@ -302,14 +302,18 @@ def t_results_edited(run):
     _edit_json(run / "report/results.json", lambda r: r["scale_factor_ls"].update(sf=1.0))
 
 
-def t_results_edited_and_report_hash_rechained(run):
+def _rewrite_results_and_rechain(run: Path, change: Callable[[dict], None]) -> None:
     path = run / "report/results.json"
-    _edit_json(path, lambda r: r["scale_factor_ls"].update(sf=1.0))
+    _edit_json(path, change)
     events = _events(run)
     for e in events:
         if e["event"] == "report_written":
             e["files"]["report/results.json"] = _sha(path)
     _write_rechained(run, events)
+
+
+def t_results_edited_and_report_hash_rechained(run):
+    _rewrite_results_and_rechain(run, lambda r: r["scale_factor_ls"].update(sf=1.0))
 
 
 def t_results_edited_report_hash_rechained_and_resigned(run):
@@ -390,16 +394,6 @@ def t_seal_signature_garbled(run):
 def t_seals_and_key_name_stripped_and_rechained(run):
     events = [e for e in _events(run) if e["event"] != "sealed"]
     events[0].pop("signing_key", None)
-    _write_rechained(run, events)
-
-
-def _rewrite_results_and_rechain(run: Path, change: Callable[[dict], None]) -> None:
-    path = run / "report/results.json"
-    _edit_json(path, change)
-    events = _events(run)
-    for e in events:
-        if e["event"] == "report_written":
-            e["files"]["report/results.json"] = _sha(path)
     _write_rechained(run, events)
 
 
