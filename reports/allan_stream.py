@@ -249,7 +249,8 @@ def second_difference_totals(store: PhaseStore, m_values: np.ndarray,
     n_phase = store.n_phase
     m_values = np.asarray(m_values, dtype=np.int64)
     if isinstance(store, MemoryPhase):  # one window: the array is already here
-        block = window = max(block, -(-n_phase // TILE) * TILE)
+        block = max(block, -(-n_phase // TILE) * TILE)
+        window = block + 2 * int(m_values.max(initial=0))
     window = max(window, block)
     short = block + 2 * m_values <= window
     m_short, m_long = m_values[short], m_values[~short]

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import json
 import math
+import sys
+import time
 from pathlib import Path
 
 from gyrocal.models.gyro_model import dump_model, load_model
@@ -33,9 +35,17 @@ def run_discrepancy(model_path: str | Path, measured_path: str | Path, out_dir: 
     from gyrocal.reports.discrepancy.html import write_html
     from gyrocal.reports.discrepancy.workflow import analyse
 
+    started = time.monotonic()
+
+    def progress(line: str) -> None:
+        print(f"discrepancy [{time.monotonic() - started:6.1f} s] {line}", file=sys.stderr,
+              flush=True)
+
     model = load_model(model_path)
+    progress(f"reading {measured_path}")
     log = read_measured_log(measured_path)
-    result = analyse(model, log, seed=seed)
+    result = analyse(model, log, seed=seed, progress=progress)
+    progress("writing discrepancy.json, updated-model.yaml, discrepancy.html")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     document = _finite(result.to_json())

@@ -94,21 +94,50 @@ def _block_max(x: np.ndarray, step: int) -> np.ndarray:
 
 
 def _refine_sine(r: np.ndarray, t: np.ndarray, f0: float, fs_hz: float, n: int) -> tuple[float, float]:
-    """Frequency and amplitude of the best A·sin(2πft) within ±1 Fourier bin of ``f0``."""
+    """Frequency and amplitude of the best A·sin(2πft) within ±1 Fourier bin of ``f0``.
+
+    The record is demodulated once at f0 and summed in :data:`_REFINE_BLOCKS`
+    blocks; a trial frequency f0+δ then costs one pass over the block sums
+    instead of a sine over every sample (δ ≤ one bin turns the phase by at
+    most 2π/_REFINE_BLOCKS inside a block: a gain error of order 1e-8). A
+    10 M-sample record took 14 s per line with 62 full-length sines, now
+    well under a second. The amplitude found is re-estimated on the full
+    record by the caller (``workflow._final_periodic``).
+    """
     resolution = fs_hz / n
+    tt = t - t[0]
+    z = r * np.exp(-2j * math.pi * f0 * tt)
+    blocks = min(_REFINE_BLOCKS, n)
+    starts = np.linspace(0, n, blocks + 1).astype(np.int64)[:-1]
+    z_blocks = np.add.reduceat(z, starts)
+    t_blocks = np.add.reduceat(tt, starts) / np.diff(np.append(starts, n))
     best = (f0, 0.0, -1.0)
     grid = np.linspace(f0 - resolution, f0 + resolution, 41)
     for _ in range(2):
         for freq in grid:
-            s = np.sin(2.0 * math.pi * freq * t)
-            ss = float(s @ s)
-            sr = float(s @ r)
+            total = np.exp(-2j * math.pi * freq * t[0]) * np.sum(
+                z_blocks * np.exp(-2j * math.pi * (freq - f0) * t_blocks))
+            sr = -float(total.imag)                   # Σ r·sin(2πf t)
+            ss = _sum_sin_squared(freq, t, fs_hz)
             gain = sr * sr / ss
             if gain > best[2]:
                 best = (float(freq), sr / ss, gain)
         half = grid[1] - grid[0]
         grid = np.linspace(best[0] - half, best[0] + half, 21)
     return best[0], best[1]
+
+
+#: Block sums used by the frequency refinement (see _refine_sine).
+_REFINE_BLOCKS = 65536
+
+
+def _sum_sin_squared(freq: float, t: np.ndarray, fs_hz: float) -> float:
+    """Σ sin²(2πf t_k) for evenly spaced t (closed form), n/2 − ½·Re Σ e^{i4πf t_k}."""
+    n = t.size
+    step = 4.0 * math.pi * freq / fs_hz
+    ratio = np.exp(1j * step)
+    geometric = complex(n) if abs(1.0 - ratio) < 1e-12 else (1.0 - ratio**n) / (1.0 - ratio)
+    return float(0.5 * n - 0.5 * (np.exp(1j * 4.0 * math.pi * freq * t[0]) * geometric).real)
 
 
 def sine_dph(freq_hz: float, amplitude_dph: float, t_s: np.ndarray) -> np.ndarray:

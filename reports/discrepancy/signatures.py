@@ -21,7 +21,7 @@ import numpy as np
 
 from gyrocal.models.effects import EFFECTS
 from gyrocal.models.gyro_model import EffectSpec, GyroModel
-from gyrocal.models.indicated import ModelInputs, indicated_rate
+from gyrocal.models.indicated import ModelInputs, indicated_rate, input_history
 from gyrocal.reports.discrepancy.segments import Bins
 
 #: The model's own parameters that are always refitted (the issue: bias, SF, tempcos).
@@ -139,10 +139,11 @@ class DesignBuilder:
     def __init__(self, inputs: ModelInputs, bins: Bins) -> None:
         self.inputs = inputs
         self.bins = bins
+        self.history = input_history(inputs)  # the same for every model: computed once
 
     def rate_dph(self, model: GyroModel) -> np.ndarray:
         """Full-rate noise-free indicated rate, deg/h."""
-        return indicated_rate(model, self.inputs).rate_dps * 3600.0
+        return indicated_rate(model, self.inputs, history=self.history).rate_dps * 3600.0
 
     def design(self, model: GyroModel) -> Design:
         zeroed = zero_linear(model)

@@ -22,6 +22,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -296,20 +297,27 @@ def _signals(analysis: _Analysis, model: GyroModel) -> dict[str, np.ndarray]:
 
 
 def analyse(model: GyroModel, log: MeasuredLog, seed: int = 0, n_null: int = 500,
-            max_effects: int = 3, max_bins: int = 2000) -> DiscrepancyResult:
+            max_effects: int = 3, max_bins: int = 2000,
+            progress: Callable[[str], None] | None = None) -> DiscrepancyResult:
     """Run the whole workflow on a measured log; see the module docstring.
 
     ``seed`` makes the simulated threshold calibration reproducible;
     ``n_null`` is the number of effect-free datasets it simulates;
-    ``max_bins`` bounds the size of the GLS (bins are at least 1 s).
+    ``max_bins`` bounds the size of the GLS (bins are at least 1 s);
+    ``progress`` receives a line as each pass starts (the command prints them on stderr).
     """
     with single_threaded_blas():
-        return _analyse(model, log, seed, n_null, max_effects, max_bins)
+        return _analyse(model, log, seed, n_null, max_effects, max_bins,
+                        progress or (lambda _line: None))
 
 
 def _analyse(model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
-             max_effects: int, max_bins: int) -> DiscrepancyResult:
+             max_effects: int, max_bins: int, progress: Callable[[str], None]
+             ) -> DiscrepancyResult:
+    progress(f"segments and bins of {len(log.t_s):,} samples")
     analysis = _Analysis(model, log, seed, n_null, max_bins)
+    progress(f"noise model from {len(analysis.segments.quiet_slices(analysis.fs_hz))} quiet "
+             "segments")
     notes: list[str] = []
     prior = NoiseModel.of_model(model)
     # the first refit only feeds the quiet-segment noise estimate: ordinary least squares will do
@@ -355,6 +363,8 @@ def _analyse(model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
     preempted: StepProbe | None = None
     fit = analysis.fit(current)
     for iteration in range(1, max_effects + 1):
+        progress(f"effect search, round {iteration}: scoring the catalogue, {analysis.n_null} "
+                 "simulated effect-free datasets for the threshold")
         scores = score_library(analysis.builder, fit, analysis.whitener, analysis.y_bins, analysis.space)
         if log.sensor_temp_c is not None:
             scores.pop("thermal_lag", None)
@@ -402,6 +412,7 @@ def _analyse(model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
         fit = analysis.fit(current)
         found.append(FoundEffect(accepted, {}, probability, rivals, experiment, score, delta, threshold))
 
+    progress("gap metrics before and after")
     after = analysis.fit(current)
     updated = _final_periodic(analysis, after)
     if updated is not after.model:
