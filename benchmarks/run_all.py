@@ -15,6 +15,7 @@ BENCHMARKS = [
     ["bench_report.py"],
     ["bench_dry_run.py"],
     ["bench_discrepancy.py"],
+    ["bench_discrepancy_overnight.py"],
 ]
 
 
