@@ -9,6 +9,8 @@ lives in its own module; this file only routes.
 from __future__ import annotations
 
 import argparse
+import errno
+import signal
 import sys
 from collections.abc import Callable, Sequence
 
@@ -33,7 +35,7 @@ def _bad_input_types() -> tuple[type[BaseException], ...]:
     types: list[type[BaseException]] = [BadInput, ModelError, RunFolderError, FileNotFoundError,
                                         IsADirectoryError, NotADirectoryError]
     for module, name in (
-        ("gyrocal.orchestrator.yaml_source", "ProcedureError"),
+        ("gyrocal.inputs", "InputError"),
         ("gyrocal.orchestrator.procedure", "ProcedureError"),
         ("gyrocal.reports.measured_log", "LogFormatError"),
         ("gyrocal.orchestrator.signing", "SigningKeyError"),
@@ -171,9 +173,29 @@ def _lazy(module: str, name: str) -> Callable[[argparse.Namespace], int]:
     return call
 
 
+def _terminate(signum: int, frame: object) -> None:
+    """SIGTERM before the engine installs its own handlers: the same path as Ctrl-C."""
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+#: Disk full or over quota: the run stopped (the engine put the rig in its safe state
+#: before re-raising); free space and resume.
+_DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    # Installed before anything is loaded or moved: a SIGTERM in the first
+    # milliseconds ends as cleanly (exit 3, no traceback) as one during a run.
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        return _dispatch(args)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _dispatch(args: argparse.Namespace) -> int:
     try:
         return args.func(args)
     except KeyboardInterrupt:
@@ -182,13 +204,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:
         if args.debug:
             raise
+        if isinstance(exc, OSError) and exc.errno in _DISK_FULL:
+            print(f"gyrocal: fault: disk full ({exc.strerror}: {exc.filename or 'a write'}); "
+                  "nothing recorded is lost (every journal line is fsynced); free space, then "
+                  "`gyrocal resume RUN_DIR` continues a run", file=sys.stderr)
+            return EXIT_FAULT
         if isinstance(exc, _bad_input_types()):
             print(f"gyrocal: error: {exc}", file=sys.stderr)
             return EXIT_BAD_INPUT
         if isinstance(exc, _fault_types()):
             print(f"gyrocal: fault: {exc}", file=sys.stderr)
             return EXIT_FAULT
-        raise
+        # Never a traceback: a bug still ends with a clear line and the fault code.
+        print(f"gyrocal: internal error: {type(exc).__name__}: {exc} "
+              "(run again with --debug for the traceback)", file=sys.stderr)
+        return EXIT_FAULT
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@ from typing import Any
 
 import yaml
 
+from gyrocal.inputs import InputError, format_key_path, load_yaml
 from gyrocal.models.effects import EFFECTS
 
 SUPPORTED_VERSIONS = (1,)
@@ -120,17 +121,6 @@ class _Where:
         where = f"{self.source}:{line}" if line is not None else self.source
         key = format_key_path(path)
         return ModelError(f"{where}: {key}: {message}" if key else f"{where}: {message}")
-
-
-def format_key_path(path: tuple) -> str:
-    """``("effects", 1, "tau_s")`` -> ``effects[1].tau_s``: how every input error names a field."""
-    text = ""
-    for part in path:
-        if isinstance(part, int):
-            text += f"[{part}]"
-        else:
-            text += f".{part}" if text else str(part)
-    return text
 
 
 def _number(value: Any, path: tuple, where: _Where) -> float:
@@ -262,39 +252,21 @@ def parse_model(data: Any, source: str = "<model>", lines: dict[tuple, int] | No
     )
 
 
-def _node_lines(node: yaml.Node | None, path: tuple = (), out: dict | None = None) -> dict[tuple, int]:
-    """Map each key path to the 1-based line where it appears (key line for mappings)."""
-    out = {} if out is None else out
-    if isinstance(node, yaml.MappingNode):
-        for key_node, value_node in node.value:
-            key = key_node.value
-            out[(*path, key)] = key_node.start_mark.line + 1
-            _node_lines(value_node, (*path, key), out)
-    elif isinstance(node, yaml.SequenceNode):
-        for i, item in enumerate(node.value):
-            out[(*path, i)] = item.start_mark.line + 1
-            _node_lines(item, (*path, i), out)
-    if node is not None and path == ():
-        out.setdefault((), node.start_mark.line + 1)
-    return out
-
-
 def load_model(path: str | Path) -> GyroModel:
-    """Read and validate a model file; every error names the file, line and key path."""
-    path = Path(path)
+    """Read and validate a model file; every error names the file, line and key path.
+
+    Read through the one input layer (``gyrocal.inputs``): regular files only,
+    size and nesting limits, alias bombs and duplicate keys refused.
+    """
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ModelError(f"{path}: cannot read model file: {exc.strerror or exc}") from None
-    try:
-        data = yaml.safe_load(text)
-        lines = _node_lines(yaml.compose(text, Loader=yaml.SafeLoader))
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"{path}:{mark.line + 1}" if mark is not None else str(path)
-        problem = getattr(exc, "problem", None) or str(exc)
-        raise ModelError(f"{where}: invalid YAML: {problem}") from None
-    return parse_model(data, str(path), lines)
+        document = load_yaml(path)
+    except InputError as exc:
+        # A file that cannot be read at all (no line) says so in the model's words.
+        raise ModelError("\n".join(
+            f"{p.file}: cannot read model file: {p.message}" if p.line is None and not p.path
+            else str(p) for p in exc.problems)) from None
+    lines = {key: location.line for key, location in document.locations.items()}
+    return parse_model(document.data, document.file, lines)
 
 
 # --------------------------------------------------------------------------- writing

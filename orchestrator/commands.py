@@ -34,6 +34,7 @@ from gyrocal.orchestrator.journal import sha256_file
 from gyrocal.orchestrator.locks import FileLock, instrument_locks, run_folder_lock
 from gyrocal.orchestrator.plan import Plan, expand_plan, format_plan
 from gyrocal.orchestrator.plan_record import write_plan_record
+from gyrocal.orchestrator.problems import ProcedureError
 from gyrocal.orchestrator.procedure import Procedure, load_procedure
 from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.run_folder import IDENTITY_KEYS, RunFolder, new_run_id
@@ -46,7 +47,6 @@ from gyrocal.orchestrator.signing import (
     signer_from,
 )
 from gyrocal.orchestrator.station import load_station
-from gyrocal.orchestrator.yaml_source import ProcedureError
 
 DEFAULT_SIM_STATION = Path("stations/sim.yaml")
 

@@ -7,47 +7,13 @@ one pass, each pointing at a file, a line and the field, in the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from gyrocal.inputs import InputError, KeyPath, Problem, format_path
 
-from gyrocal.models.gyro_model import format_key_path
+#: The orchestrator's long-standing name for bad input (exit 2); the class lives in
+#: the input layer, which the model files and measured logs share.
+ProcedureError = InputError
 
-KeyPath = tuple[str | int, ...]
-"""Where a value sits in a document: mapping keys (str) and list indices (int)."""
-
-
-def format_path(path: KeyPath) -> str:
-    """``("sequence", 2, "tests", 0)`` -> ``sequence[2].tests[0]`` (``""`` for the root).
-
-    The same spelling as model-file errors, so one convention runs through every input.
-    """
-    return format_key_path(path)
-
-
-@dataclass(frozen=True)
-class Problem:
-    """One thing wrong with an input file, located as precisely as the file allows."""
-
-    file: str
-    line: int | None
-    path: str
-    message: str
-
-    def __str__(self) -> str:
-        where = self.file if self.line is None else f"{self.file}:{self.line}"
-        return f"{where}: {self.path}: {self.message}" if self.path else f"{where}: {self.message}"
-
-
-class ProcedureError(Exception):
-    """Bad input (exit code 2): every problem found, so one edit round fixes them all."""
-
-    def __init__(self, problems: list[Problem]) -> None:
-        if not problems:
-            raise ValueError("ProcedureError needs at least one problem")
-        self.problems = list(problems)
-        super().__init__(str(self))
-
-    def __str__(self) -> str:
-        return "\n".join(str(problem) for problem in self.problems)
+__all__ = ["KeyPath", "Problem", "ProcedureError", "format_path", "sort_problems"]
 
 
 def sort_problems(problems: list[Problem]) -> list[Problem]:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from gyrocal.inputs import YamlDocument, load_yaml
 from gyrocal.orchestrator.metrics import METRICS, NEEDS_TEXT, units_match
 from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
 from gyrocal.orchestrator.schema import (
@@ -45,7 +46,6 @@ from gyrocal.orchestrator.units import (
     describe,
     format_number,
 )
-from gyrocal.orchestrator.yaml_source import YamlDocument, load_yaml
 
 PROCEDURE_VERSION = 1
 OUTPUT_UNITS = ("deg/s", "deg/h", "rad/s", "V", "LSB")

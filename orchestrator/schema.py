@@ -16,6 +16,7 @@ import difflib
 from collections.abc import Callable, Iterable
 from typing import Any, TypeVar
 
+from gyrocal.inputs import YamlDocument
 from gyrocal.orchestrator.problems import KeyPath, Problem
 from gyrocal.orchestrator.units import (
     Dimension,
@@ -28,7 +29,6 @@ from gyrocal.orchestrator.units import (
     parse_quantity,
     shown,
 )
-from gyrocal.orchestrator.yaml_source import YamlDocument
 
 T = TypeVar("T")
 Converter = Callable[[object], Any]

@@ -15,6 +15,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from gyrocal.inputs import load_yaml
 from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
 from gyrocal.orchestrator.schema import (
     Context,
@@ -38,7 +39,6 @@ from gyrocal.orchestrator.units import (
     UnitError,
     format_number,
 )
-from gyrocal.orchestrator.yaml_source import load_yaml
 
 STATION_VERSION = 1
 CHAMBER_DRIVERS = ("watlow_f4", "watlow_f4t")

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrocal.inputs import check_text_head, require_regular_file
 from gyrocal.reports.allan_stream import RateBlocks
 from gyrocal.reports.measured_log import LogFormatError
 
@@ -95,8 +96,14 @@ class _File:
     def __init__(self, path: Path, column: str | None) -> None:
         self.path = path
         suffix = path.suffix.lower()
-        if not path.is_file():
+        if not path.exists():
             raise LogFormatError(f"{path}: no such file")
+        # Through the input layer: a FIFO or device is refused without a read, a
+        # binary file named as a CSV is refused before a byte of it is echoed.
+        if suffix in (".csv", ".txt", ".dat"):
+            check_text_head(path, what="a CSV log")
+        else:
+            require_regular_file(path)
         if suffix in (".parquet", ".pq"):
             self.kind = "parquet"
             import pyarrow.parquet as pq
@@ -147,6 +154,10 @@ class _File:
                 yield self._arrays(batch, wanted)
         except pa.ArrowInvalid as exc:
             raise LogFormatError(self._locate_bad_cell(wanted, exc)) from None
+        except pa.ArrowKeyError:   # a header name with surrounding spaces or quotes
+            raise LogFormatError(f"{self.path}: line 1: the header's column names cannot be "
+                                 f"matched ({', '.join(map(repr, wanted))}); write them plainly, "
+                                 "comma-separated") from None
 
     def _arrays(self, batch, wanted: list[str]) -> tuple[np.ndarray | None, np.ndarray]:
         rate = batch.column(wanted[0]).to_numpy(zero_copy_only=False).astype(np.float64)

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrocal.inputs import check_text_head, require_regular_file
+
 REQUIRED_COLUMNS = ("t_s", "table_rate_dps", "chamber_temp_c", "gyro")
 OPTIONAL_COLUMNS = ("sensor_temp_c", "table_angle_deg")
 
@@ -48,6 +50,12 @@ class MeasuredLog:
 def _read_columns(path: Path) -> tuple[dict[str, np.ndarray], int]:
     """Columns as float arrays and the row offset of the first data row (for messages)."""
     suffix = path.suffix.lower()
+    # Through the input layer: a FIFO, a device or a binary file is refused by name,
+    # never read forever and never echoed.
+    if suffix in (".csv", ".txt"):
+        check_text_head(path, what="a CSV log")
+    else:
+        require_regular_file(path)
     if suffix in (".parquet", ".pq"):
         import pyarrow.parquet as pq
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import stats
 
-from gyrocal.models.gyro_model import EffectSpec, GyroModel
+from gyrocal.models.gyro_model import EffectSpec, GyroModel, ModelError
 from gyrocal.models.indicated import ModelInputs, indicated_rate
 from gyrocal.reports.discrepancy.blas import single_threaded_blas
 from gyrocal.reports.discrepancy.gap import (
@@ -203,10 +203,17 @@ class _Analysis:
         self.whitener: Whitener | None = None
         self.noise: NoiseModel | None = None
 
-    def use_noise(self, noise: NoiseModel) -> None:
+    def use_noise(self, noise: NoiseModel, model_name: str = "the gyro model") -> None:
         self.noise = noise
         cov = noise.bin_covariance(self.bins.centre_s, self.bins.width_s,
                                    self.bins.samples_per_bin, self.fs_hz)
+        if not np.all(np.isfinite(cov)) or not np.all(np.diag(cov) > 0):
+            # A valid model may leave out `noise:`; with too little quiet data to measure
+            # it, no significance can be judged: say so rather than fail in the algebra.
+            raise ModelError(
+                f"{model_name}: the model has no noise terms (noise: block missing or "
+                "all zero) and the measured log has too little quiet data to estimate them; "
+                "add the gyro's noise: block (gyro-model.md) to the model file")
         self.whitener = Whitener(cov)
 
     def fit(self, model: GyroModel) -> Fit:
@@ -344,7 +351,7 @@ def _analyse(model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
                      f"multiples of a {lattice.pulse_arcsec:.4g}\" pulse ({lattice.levels} output "
                      "levels): found from the output lattice, not scored by χ²; lines whose angle "
                      "amplitude is within two pulses are its beat, not interference")
-    analysis.use_noise(noise)
+    analysis.use_noise(noise, f"model {model.name or '(unnamed)'}")
     notes.append(f"noise model: {noise_est.source}")
 
     if noise.has_markov and not model.has_effect("markov_bias"):

@@ -178,7 +178,7 @@ def test_required_keys_and_version(tmp_path, text, expected):
 def test_invalid_yaml_names_the_line(tmp_path):
     message = load_error(tmp_path, "version: 1\nscale_factor: 1\nnoise: {arw_deg_per_rth: 0.1\n")
     assert message.startswith(f"{tmp_path / 'x.yaml'}:")
-    assert "invalid YAML" in message
+    assert "malformed YAML" in message   # the one loader's spelling (gyrocal.inputs)
 
 
 def test_missing_file_is_a_model_error(tmp_path):

@@ -5,7 +5,8 @@ import textwrap
 
 import pytest
 
-from gyrocal.orchestrator.yaml_source import ProcedureError, load_yaml
+from gyrocal.inputs import InputError as ProcedureError
+from gyrocal.inputs import load_yaml
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -112,7 +113,7 @@ def test_missing_file_and_non_utf8_file(tmp_path):
     binary = tmp_path / "bin.yaml"
     binary.write_bytes(b"name: \xff\xfe\n")
     [problem] = problems_of(binary)
-    assert problem.startswith(f"{binary}: cannot read the file: ")
+    assert problem.startswith(f"{binary}:1: cannot read the file: not UTF-8 text")
 
 
 def test_recursive_alias_and_alias_bomb_do_not_hang(tmp_path):

@@ -1,12 +1,27 @@
-"""Safe YAML loading that remembers where every value came from.
+"""The one input layer: every file a user hands gyrocal is read here, within limits.
+
+Procedures, stations, gyro-model files, measured logs and run folders come
+from people and other programs, so a file may be anything: a FIFO that never
+ends (``station: /tmp/pipe``), a device (``/dev/zero``), a binary, a private
+file that must not be echoed in an error, a ten-line YAML "alias bomb" that
+expands to gigabytes, or nesting deep enough to exhaust Python's stack. The
+limits below turn each of those into one clear :class:`InputError` (exit 2)
+naming the file and line, never a hang, a traceback or the file's contents:
+
+* regular files only, opened non-blocking and checked with ``fstat`` (a FIFO
+  or a device is refused without reading a byte);
+* a size limit for YAML documents, readable UTF-8 text, no NUL bytes;
+* nesting depth and total expanded values bounded (alias bombs);
+* duplicate keys, non-scalar keys and non-standard tags rejected with the
+  line where they are.
+
+This module depends on PyYAML and the standard library only, so every layer
+(the physics in ``models`` included) loads its files through it.
 
 ``yaml.safe_load`` throws the node marks away, so a schema error could only
 say *what* is wrong, not *where*. Here the document is composed with
 ``yaml.SafeLoader`` and turned into plain data by hand, recording the file and
-line of every key path (``sequence[2].tests[0].rates_dps[3]``). On the way it
-rejects what ``safe_load`` silently accepts but an operator never means:
-duplicate keys (the second would win without a word), non-scalar keys and
-tags other than the standard ones.
+line of every key path (``sequence[2].tests[0].rates_dps[3]``).
 
 ``!include other.yaml`` splices another file in place of a value. Includes
 are resolved relative to the including file and may not leave the folder of
@@ -17,6 +32,7 @@ a run's manifest is self-contained.
 from __future__ import annotations
 
 import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,7 +40,177 @@ from typing import Any
 import yaml
 from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
-from gyrocal.orchestrator.problems import KeyPath, Problem, ProcedureError, format_path
+KeyPath = tuple[str | int, ...]
+"""Where a value sits in a document: mapping keys (str) and list indices (int)."""
+
+#: A procedure, station or model file is a few kilobytes; 4 MiB is generous and
+#: keeps a mistaken multi-gigabyte file from being read at all.
+MAX_YAML_BYTES = 4 * 1024 * 1024
+#: Deeper than any real document; far below what exhausts Python's stack.
+MAX_DEPTH = 64
+#: How much of a CSV log is checked for being text before it is parsed.
+TEXT_HEAD_BYTES = 64 * 1024
+
+
+def format_key_path(path: tuple) -> str:
+    """``("effects", 1, "tau_s")`` -> ``effects[1].tau_s``: how every input error names a field."""
+    text = ""
+    for part in path:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        else:
+            text += f".{part}" if text else str(part)
+    return text
+
+
+format_path = format_key_path
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One thing wrong with an input file, located as precisely as the file allows."""
+
+    file: str
+    line: int | None
+    path: str
+    message: str
+
+    def __str__(self) -> str:
+        where = self.file if self.line is None else f"{self.file}:{self.line}"
+        return f"{where}: {self.path}: {self.message}" if self.path else f"{where}: {self.message}"
+
+
+class InputError(Exception):
+    """Bad input (exit code 2): every problem found, so one edit round fixes them all."""
+
+    def __init__(self, problems: list[Problem]) -> None:
+        if not problems:
+            raise ValueError("InputError needs at least one problem")
+        self.problems = list(problems)
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        return "\n".join(str(problem) for problem in self.problems)
+
+    @classmethod
+    def one(cls, file: str, message: str, line: int | None = None) -> InputError:
+        return cls([Problem(file, line, "", message)])
+
+
+# -- files -------------------------------------------------------------------------------
+
+def _kind_of(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def open_regular_file(path: str | os.PathLike[str], display: str | None = None) -> int:
+    """A read-only descriptor of ``path`` if it is a regular file; else :class:`InputError`.
+
+    Opened with ``O_NONBLOCK`` so a FIFO with no writer cannot hang the open; the
+    type is judged with ``fstat`` on what was actually opened (no check-then-open race).
+    """
+    display = os.fspath(path) if display is None else display
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    except FileNotFoundError:
+        raise InputError.one(display, "file not found") from None
+    except OSError as error:
+        raise InputError.one(display, f"cannot read the file: {error.strerror or error}") from None
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        raise InputError.one(display, f"is {_kind_of(mode)}; expected a regular file")
+    return fd
+
+
+def require_regular_file(path: str | os.PathLike[str], display: str | None = None) -> None:
+    os.close(open_regular_file(path, display))
+
+
+def _read_at_most(fd: int, limit: int) -> bytes:
+    chunks: list[bytes] = []
+    size = 0
+    while size <= limit:
+        chunk = os.read(fd, min(1 << 20, limit + 1 - size))
+        if not chunk:
+            break
+        chunks.append(chunk)
+        size += len(chunk)
+    return b"".join(chunks)
+
+
+def _check_text(data: bytes, display: str, what: str, truncated: bool) -> str:
+    """UTF-8 text without NUL bytes, or :class:`InputError` naming the line (never the bytes)."""
+    nul = data.find(b"\0")
+    if nul >= 0:
+        raise InputError.one(display, f"cannot read the file: a NUL byte (binary content); not {what}",
+                             data.count(b"\n", 0, nul) + 1)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        if truncated and error.start >= len(data) - 3 and error.reason == "unexpected end of data":
+            return data[:error.start].decode("utf-8")
+        raise InputError.one(display, f"cannot read the file: not UTF-8 text (byte {error.start}); not {what}",
+                             data.count(b"\n", 0, error.start) + 1) from None
+
+
+def read_text_file(path: str | os.PathLike[str], display: str | None = None, *,
+                   max_bytes: int = MAX_YAML_BYTES, what: str = "a YAML file") -> str:
+    """The whole file as text, within ``max_bytes``; every refusal is an :class:`InputError`."""
+    display = os.fspath(path) if display is None else display
+    fd = open_regular_file(path, display)
+    try:
+        data = _read_at_most(fd, max_bytes)
+    except OSError as error:
+        raise InputError.one(display, f"cannot read the file: {error.strerror or error}") from None
+    finally:
+        os.close(fd)
+    if len(data) > max_bytes:
+        raise InputError.one(display, f"larger than {max_bytes // 1024} KiB; not {what}?")
+    return _check_text(data, display, what, truncated=False)
+
+
+def check_text_head(path: str | os.PathLike[str], display: str | None = None, *,
+                    what: str = "a CSV log") -> None:
+    """A large text log: regular file, and its first bytes are text (binary is refused early)."""
+    display = os.fspath(path) if display is None else display
+    fd = open_regular_file(path, display)
+    try:
+        data = _read_at_most(fd, TEXT_HEAD_BYTES - 1)
+    finally:
+        os.close(fd)
+    _check_text(data, display, what, truncated=True)
+
+
+class _LimitedLoader(yaml.SafeLoader):
+    """SafeLoader whose composer refuses nesting deeper than :data:`MAX_DEPTH`.
+
+    PyYAML composes recursively: a few thousand ``[`` exhaust the stack. The
+    limit is checked on the way down, before any recursion can go deep.
+    """
+
+    def __init__(self, stream: str) -> None:
+        super().__init__(stream)
+        self._depth = 0
+
+    def compose_node(self, parent: Node | None, index: object) -> Node | None:
+        self._depth += 1
+        try:
+            if self._depth > MAX_DEPTH:
+                raise yaml.composer.ComposerError(
+                    None, None, f"nested deeper than {MAX_DEPTH} levels", self.peek_event().start_mark)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
 
 INCLUDE_TAG = "!include"
 MAX_INCLUDE_DEPTH = 8
@@ -75,18 +261,21 @@ class YamlDocument:
 
 
 def load_yaml(path: str | os.PathLike[str]) -> YamlDocument:
-    """Load ``path`` or raise :class:`ProcedureError` listing every problem found."""
+    """Load ``path`` or raise :class:`InputError` listing every problem found."""
     display = os.fspath(path)
     resolved = Path(display).resolve()
     builder = _Builder(root_dir=resolved.parent)
     document = YamlDocument(file=display, path=resolved, data=None)
     document.data = builder.load_file(resolved, display, (), document, stack=())
     if builder.problems:
-        raise ProcedureError(builder.problems)
+        raise InputError(builder.problems)
     return document
 
 
 def _describe_yaml_error(error: yaml.YAMLError) -> str:
+    if isinstance(error, yaml.reader.ReaderError):
+        return f"unprintable character #x{error.character:04x} (not a text YAML file?)" \
+            if isinstance(error.character, int) else "unreadable character"
     if isinstance(error, yaml.MarkedYAMLError):
         parts = [part for part in (error.context, error.problem) if part]
         return "malformed YAML: " + "; ".join(parts) if parts else "malformed YAML"
@@ -109,19 +298,15 @@ class _Builder:
         stack: tuple[Path, ...],
     ) -> Any:
         try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            self.problems.append(Problem(display, None, format_path(key_path), "file not found"))
-            return None
-        except (OSError, UnicodeDecodeError) as error:
-            reason = error.strerror if isinstance(error, OSError) and error.strerror else str(error)
-            self.problems.append(
-                Problem(display, None, format_path(key_path), f"cannot read the file: {reason}")
-            )
+            text = read_text_file(path, display)
+        except InputError as error:
+            self.problems.extend(
+                Problem(p.file, p.line, format_path(key_path), p.message) for p in error.problems)
             return None
         document.files.append(path)
-        loader = yaml.SafeLoader(text)
+        loader: _LimitedLoader | None = None
         try:
+            loader = _LimitedLoader(text)     # its reader rejects unprintable characters here
             node = loader.get_single_node()
             if node is None:
                 return None
@@ -129,10 +314,13 @@ class _Builder:
         except yaml.YAMLError as error:
             mark = getattr(error, "problem_mark", None) or getattr(error, "context_mark", None)
             line = mark.line + 1 if mark is not None else None
+            if isinstance(error, yaml.reader.ReaderError):
+                line = text.count("\n", 0, error.position) + 1
             self.problems.append(Problem(display, line, format_path(key_path), _describe_yaml_error(error)))
             return None
         finally:
-            loader.dispose()
+            if loader is not None:
+                loader.dispose()
 
     def include(
         self,
@@ -176,7 +364,7 @@ class _Builder:
     def build(
         self,
         node: Node,
-        loader: yaml.SafeLoader,
+        loader: _LimitedLoader,
         display: str,
         path: Path,
         key_path: KeyPath,
@@ -241,7 +429,7 @@ class _Builder:
     def build_mapping(
         self,
         node: MappingNode,
-        loader: yaml.SafeLoader,
+        loader: _LimitedLoader,
         display: str,
         path: Path,
         key_path: KeyPath,
@@ -288,4 +476,3 @@ class _Builder:
         return result
 
 
-__all__ = ["Location", "Problem", "ProcedureError", "YamlDocument", "load_yaml", "format_path"]
