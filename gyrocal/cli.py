@@ -14,18 +14,14 @@ import signal
 import sys
 from collections.abc import Callable, Sequence
 
-EXIT_OK = 0
-EXIT_ACCEPTANCE_FAILED = 1
-EXIT_BAD_INPUT = 2
-EXIT_FAULT = 3
-
-
-class BadInput(Exception):
-    """Raised by commands for input problems the user must fix (exit 2)."""
-
-
-class RunFault(Exception):
-    """Raised by commands when a run stopped on an instrument or run fault (exit 3)."""
+from gyrocal.errors import (  # noqa: F401 - re-exported: the names scripts already import
+    EXIT_ACCEPTANCE_FAILED,
+    EXIT_BAD_INPUT,
+    EXIT_FAULT,
+    EXIT_OK,
+    BadInput,
+    RunFault,
+)
 
 
 def _bad_input_types() -> tuple[type[BaseException], ...]:
@@ -150,7 +146,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=None)
     s.add_argument("--write-station", default=None,
                    help="write the station file with the live addresses here")
-    s.set_defaults(func=_lazy("gyrocal.instruments.sim.serve", "cmd_sim_serve"))
+    s.set_defaults(func=_lazy("gyrocal.orchestrator.sim_serve", "cmd_sim_serve"))
 
     p = sub.add_parser("demo", help="the dry run against simulated instruments")
     p.add_argument("--out", default=None)

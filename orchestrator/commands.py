@@ -19,7 +19,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from gyrocal.cli import EXIT_ACCEPTANCE_FAILED, EXIT_FAULT, EXIT_OK, BadInput
+from gyrocal.errors import EXIT_ACCEPTANCE_FAILED, EXIT_FAULT, EXIT_OK, BadInput
 from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments, open_instruments
 from gyrocal.models.clock import RealClock, SimClock, make_clock
@@ -408,10 +408,8 @@ def _report_simulator_crash(simulated: Any, journal) -> None:
 
 
 def _build_report(folder: RunFolder, signer: Signer | None) -> dict[str, Any]:
-    try:
-        from gyrocal.reports.build import build_report
-    except ImportError:
-        return {}
+    from gyrocal.reports.build import build_report
+
     # The engine holds the journal open; appending through it keeps the hash chain whole.
     return build_report(folder.path, journal=folder.open_journal(), signer=signer)
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrocal.cli import EXIT_ACCEPTANCE_FAILED, EXIT_OK
+from gyrocal.errors import EXIT_ACCEPTANCE_FAILED, EXIT_OK
 
 #: Factor from each ``--units`` to deg/h.
 TO_DPH = {"deg/s": 3600.0, "deg/h": 1.0, "rad/s": math.degrees(1.0) * 3600.0}
@@ -56,7 +56,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
 
 
 def cmd_analyze_allan(args: argparse.Namespace) -> int:
-    from gyrocal.cli import BadInput
+    from gyrocal.errors import BadInput
     from gyrocal.reports.allan_sources import open_record
     from gyrocal.reports.allan_summary import allan_curve_streamed, curve_json, fit_curve
     from gyrocal.reports.measured_log import LogFormatError

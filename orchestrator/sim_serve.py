@@ -7,6 +7,11 @@ The command prints each instrument's address and writes a copy of the
 station file with those addresses filled in, so that
 ``gyrocal run PROC.yaml --station THAT_FILE`` drives the simulators exactly
 as it would drive hardware.
+
+It lives with the orchestrator, not with the simulators: it reads a station
+file (an orchestrator concept) and starts ``instruments.sim`` servers, and
+the simulators must never import the layer that drives them
+(tests/test_layout.py checks the layering).
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from pathlib import Path
 
 import yaml
 
-from gyrocal.cli import EXIT_OK, BadInput, RunFault
+from gyrocal.errors import EXIT_OK, BadInput, RunFault
 from gyrocal.instruments.sim.station_sim import SimAddresses, SimulatedStation
 from gyrocal.models.clock import RealClock
 from gyrocal.orchestrator.station import load_station

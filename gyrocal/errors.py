@@ -1,0 +1,22 @@
+"""Exit codes and the two exceptions every command uses: one home, imported by all layers.
+
+interfaces.md: 0 success · 1 a result failed its acceptance limits · 2 bad
+input (file, option, schema), with a message naming the file, line and
+field · 3 an instrument or run fault (the run left safe and resumable).
+This module imports nothing of ours, so the drivers, the orchestrator and the
+reports can all raise these without importing the command line (which would
+tie every layer to the one above it).
+"""
+
+EXIT_OK = 0
+EXIT_ACCEPTANCE_FAILED = 1
+EXIT_BAD_INPUT = 2
+EXIT_FAULT = 3
+
+
+class BadInput(Exception):
+    """An input problem the user must fix (exit 2); the message names file, line and field."""
+
+
+class RunFault(Exception):
+    """A run stopped on an instrument or run fault (exit 3); the rig was left safe."""
