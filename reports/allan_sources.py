@@ -293,6 +293,7 @@ def _rate_from_time(file: _File) -> float:
 
 def open_run_folder(run_dir: Path, column: str | None = None) -> RateRecord:
     """The longest completed static/allan hold of a run folder, streamed from its chunks."""
+    from gyrocal.orchestrator.logged_steps import longest_hold
     from gyrocal.orchestrator.plan_record import read_plan_record
     from gyrocal.orchestrator.run_folder import RunFolder
 
@@ -301,13 +302,9 @@ def open_run_folder(run_dir: Path, column: str | None = None) -> RateRecord:
         steps = read_plan_record(run_dir).get("steps", [])
     except (OSError, ValueError) as exc:
         raise LogFormatError(f"{run_dir}: plan.json unreadable: {exc}") from None
-    holds = {s["step_id"] for s in steps if s.get("kind") in ("static", "allan")}
-    completed = [e for e in folder.journal_events()
-                 if e.get("event") == "step_completed" and e.get("step_id") in holds
-                 and e.get("chunks")]
-    if not completed:
+    longest = longest_hold(steps, folder.journal_events())
+    if longest is None:
         raise LogFormatError(f"{run_dir}: no completed static or allan hold to analyse")
-    longest = max(completed, key=lambda e: int(e.get("samples", 0)) or len(e["chunks"]))
     paths = [run_dir / rel for rel in longest["chunks"]]
     record = open_log_files(paths, column or "gyro")
     return RateRecord(f"{run_dir} step {longest['step_id']}", record.column, record.n_samples,

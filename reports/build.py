@@ -36,8 +36,10 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from gyrocal.models.rate_units import output_to_dph
 from gyrocal.orchestrator.atomic import write_bytes_atomic
 from gyrocal.orchestrator.journal import Journal, sha256_bytes
+from gyrocal.orchestrator.logged_steps import HOLD_KINDS, completed_attempts, longest_hold
 from gyrocal.orchestrator.plan_record import PLAN_RECORD
 from gyrocal.orchestrator.run_folder import RunFolder, RunFolderError
 from gyrocal.orchestrator.signing import Signer
@@ -52,7 +54,6 @@ REFERENCE_TEMP_C = 25.0
 REPORT_DIR = "report"
 RESULTS_FILE = "report/results.json"
 HTML_FILE = "report/report.html"
-HOLD_KINDS = ("static", "allan")
 _READ_COLUMNS = ["gyro", "sensor_temp_c", "chamber_temp_c"]
 _JOURNAL_SHOWN = ("retry", "fault", "step_bad", "interrupted", "safe_state", "resumed",
                   "restore_conditions")
@@ -95,15 +96,6 @@ def _read_plan(folder: RunFolder) -> dict[str, Any]:
         return json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise RunFolderError(f"{path}: not valid JSON: {exc}") from None
-
-
-def completed_attempts(events: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
-    """step_id → its last step_completed event that logged chunks (a repeat supersedes)."""
-    done: dict[str, dict[str, Any]] = {}
-    for event in events:
-        if event.get("event") == "step_completed" and event.get("chunks"):
-            done[event["step_id"]] = event
-    return done
 
 
 def _read_columns(folder: RunFolder, chunks: list[str]) -> dict[str, np.ndarray]:
@@ -149,8 +141,8 @@ def read_run(run_dir: Path, notes: list[str]) -> RunData:
     fs_hz = float(data.plan["sample_rate_hz"])
     plan_steps = {s["step_id"]: s for s in data.plan.get("steps", [])}
     done = completed_attempts(data.events)
-    holds = [sid for sid in done if plan_steps.get(sid, {}).get("kind") in HOLD_KINDS]
-    longest = max(holds, key=lambda sid: int(done[sid].get("samples") or 0), default=None)
+    hold = longest_hold(data.plan.get("steps", []), data.events)
+    longest = None if hold is None else hold["step_id"]
     for step_id, event in done.items():
         step = plan_steps.get(step_id)
         if step is None:
@@ -237,13 +229,13 @@ def _bias(data: RunData, sf_results: list[ScaleFactorResult], nominal_sf: float,
         if temp in holds:
             members = holds[temp]
             mean = sum(s.output_mean * s.n_used for s in members) / sum(s.n_used for s in members)
-            value, source = mean / sf * 3600.0 - earth_dph, "static"
+            value, source = float(output_to_dph(mean, sf)) - earth_dph, "static"
             if sf_result is None:
                 notes.append(f"bias at {temp:g} °C uses the nominal scale factor {nominal_sf:g} "
                              "(no sweep at that temperature)")
             sensor = _weighted_temp(members, "sensor_temp_c")
         else:
-            value = sf_result.bias / sf * 3600.0 - earth_dph
+            value = float(output_to_dph(sf_result.bias, sf)) - earth_dph
             source, sensor = "sweep_intercept", None
         points.append({"temp_c": temp, "bias_dph": value, "source": source,
                        "sensor_temp_c": sensor})
@@ -275,7 +267,7 @@ def _allan(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any]
         notes.append("allan: no static or allan hold was logged")
         return None
     fs_hz = float(data.plan["sample_rate_hz"])
-    rate_dph = data.allan_output / nominal_sf * 3600.0
+    rate_dph = output_to_dph(data.allan_output, nominal_sf)
     step = data.allan_step.step
     try:
         curve = allan_curve(rate_dph, fs_hz)

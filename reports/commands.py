@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from gyrocal.errors import EXIT_ACCEPTANCE_FAILED, EXIT_OK
+from gyrocal.models.rate_units import output_to_dph
 
 #: Factor from each ``--units`` to deg/h.
-TO_DPH = {"deg/s": 3600.0, "deg/h": 1.0, "rad/s": math.degrees(1.0) * 3600.0}
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -66,7 +66,7 @@ def cmd_analyze_allan(args: argparse.Namespace) -> int:
     if args.rate_hz is not None and not (args.rate_hz > 0 and math.isfinite(args.rate_hz)):
         raise BadInput(f"--rate-hz: must be a positive number, got {args.rate_hz!r}")
     record = open_record(args.log, args.column, args.rate_hz)
-    to_dph = TO_DPH[args.units] / args.scale_factor
+    to_dph = float(output_to_dph(1.0, args.scale_factor, args.units))
 
     def rate_dph():
         for block in record.blocks():

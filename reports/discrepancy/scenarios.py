@@ -27,6 +27,7 @@ import numpy as np
 from gyrocal.models.gyro_model import EffectSpec, GyroModel, parse_model
 from gyrocal.models.gyro_sim import GyroSamples, simulate
 from gyrocal.models.indicated import ModelInputs
+from gyrocal.models.rate_units import dph_to_output
 from gyrocal.reports.discrepancy.noise_model import NoiseModel
 from gyrocal.reports.discrepancy.scoring import Whitener, gls_fit
 from gyrocal.reports.discrepancy.segments import make_bins
@@ -197,7 +198,7 @@ def simulate_log(profile: Profile, hidden: list[EffectSpec], seed: int,
         truth = truth.with_effect(spec)
     samples = simulate(truth, profile.t_s, profile.table_rate_dps, profile.chamber_temp_c, seed=seed)
     if extra_dph is not None:
-        samples = replace(samples, gyro=samples.gyro + truth.scale_factor * extra_dph / 3600.0)
+        samples = replace(samples, gyro=samples.gyro + dph_to_output(extra_dph, truth.scale_factor))
     return samples
 
 

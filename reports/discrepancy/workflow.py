@@ -30,6 +30,7 @@ from scipy import stats
 
 from gyrocal.models.gyro_model import EffectSpec, GyroModel, ModelError
 from gyrocal.models.indicated import ModelInputs, indicated_rate
+from gyrocal.models.rate_units import output_to_dph
 from gyrocal.reports.discrepancy.blas import single_threaded_blas
 from gyrocal.reports.discrepancy.gap import (
     Metric,
@@ -194,7 +195,7 @@ class _Analysis:
             raise LogFormatError(f"{log.source}: {exc}") from None
         self.segments = derive_segments(log.t_s, log.table_rate_dps, log.chamber_temp_c, log.segment)
         self.builder = DesignBuilder(self.inputs, self.bins)
-        self.y_full = np.asarray(log.gyro, dtype=float) / model.scale_factor * 3600.0
+        self.y_full = output_to_dph(log.gyro, model.scale_factor)
         self.y_bins = self.bins.mean(self.y_full)
         self.space = SearchSpace(float(log.t_s[-1] - log.t_s[0]), self.bins.width_s,
                                  rate_levels(log.table_rate_dps, self.fs_hz))
