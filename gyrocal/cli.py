@@ -105,7 +105,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("run_dir")
     p.add_argument("--key", default=None,
                    help="the station's public key (PEM): check authenticity, not only integrity")
+    p.add_argument("--ledger", default=None,
+                   help="the station ledger (beside its key): the run must end where it says")
     p.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_verify"))
+
+    p = sub.add_parser("ledger", help="audit the station ledger: every sealed run still there "
+                       "and unchanged")
+    p.add_argument("ledger", help="e.g. /secure/station-keys/station.ledger.jsonl")
+    p.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_ledger"))
 
     p = sub.add_parser("keys", help="generate the station's Ed25519 signing key pair")
     p.add_argument("--out", default="keys", help="folder for NAME.key (mode 0600) and NAME.pub")

@@ -7,7 +7,8 @@ hold closes that gap: the station keeps the private key (readable only by the
 operator account), every writer of a run folder ends its session with a
 ``sealed`` journal event carrying the signature over the head, and
 ``gyrocal verify RUN_DIR --key station.pub`` checks it against the public key
-QA trusts. The cryptography is the ``cryptography`` package's Ed25519 — no
+QA trusts. Each seal is also recorded in the station ledger beside the key
+(:mod:`gyrocal.orchestrator.ledger`), so a deleted or replaced run is noticed. The cryptography is the ``cryptography`` package's Ed25519 — no
 hand-written primitives.
 
 What a signature cannot do: someone holding the private key can forge a
@@ -30,6 +31,8 @@ from typing import Any
 from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
+
+from gyrocal.orchestrator.ledger import append_entry, ledger_path_for
 
 #: The journal event that signs the chain head; always the last line a writer leaves.
 SEAL_EVENT = "sealed"
@@ -135,9 +138,11 @@ def report_signed_bytes(signature: dict[str, Any]) -> bytes:
 class Signer:
     """Seals a journal: appends a ``sealed`` event signing the current chain head."""
 
-    def __init__(self, key: Ed25519PrivateKey, source: str) -> None:
+    def __init__(self, key: Ed25519PrivateKey, source: str, ledger: Path | None = None) -> None:
         self._key = key
         self.source = source
+        #: the station ledger every seal is also recorded in (orchestrator/ledger.py)
+        self.ledger = ledger
         self.fingerprint = fingerprint(key.public_key())
         self._public = _raw_public(key.public_key())
 
@@ -146,8 +151,11 @@ class Signer:
         def sign(event: dict[str, Any]) -> str:
             return base64.b64encode(self._key.sign(signed_bytes(event))).decode()
 
-        return journal.append_signed(SEAL_EVENT, sign, run_id=run_id, reason=reason,
+        seal = journal.append_signed(SEAL_EVENT, sign, run_id=run_id, reason=reason,
                                      key_fingerprint=self.fingerprint, public_key=self._public)
+        if self.ledger is not None:
+            append_entry(self.ledger, journal.path.parent, seal, journal.last_sha256)
+        return seal
 
     def sign_report(self, run_id: str, chain_head: str, results_sha256: str) -> dict[str, Any]:
         """The report's own signature block (results.json ``signature``, shown in the HTML)."""
@@ -188,4 +196,4 @@ def signer_from(path: str | Path | None) -> Signer | None:
     if chosen is None:
         return None
     key_path = Path(chosen)
-    return Signer(load_private_key(key_path), str(key_path))
+    return Signer(load_private_key(key_path), str(key_path), ledger_path_for(key_path))

@@ -47,12 +47,34 @@ def _print_acceptance(acceptance: list[dict]) -> int:
 def cmd_verify(args: argparse.Namespace) -> int:
     from gyrocal.reports.verify import verify_run_folder
 
-    result = verify_run_folder(Path(args.run_dir), public_key=args.key)
+    result = verify_run_folder(Path(args.run_dir), public_key=args.key, ledger=args.ledger)
     if not result.ok:
         print(f"gyrocal verify: FAILED: {result.failure}", file=sys.stderr)
         return EXIT_ACCEPTANCE_FAILED
     print(result.summary())
     return EXIT_OK
+
+
+def cmd_ledger(args: argparse.Namespace) -> int:
+    """``gyrocal ledger FILE``: every run the station sealed is still where and what it was."""
+    from gyrocal.orchestrator.ledger import LedgerError, check_against, read_ledger
+    from gyrocal.orchestrator.run_folder import JOURNAL
+
+    ledger = Path(args.ledger)
+    try:
+        entries = read_ledger(ledger)
+    except LedgerError as exc:
+        print(f"gyrocal ledger: FAILED: {exc}", file=sys.stderr)
+        return EXIT_ACCEPTANCE_FAILED
+    bad = 0
+    for run_id, entry in entries.items():
+        difference = check_against(entry, entry.run_dir / JOURNAL, ledger)
+        bad += difference is not None
+        print(f"{'CHANGED' if difference else 'OK'}  {run_id}  {entry.run_dir}"
+              + (f"\n    {difference}" if difference else ""))
+    print(f"{len(entries) - bad} of {len(entries)} runs end where the ledger says"
+          + ("" if not bad else f"; {bad} missing, cut, extended or replaced"))
+    return EXIT_ACCEPTANCE_FAILED if bad else EXIT_OK
 
 
 def cmd_analyze_allan(args: argparse.Namespace) -> int:

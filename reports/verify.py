@@ -42,6 +42,7 @@ from typing import Any
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
 from gyrocal.orchestrator.journal import JournalError, read_journal, sha256_bytes, sha256_file
+from gyrocal.orchestrator.ledger import LedgerError, check_against, read_ledger
 from gyrocal.orchestrator.plan_record import PLAN_RECORD
 from gyrocal.orchestrator.run_folder import IDENTITY_KEYS, JOURNAL, SAMPLES, RunFolder
 from gyrocal.orchestrator.signing import (
@@ -99,12 +100,14 @@ def _check_file(path: Path, expected: str | None, what: str) -> None:
 
 
 def verify_run_folder(run_dir: str | Path, public_key: str | Path | None = None,
-                      recompute: bool = True) -> VerifyResult:
+                      recompute: bool = True, ledger: str | Path | None = None) -> VerifyResult:
     """Check a run folder; raises RunFolderError when this is not a run folder at all.
 
     ``public_key``: the station's PEM public key; without it, authenticity is
     not checked (and the result says so). ``recompute=False`` skips step 5's
     recomputation of the numbers (for callers that just built them).
+    ``ledger``: the station ledger; the journal must end where its latest
+    line for this run says (a folder replaced by an older or cut copy fails).
     """
     folder = RunFolder.open(Path(run_dir))
     result = VerifyResult(folder.path)
@@ -116,9 +119,26 @@ def verify_run_folder(run_dir: str | Path, public_key: str | Path | None = None,
         _samples(folder, events, result)
         _report(folder, events, result, recompute, key)
         _seals(events, key, result)
+        if ledger is not None:
+            _ledger(folder, events, Path(ledger), result)
     except _Mismatch as exc:
         result.failure = str(exc)
+    except LedgerError as exc:
+        result.failure = str(exc)
     return result
+
+
+def _ledger(folder: RunFolder, events: list[dict[str, Any]], ledger: Path,
+            result: VerifyResult) -> None:
+    run_id = str(events[0].get("run_id"))
+    entry = read_ledger(ledger).get(run_id)
+    if entry is None:
+        raise _Mismatch(f"{ledger}: no line for run {run_id}: this run was not sealed on the "
+                        "station that keeps this ledger")
+    difference = check_against(entry, folder.path / JOURNAL, ledger)
+    if difference:
+        raise _Mismatch(difference)
+    result.checked["ledger line"] = entry.line
 
 
 def _journal(folder: RunFolder, result: VerifyResult) -> list[dict[str, Any]]:

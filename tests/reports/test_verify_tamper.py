@@ -547,13 +547,73 @@ def test_report_shows_the_signing_key(signed_run, keys):
                    json.dumps(payload, sort_keys=True, separators=(",", ":")).encode())
 
 
+def _station_copy(keys, folder: Path):
+    """The same station key in another folder, so its ledger is this test's own."""
+    folder.mkdir()
+    private, public = folder / "station.key", folder / "station.pub"
+    shutil.copyfile(keys.private, private)
+    private.chmod(0o600)
+    shutil.copyfile(keys.public, public)
+    return private, public, folder / "station.ledger.jsonl"
+
+
 def test_a_rebuilt_report_is_sealed_again_and_verifies(signed_run, keys, tmp_path):
+    private, _, _ = _station_copy(keys, tmp_path / "station")
     run = tmp_path / "rebuilt"
     shutil.copytree(signed_run, run)
-    assert main(["report", str(run), "--signing-key", str(keys.private)]) in (0, 1)
+    assert main(["report", str(run), "--signing-key", str(private)]) in (0, 1)
     events = _events(run)
     assert [e["event"] for e in events[-2:]] == ["report_written", "sealed"]
     assert verify_run_folder(run, public_key=keys.public).ok
+
+
+def test_every_seal_is_in_the_station_ledger(signed_run, faulted_then_resumed_run, keys,
+                                             capsys):
+    ledger = keys.private.with_name("station.ledger.jsonl")
+    assert ledger.stat().st_mode & 0o777 == 0o600
+    lines = [json.loads(line) for line in ledger.read_text().splitlines()]
+    # The smoke run seals once; the faulted run once per session (run, resume).
+    by_run = {}
+    for line in lines:
+        by_run.setdefault(line["run_dir"], []).append(line)
+    assert len(by_run[str(signed_run.resolve())]) == 1
+    assert len(by_run[str(faulted_then_resumed_run.resolve())]) == 2
+    last = _journal(signed_run).read_bytes().splitlines(keepends=True)[-1]
+    assert by_run[str(signed_run.resolve())][0]["chain_head"] == hashlib.sha256(last).hexdigest()
+    assert main(["verify", str(signed_run), "--key", str(keys.public), "--ledger",
+                 str(ledger)]) == 0
+    assert "ledger line" in capsys.readouterr().out
+    assert main(["ledger", str(ledger)]) == 0
+    assert "2 of 2 runs end where the ledger says" in capsys.readouterr().out
+
+
+def test_the_ledger_notices_a_run_put_back_to_an_older_signed_state(signed_run, keys, tmp_path,
+                                                                    capsys):
+    """An older, genuinely signed copy passes verify even with the key; only the ledger knows."""
+    private, _, ledger = _station_copy(keys, tmp_path / "station")
+    older, run = tmp_path / "older", tmp_path / "run"
+    shutil.copytree(signed_run, older)
+    shutil.copytree(signed_run, run)
+    assert main(["report", str(run), "--signing-key", str(private)]) in (0, 1)
+    capsys.readouterr()
+    assert verify_run_folder(run, public_key=keys.public, ledger=ledger).ok
+    assert verify_run_folder(older, public_key=keys.public).ok
+    put_back = verify_run_folder(older, public_key=keys.public, ledger=ledger)
+    assert not put_back.ok and "replaced, cut or extended" in put_back.failure
+    assert f"{ledger}:1" in put_back.failure
+
+    shutil.rmtree(run)
+    assert main(["ledger", str(ledger)]) == 1
+    out = capsys.readouterr().out
+    assert "CHANGED" in out and "missing" in out and "0 of 1 runs" in out
+
+
+def test_a_malformed_ledger_line_is_named(signed_run, tmp_path, capsys):
+    ledger = tmp_path / "station.ledger.jsonl"
+    ledger.write_text('{"run_id": "x"}\n')
+    assert main(["verify", str(signed_run), "--ledger", str(ledger)]) == 1
+    err = capsys.readouterr().err
+    assert f"{ledger}:1: not a ledger line" in err and "Traceback" not in err
 
 
 def test_private_key_is_owner_only_and_refused_when_not(tmp_path, capsys):
