@@ -92,9 +92,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--signing-key", default=None, help="as for run")
     p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_resume"))
 
-    p = sub.add_parser("status", help="where a run is")
+    p = sub.add_parser("status", help="where a run is (state, step n/N, ETA, last event, holder)")
     p.add_argument("run_dir")
-    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_status"))
+    p.add_argument("--json", action="store_true", help="the same snapshot as JSON, for scripts")
+    p.set_defaults(func=_lazy("gyrocal.orchestrator.watch.status", "cmd_status"))
+
+    p = sub.add_parser("watch", help="a read-only live page for a run (from its folder)")
+    p.add_argument("run_dir")
+    p.add_argument("--port", type=int, default=8765, help="0: any free port")
+    p.add_argument("--bind", default="127.0.0.1",
+                   help="address to serve on; anything but loopback requires the printed token")
+    p.set_defaults(func=_lazy("gyrocal.orchestrator.watch.server", "cmd_watch"))
 
     p = sub.add_parser("report", help="(re)build RUN_DIR/report/")
     p.add_argument("run_dir")

@@ -24,11 +24,9 @@ from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments, open_instruments
 from gyrocal.models.clock import RealClock, SimClock, make_clock
 from gyrocal.orchestrator.engine import (
-    PAUSE_FILE,
     EnginePolicy,
     RunEngine,
     RunFaultError,
-    completed_steps,
 )
 from gyrocal.orchestrator.journal import sha256_file
 from gyrocal.orchestrator.locks import FileLock, instrument_locks, run_folder_lock
@@ -416,47 +414,6 @@ def _build_report(folder: RunFolder, signer: Signer | None) -> dict[str, Any]:
 
 def _text(reply: Any) -> Any:
     return reply.decode("latin-1") if isinstance(reply, bytes) else reply
-
-
-# -- status ------------------------------------------------------------------------------
-
-def cmd_status(args: argparse.Namespace) -> int:
-    folder = RunFolder.open(Path(args.run_dir))
-    manifest = folder.read_manifest()
-    events = folder.journal_events()
-    done = completed_steps(events)
-    steps = manifest.get("steps", [])
-    remaining = [s for s in steps if s not in done]
-    live = manifest.get("state") == "running" and _pid_alive(manifest.get("pid"))
-    state = manifest.get("state")
-    if state == "running" and not live:
-        state = "interrupted (process gone; resumable)"
-    print(f"run {manifest.get('run_id')}  {folder.path}")
-    print(f"  state: {state}"
-          + (f" (delete {folder.path / PAUSE_FILE} to go on)" if state == "paused" else ""))
-    print(f"  unit: {manifest.get('unit_under_test')}")
-    print(f"  steps: {len(done)}/{len(steps)} completed"
-          + (f"; next: {remaining[0]}" if remaining else ""))
-    faults = [e for e in events if e.get("event") in ("fault", "interrupted")]
-    retries = sum(1 for e in events if e.get("event") == "retry")
-    bad = sum(1 for e in events if e.get("event") == "step_bad")
-    print(f"  retries: {retries}; repeated (bad) steps: {bad}; faults: {len(faults)}")
-    if faults:
-        print(f"  last fault: {faults[-1].get('message')}")
-    if events:
-        last = events[-1]
-        print(f"  last event: #{last.get('seq')} {last.get('event')} {last.get('step_id', '')}")
-    return EXIT_OK
-
-
-def _pid_alive(pid: Any) -> bool:
-    if not isinstance(pid, int):
-        return False
-    try:
-        os.kill(pid, 0)
-    except OSError:
-        return False
-    return True
 
 
 # -- demo --------------------------------------------------------------------------------

@@ -1,0 +1,112 @@
+"""What the live page plots, read from the run's Parquet chunks as they land.
+
+Conditions (chamber temperature, table rate) come from each chunk's Parquet
+column statistics — the footer, not the data — so a night of chunks costs a
+few kilobytes per look; the gyro signal of the current step comes from its
+latest chunks, decimated to what a browser can draw.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow.parquet as pq
+
+from gyrocal.orchestrator.watch.snapshot import PlanStep
+
+
+@dataclass(frozen=True)
+class ChunkStats:
+    step_id: str
+    t_start_s: float
+    t_end_s: float
+    chamber_c: float
+    table_dps: float
+
+
+_stats_cache: dict[tuple[str, int], ChunkStats | None] = {}
+
+
+def _chunk_stats(path: Path, step_id: str) -> ChunkStats | None:
+    try:
+        key = (str(path), path.stat().st_mtime_ns)
+    except FileNotFoundError:
+        return None
+    if key not in _stats_cache:
+        _stats_cache[key] = _read_stats(path, step_id)
+    return _stats_cache[key]
+
+
+def _read_stats(path: Path, step_id: str) -> ChunkStats | None:
+    meta = pq.ParquetFile(path).metadata
+    names = [meta.schema.column(i).name for i in range(meta.num_columns)]
+    lo: dict[str, float] = {}
+    hi: dict[str, float] = {}
+    for g in range(meta.num_row_groups):
+        group = meta.row_group(g)
+        for i, name in enumerate(names):
+            stats = group.column(i).statistics
+            if stats is None or not stats.has_min_max:
+                continue
+            lo[name] = min(lo.get(name, np.inf), float(stats.min))
+            hi[name] = max(hi.get(name, -np.inf), float(stats.max))
+    if not {"t_s", "chamber_temp_c", "table_rate_dps"} <= lo.keys():
+        return None
+    return ChunkStats(step_id, lo["t_s"], hi["t_s"],
+                      0.5 * (lo["chamber_temp_c"] + hi["chamber_temp_c"]),
+                      0.5 * (lo["table_rate_dps"] + hi["table_rate_dps"]))
+
+
+def conditions(run_dir: Path, events: list[dict[str, Any]], plan: list[PlanStep]
+               ) -> dict[str, list[float | None]]:
+    """Measured chamber °C and table °/s per chunk beside the plan's values for its step."""
+    by_step = {s.step_id: s for s in plan}
+    out: dict[str, list[float | None]] = {"t_s": [], "chamber_c": [], "plan_c": [],
+                                          "table_dps": [], "plan_dps": []}
+    for event in events:
+        if event.get("event") != "chunk_written" or "path" not in event:
+            continue
+        step_id = str(event.get("step_id", ""))
+        stats = _chunk_stats(Path(run_dir) / str(event["path"]), step_id)
+        if stats is None:
+            continue
+        step = by_step.get(step_id)
+        for t in (stats.t_start_s, stats.t_end_s):
+            out["t_s"].append(t)
+            out["chamber_c"].append(stats.chamber_c)
+            out["table_dps"].append(stats.table_dps)
+            out["plan_c"].append(step.setpoint_c if step else None)
+            out["plan_dps"].append(step.rate_dps if step else None)
+    return out
+
+
+def step_signal(run_dir: Path, events: list[dict[str, Any]], max_points: int = 1500,
+                max_chunks: int = 4) -> dict[str, Any]:
+    """The gyro output of the most recent logged step (its latest chunks), decimated."""
+    chunks = [e for e in events if e.get("event") == "chunk_written" and "path" in e]
+    if not chunks:
+        return {"step_id": None, "t_s": [], "gyro": []}
+    step_id = chunks[-1].get("step_id")
+    attempt = chunks[-1].get("attempt")
+    paths = [Path(run_dir) / str(e["path"]) for e in chunks
+             if e.get("step_id") == step_id and e.get("attempt") == attempt][-max_chunks:]
+    t_parts, g_parts = [], []
+    for path in paths:
+        try:
+            table = pq.read_table(path, columns=["t_s", "gyro"])
+        except (FileNotFoundError, OSError):
+            continue
+        t_parts.append(table.column("t_s").to_numpy())
+        g_parts.append(table.column("gyro").to_numpy())
+    if not t_parts:
+        return {"step_id": step_id, "t_s": [], "gyro": []}
+    t_s, gyro = np.concatenate(t_parts), np.concatenate(g_parts)
+    stride = max(1, len(t_s) // max_points)
+    n = len(t_s) // stride * stride
+    if stride > 1:   # block means: what a browser can draw, without aliasing the noise
+        t_s = t_s[:n].reshape(-1, stride).mean(axis=1)
+        gyro = gyro[:n].reshape(-1, stride).mean(axis=1)
+    return {"step_id": step_id, "t_s": t_s.tolist(), "gyro": gyro.tolist(), "stride": stride}
