@@ -30,6 +30,7 @@ from gyrocal.orchestrator.engine import (
 )
 from gyrocal.orchestrator.journal import sha256_file
 from gyrocal.orchestrator.locks import FileLock, instrument_locks, run_folder_lock
+from gyrocal.orchestrator.notify import Notifier
 from gyrocal.orchestrator.plan import Plan, expand_plan, format_plan
 from gyrocal.orchestrator.plan_record import write_plan_record
 from gyrocal.orchestrator.problems import ProcedureError
@@ -329,6 +330,7 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
              seed: int | None, fault_plan=None, signer: Signer | None = None) -> int:
     journal = folder.open_journal()
     manifest = folder.read_manifest()
+    Notifier(procedure.station.notify, _run_label(manifest, procedure)).attach(journal)
     if journal.count == 0:
         # What the auditor must be able to tie to this history: the inputs, the frozen
         # plan and who/what the run was for. The manifest stays mutable run state.
@@ -346,6 +348,10 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
         if signer is not None and not journal.closed:
             signer.seal(journal, manifest["run_id"], reason="controller exit")
         folder.close()
+
+
+def _run_label(manifest: dict[str, Any], procedure: Procedure) -> str:
+    return f"{procedure.unit_under_test.serial} run {manifest.get('run_id')}"
 
 
 def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: Plan, clock,

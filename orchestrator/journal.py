@@ -15,7 +15,7 @@ import hashlib
 import json
 import os
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -82,6 +82,8 @@ class Journal:
         self.path = Path(path)
         self._last_sha256 = GENESIS_SHA256
         self.count = 0
+        #: Called with each event after it is durably written (e.g. notifications).
+        self.listeners: list[Callable[[dict[str, Any]], None]] = []
         if self.path.exists():
             self._recover()
         self._handle = open(self.path, "ab", buffering=0)  # noqa: SIM115 - held for the run
@@ -115,6 +117,8 @@ class Journal:
         os.fsync(self._handle.fileno())
         self._last_sha256 = sha256_bytes(raw)
         self.count += 1
+        for listener in self.listeners:
+            listener(event)
         return event
 
     def append_signed(self, name: str, sign, /, **fields: Any) -> dict[str, Any]:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gyrocal.inputs import load_yaml
+from gyrocal.orchestrator.notify import NotifyTarget, parse_notify
 from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
 from gyrocal.orchestrator.schema import (
     Context,
@@ -173,6 +174,8 @@ class Station:
     #: runs are sealed with it (orchestrator/signing.py). None: unsigned unless
     #: --signing-key or $GYROCAL_SIGNING_KEY names one.
     signing_key: Path | None = None
+    #: who is told when the run finishes, faults, pauses or needs a person (notify.py)
+    notify: tuple[NotifyTarget, ...] = ()
 
     @property
     def simulated(self) -> bool:
@@ -216,13 +219,16 @@ def parse_station(
     simulation = _simulation(ctx, fields.child("simulation"), raw, base_dir) if present else None
     key_text = fields.take("signing_key", text, required=False)
     signing_key = (base_dir / key_text) if key_text else None
+    present, raw = fields.raw("notify")
+    notify = parse_notify(ctx.report, fields.child("notify"), raw) if present else ()
     fields.finish()
     if simulation is None and SIM_ADDRESS in (
         getattr(chamber, "address", None), getattr(table, "address", None),
         getattr(gyro, "port", None),
     ):
         ctx.report(where, "an instrument address is 'sim' but there is no simulation section")
-    return Station(version, name, site, chamber, table, gyro, simulation, file, path, signing_key)
+    return Station(version, name, site, chamber, table, gyro, simulation, file, path, signing_key,
+                   notify)
 
 
 def _site(ctx: Context, parent: Fields) -> Site:

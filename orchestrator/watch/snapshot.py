@@ -17,6 +17,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from gyrocal.orchestrator.locks import LockHolder, holder
 from gyrocal.orchestrator.run_folder import JOURNAL, MANIFEST, RunFolderError
 
 PLAN_FILE = "plan.json"
@@ -47,16 +48,6 @@ class EventLine:
 
 
 @dataclass(frozen=True)
-class LockInfo:
-    """Who holds the run folder (from ``orchestrator/locks.py`` when present)."""
-
-    pid: int | None
-    host: str
-    started_utc: str
-    command: str
-
-
-@dataclass(frozen=True)
 class RunSnapshot:
     run_dir: str
     run_id: str
@@ -71,7 +62,7 @@ class RunSnapshot:
     eta_s: float | None        # procedure time still to go by the plan
     last_event_age_s: float | None
     stale: bool
-    lock: LockInfo | None
+    lock: LockHolder | None    # who holds the run folder (orchestrator/locks.py)
     last_fault: str | None
     plan: list[PlanStep] = field(default_factory=list)
     completed: list[str] = field(default_factory=list)
@@ -120,23 +111,6 @@ def read_plan(run_dir: Path) -> list[PlanStep]:
             for s in steps]
 
 
-def lock_holder(run_dir: Path) -> LockInfo | None:
-    """Integration point with issue #9's ``orchestrator/locks.py`` (``holder(path)``).
-
-    Until that module is on main this returns None and the snapshot falls back
-    on the manifest's ``pid`` to tell a live controller from a dead one.
-    """
-    try:
-        from gyrocal.orchestrator import locks  # type: ignore[attr-defined]
-    except ImportError:
-        return None
-    held = locks.holder(Path(run_dir))
-    if held is None:
-        return None
-    return LockInfo(getattr(held, "pid", None), str(getattr(held, "host", "")),
-                    str(getattr(held, "started_utc", "")), str(getattr(held, "command", "")))
-
-
 def read_snapshot(run_dir: Path, *, now: float | None = None, last_events: int = 20) -> RunSnapshot:
     run_dir = Path(run_dir)
     manifest_path = run_dir / MANIFEST
@@ -156,7 +130,7 @@ def read_snapshot(run_dir: Path, *, now: float | None = None, last_events: int =
     current = remaining[0] if remaining else None
     current_index = step_ids.index(current) + 1 if current else len(step_ids)
 
-    lock = lock_holder(run_dir)
+    lock = holder(run_dir)
     state = str(manifest.get("state") or "created")
     live = lock is not None or (state in ("running", "paused") and _pid_alive(manifest.get("pid")))
     if state in ("running", "paused") and not live:

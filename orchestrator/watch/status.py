@@ -40,9 +40,7 @@ def status_text(snap: RunSnapshot) -> str:
             age += "  WARNING: the controller is alive but the journal has not moved — check it"
         lines.append(age)
     if snap.lock is not None:
-        lock = snap.lock
-        lines.append(f"  held by: pid {lock.pid} on {lock.host} since {lock.started_utc} "
-                     f"({lock.command})")
+        lines.append(f"  held by: {snap.lock.describe()}")
     else:
         lines.append("  held by: " + ("a live controller" if snap.live else "nobody"))
     retries = sum(1 for e in snap.events if e.event == "retry")
