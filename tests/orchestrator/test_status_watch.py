@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 import time
 import urllib.error
 import urllib.request
@@ -14,6 +15,7 @@ import pytest
 
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
 from gyrocal.orchestrator.journal import Journal
+from gyrocal.orchestrator.locks import run_folder_lock
 from gyrocal.orchestrator.watch.server import WatchServer
 
 
@@ -76,6 +78,12 @@ def test_status_shows_paused_and_warns_when_a_live_run_goes_silent(tmp_path: Pat
     assert snap["state"] == "running" and snap["stale"] is True and snap["live"] is True
     assert main(["status", str(silent)]) == EXIT_OK
     assert "WARNING: the controller is alive but the journal has not moved" in capsys.readouterr().out
+    with run_folder_lock(silent):                 # a controller holding the folder (issue #9)
+        assert main(["status", "--json", str(silent)]) == EXIT_OK
+        snap = json.loads(capsys.readouterr().out)
+        assert snap["lock"]["pid"] == os.getpid() and snap["lock"]["host"] == socket.gethostname()
+        assert main(["status", str(silent)]) == EXIT_OK
+        assert f"held by: pid {os.getpid()} on {socket.gethostname()}" in capsys.readouterr().out
 
 
 def _get(url: str, method: str = "GET") -> tuple[int, bytes]:
