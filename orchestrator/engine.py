@@ -195,7 +195,10 @@ class RunEngine:
                     eta_s = sum(float(getattr(s, "expected_s", 0.0) or 0.0)
                                 for s in self.steps[index - 1:] if s.step_id not in done)
                     self.progress.update(step_id=step.step_id, step_index=index,
-                                         step_count=len(self.steps), eta_s=eta_s)
+                                         step_count=len(self.steps), eta_s=eta_s,
+                                         step_expected_s=float(getattr(step, "expected_s", 0.0)
+                                                               or 0.0),
+                                         step_started_s=self._elapsed())
                     self._pause_if_asked(step)
                     if self.before_step is not None:
                         self.before_step(step)
@@ -237,11 +240,13 @@ class RunEngine:
         self.journal.append("paused", before_step=step.step_id,
                             chamber_setpoint_c=self.inst.chamber.read_setpoint_c())
         self.folder.update_manifest(state="paused")
+        self.progress.update(paused=True)
         while self.pause_file.exists():
             self._poll_chamber()
             time.sleep(self.policy.pause_poll_s)
         self.inst.table.set_rate_mode()
         self.journal.append("unpaused", before_step=step.step_id)
+        self.progress.update(paused=False, step_started_s=self._elapsed())
         self.folder.update_manifest(state="running")
         self.machine.unpause()
 

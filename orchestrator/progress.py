@@ -20,7 +20,18 @@ class ProgressState:
     chamber_c: float | None = None
     table_dps: float | None = None
     elapsed_s: float = 0.0
-    eta_s: float | None = None
+    eta_s: float | None = None          # the plan's time to go when the step started
+    step_expected_s: float = 0.0        # the plan's duration of the current step
+    step_started_s: float | None = None  # elapsed_s when it started (None: ETA as given)
+    paused: bool = False
+
+    def eta_now_s(self) -> float | None:
+        """The ETA counted down through the step (a long soak or hold keeps moving the line),
+        never below the later steps' plan: an overrunning step holds the ETA, not negative."""
+        if self.eta_s is None or self.step_started_s is None:
+            return self.eta_s
+        later_s = self.eta_s - self.step_expected_s
+        return max(later_s, self.eta_s - (self.elapsed_s - self.step_started_s))
 
 
 def _hms(seconds: float | None) -> str:
@@ -46,8 +57,9 @@ class Progress:
         s = self.state
         chamber = "--" if s.chamber_c is None else f"{s.chamber_c:7.2f} °C"
         table = "--" if s.table_dps is None else f"{s.table_dps:8.2f} °/s"
-        return (f"[{s.step_index}/{s.step_count}] {s.step_id:<28} chamber {chamber}  table {table}  "
-                f"elapsed {_hms(s.elapsed_s)}  ETA {_hms(s.eta_s)}")
+        paused = "PAUSED (delete RUN_DIR/PAUSE to go on)  " if s.paused else ""
+        return (f"{paused}[{s.step_index}/{s.step_count}] {s.step_id:<28} chamber {chamber}  "
+                f"table {table}  elapsed {_hms(s.elapsed_s)}  ETA {_hms(s.eta_now_s())}")
 
     def update(self, **fields: object) -> None:
         for key, value in fields.items():
