@@ -17,6 +17,7 @@ function text(id, value) { document.getElementById(id).textContent = value; }
 function plot(id, labels, data) {
   const opts = {
     width: 420, height: 220, scales: { x: { time: false } },
+    axes: [{}, { size: 70 }],   // room for labels such as -19.995
     series: [{ label: "t (s)" }].concat(labels.map((l, i) => ({
       label: l, stroke: ["#c33", "#36c", "#999"][i], width: i === 0 ? 1.5 : 1,
       dash: l.startsWith("plan") ? [6, 4] : undefined,
