@@ -12,6 +12,7 @@ import argparse
 import errno
 import signal
 import sys
+import threading
 from collections.abc import Callable, Sequence
 
 from gyrocal.errors import (  # noqa: F401 - re-exported: the names scripts already import
@@ -222,6 +223,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     # Installed before anything is loaded or moved: a SIGTERM in the first
     # milliseconds ends as cleanly (exit 3, no traceback) as one during a run.
+    # Only the main thread may install handlers (the engine makes the same
+    # choice); a run driven from a thread, as the live-page test does, is
+    # stopped by whoever owns that thread.
+    if threading.current_thread() is not threading.main_thread():
+        return _dispatch(args)
     previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         return _dispatch(args)
