@@ -146,6 +146,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", default=None, help="PNG path (default compare.png)")
     p.set_defaults(func=_lazy("gyrocal.reports.runs.commands", "cmd_compare"))
 
+    p = sub.add_parser("confirm", help="tell a waiting run the operator has done what it asked "
+                       "(a remount of the IMU fixture)")
+    p.add_argument("run_dir")
+    p.add_argument("--mounting", default=None,
+                   help="the mounting done (as named in the procedure); checked by the run")
+    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_confirm"))
+
     p = sub.add_parser("keys", help="generate the station's Ed25519 signing key pair")
     p.add_argument("--out", default="keys", help="folder for NAME.key (mode 0600) and NAME.pub")
     p.add_argument("--name", default="station")

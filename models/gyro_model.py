@@ -106,11 +106,14 @@ _NOISE_KEYS = tuple(f.name for f in fields(NoiseParams))
 class _Where:
     """Builds ``file:line: key.path: message`` using the line numbers yaml recorded."""
 
-    def __init__(self, source: str, lines: dict[tuple, int] | None = None) -> None:
+    def __init__(self, source: str, lines: dict[tuple, int] | None = None,
+                 prefix: tuple = ()) -> None:
         self.source = source
         self.lines = lines or {}
+        self.prefix = prefix    # where this model sits in a larger file (an IMU axis: axes.x)
 
     def error(self, path: tuple, message: str) -> ModelError:
+        path = (*self.prefix, *path)
         line = None
         probe = path
         while line is None and probe:
@@ -191,13 +194,16 @@ def _check_effect_spec(effect: EffectSpec) -> EffectSpec:
     return _parse_effect(data, 0, _Where(f"effect {effect.name!r}"))
 
 
-def parse_model(data: Any, source: str = "<model>", lines: dict[tuple, int] | None = None) -> GyroModel:
+def parse_model(data: Any, source: str = "<model>", lines: dict[tuple, int] | None = None,
+                key_prefix: tuple = ()) -> GyroModel:
     """Validate a model given as plain data (as ``yaml.safe_load`` returns it).
 
     ``source`` names the origin in messages; ``lines`` maps key paths to line
-    numbers (``load_model`` supplies it from the yaml node marks).
+    numbers (``load_model`` supplies it from the yaml node marks);
+    ``key_prefix`` is where the model sits inside a larger file (one axis of a
+    three-axis model, ``models/imu_model.py``), so messages name the full path.
     """
-    where = _Where(source, lines)
+    where = _Where(source, lines, key_prefix)
     if data is None:
         raise where.error((), "empty model (version and scale_factor are required)")
     top = _mapping(data, (), where)
@@ -209,6 +215,9 @@ def parse_model(data: Any, source: str = "<model>", lines: dict[tuple, int] | No
     version = top["version"]
     if isinstance(version, bool) or not isinstance(version, int):
         raise where.error(("version",), f"must be an integer, got {version!r}")
+    if version == 2 and not key_prefix:
+        raise where.error(("version",), "version 2 is a three-axis IMU model (axes:, "
+                          "misalignment_urad:); this use takes a single-axis (version 1) model")
     if version not in SUPPORTED_VERSIONS:
         raise where.error(("version",), f"unsupported version {version}; supported: {SUPPORTED_VERSIONS}")
 

@@ -36,6 +36,11 @@ from gyrocal.orchestrator.plan_record import write_plan_record
 from gyrocal.orchestrator.problems import ProcedureError
 from gyrocal.orchestrator.procedure import Procedure, load_procedure
 from gyrocal.orchestrator.progress import Progress
+from gyrocal.orchestrator.remount import (
+    FileConfirmOperator,
+    SimulatedFixtureOperator,
+    write_confirmation,
+)
 from gyrocal.orchestrator.run_folder import IDENTITY_KEYS, RunFolder, new_run_id
 from gyrocal.orchestrator.signing import (
     KeyPairFiles,
@@ -145,6 +150,28 @@ def _input_files(procedure: Procedure) -> dict[str, Path]:
     return files
 
 
+def _fixture_operator(procedure: Procedure, folder: RunFolder, simulated: Any):
+    """Who turns the IMU fixture at a remount: the simulated fixture, or a person."""
+    if not procedure.mountings:
+        return None
+    if simulated is not None:
+        if simulated.fixture is None:
+            raise BadInput(f"{procedure.file}: mountings: the simulated station's gyro model is "
+                           "single-axis; a multi-axis procedure needs a version-2 (IMU) model")
+        return SimulatedFixtureOperator(simulated.fixture)
+    return FileConfirmOperator(folder.path)
+
+
+def cmd_confirm(args: argparse.Namespace) -> int:
+    """``gyrocal confirm RUN_DIR``: the operator has done what the run asked (a remount)."""
+    run_dir = Path(args.run_dir)
+    if not (run_dir / "journal.jsonl").is_file():
+        raise BadInput(f"{run_dir}: not a run folder (no journal.jsonl)")
+    path = write_confirmation(run_dir, args.mounting)
+    print(f"confirmed: {path}" + (f" (mounting {args.mounting})" if args.mounting else ""))
+    return 0
+
+
 def _clock_for(speed: str | None, sim: bool) -> RealClock | SimClock:
     try:
         return make_clock(speed if speed is not None else ("max" if sim else "1"))
@@ -230,9 +257,11 @@ def _fault_plan(specs: list[str], sim: bool, plan: Plan):
     from gyrocal.instruments.sim.chamber_server import FAULTS as CHAMBER_FAULTS
     from gyrocal.instruments.sim.fault_plan import FaultPlan, FaultSpecError, parse_injection
     from gyrocal.instruments.sim.gyro_pty import FAULTS as GYRO_FAULTS
+    from gyrocal.instruments.sim.imu_source import FIXTURE_FAULTS
     from gyrocal.instruments.sim.table_server import FAULTS as TABLE_FAULTS
 
-    known = {"chamber": CHAMBER_FAULTS, "table": TABLE_FAULTS, "gyro": GYRO_FAULTS}
+    known = {"chamber": CHAMBER_FAULTS, "table": TABLE_FAULTS, "gyro": GYRO_FAULTS,
+             "fixture": FIXTURE_FAULTS}
     try:
         fault_plan = FaultPlan([parse_injection(spec, known) for spec in specs])
         fault_plan.check_steps([step.step_id for step in plan.steps])
@@ -379,7 +408,9 @@ def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: P
 
             engine = RunEngine(folder, list(plan.steps), instruments, _policy(procedure),
                                progress=Progress(), on_finished=on_finished,
-                               before_step=before_step)
+                               before_step=before_step,
+                               operator=_fixture_operator(procedure, folder, simulated),
+                               mountings={m.name: m.up for m in procedure.mountings})
             engine.run()
         journal.append("run_closed", outcome="completed")
     except RunFaultError as exc:

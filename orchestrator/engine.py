@@ -16,7 +16,7 @@ from __future__ import annotations
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,8 +27,18 @@ import numpy as np
 from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments
 from gyrocal.instruments.interfaces import Identity
+from gyrocal.models.imu_model import Mounting
 from gyrocal.orchestrator.machine import RunStateMachine
 from gyrocal.orchestrator.progress import Progress
+from gyrocal.orchestrator.remount import (
+    CHECK_RATE_DPS,
+    CHECK_READ_S,
+    CHECK_SETTLE_S,
+    FixtureOperator,
+    MountCheckError,
+    check_mounting,
+    wait_confirmed,
+)
 from gyrocal.orchestrator.run_folder import RunFolder
 
 #: An operator creates this file in the run folder to pause before the next step.
@@ -154,8 +164,12 @@ class RunEngine:
         progress: Progress | None = None,
         on_finished: Callable[[], None] | None = None,
         before_step: Callable[[Any], None] | None = None,
+        operator: FixtureOperator | None = None,
+        mountings: Mapping[str, Mounting] | None = None,
     ) -> None:
         self.folder = folder
+        self.operator = operator            # who turns the IMU fixture (remount steps)
+        self.mountings = dict(mountings or {})
         self.steps = steps
         self.inst = instruments
         self.clock = instruments.clock
@@ -290,6 +304,8 @@ class RunEngine:
             self._soak(step)
         elif kind in ("static", "allan", "dwell"):
             self._log_step(step)
+        elif kind == "remount":
+            self._remount(step)
         else:
             raise RunFaultError(f"plan step {step.step_id}: unknown kind {kind!r}")
 
@@ -302,12 +318,76 @@ class RunEngine:
         crash happened mid-soak), a logged step by a ramp and a full soak.
         """
         setpoint = getattr(step, "setpoint_c", None)
-        if setpoint is None or step.kind == "ramp":
+        if step.kind != "remount" and getattr(step, "mounting", None):
+            # A restarted dry run has a new simulated fixture, and a real one may have
+            # been touched while the run was down: the mounting is checked again.
+            self._ensure_mounting(step)
+        if setpoint is None or step.kind in ("ramp", "remount"):
             return
         self.journal.append("restore_conditions", step_id=step.step_id, setpoint_c=setpoint)
         self._ramp(step, journal_done=False)
         if step.kind != "soak":
             self._soak(step, journal_done=False)
+
+    # -- remount (multi-axis IMU) --------------------------------------------------------------
+    def _mounting_of(self, step: Any) -> Mounting:
+        if self.operator is None or step.mounting not in self.mountings:
+            raise RunFaultError(f"plan step {step.step_id}: mounting {step.mounting!r} but the "
+                                "run has no fixture operator for it")
+        return self.mountings[step.mounting]
+
+    def _remount(self, step: Any) -> None:
+        """Hand the table to the operator, wait for the confirmation, check the mounting."""
+        mounting = self._mounting_of(step)
+        assert self.operator is not None
+        attempt = self._attempts_before.get(step.step_id, 0) + 1
+        self.journal.append("step_started", step_id=step.step_id, kind="remount",
+                            mounting=step.mounting, attempt=attempt)
+        self._set_table_rate(0.0)
+        reading = self.inst.table.read_rate_dps()
+        if abs(reading) > self._rate_band(0.0):
+            raise RunFaultError(f"table: reads {reading:g} deg/s after stop; not handing it to "
+                                "the operator for a remount")
+        self.inst.table.stop()
+        self.machine.pause()
+        self.journal.append("operator_needed", step_id=step.step_id, mounting=step.mounting,
+                            instruction=step.label, table_rate_dps=reading)
+        self.folder.update_manifest(state="needs_operator")
+        self.progress.update(paused=True)
+        self.operator.request(step.mounting, mounting, step.label or step.mounting)
+        wait_confirmed(self.operator, step.mounting, self.policy.pause_poll_s,
+                       on_wait=self._poll_chamber)
+        self.journal.append("operator_confirmed", step_id=step.step_id, mounting=step.mounting)
+        self.progress.update(paused=False, step_started_s=self._elapsed())
+        self.folder.update_manifest(state="running")
+        self.machine.unpause()
+        self.inst.table.set_rate_mode()
+        fields = self._mount_check(step, mounting)
+        self.journal.append("step_completed", step_id=step.step_id, attempt=attempt, **fields)
+
+    def _ensure_mounting(self, step: Any) -> None:
+        mounting = self._mounting_of(step)
+        assert self.operator is not None
+        self.operator.resumed(step.mounting, mounting)
+        self.journal.append("mount_recheck", step_id=step.step_id, mounting=step.mounting,
+                            **self._mount_check(step, mounting))
+
+    def _mount_check(self, step: Any, mounting: Mounting) -> dict[str, Any]:
+        """Turn the table briefly; the declared IMU axis must sense it (``remount.py``)."""
+        self._set_table_rate(CHECK_RATE_DPS, None, CHECK_SETTLE_S)
+        gyro = self.inst.gyro
+        gyro.flush()
+        n = max(8, int(self.inst.sample_rate_hz * CHECK_READ_S))
+        block = gyro.read_samples(n, timeout_s=self._read_timeout_s(CHECK_READ_S))
+        self._set_table_rate(0.0)
+        rate_xyz = getattr(block, "rate_xyz", None)
+        if rate_xyz is None:
+            raise RunFaultError(f"step {step.step_id}: the gyro driver gives one axis; a "
+                                "multi-axis calibration needs all three (STIM300 datagram)")
+        try:
+            return check_mounting(rate_xyz, mounting, CHECK_RATE_DPS)
+        except MountCheckError as exc:
+            raise RunFaultError(f"step {step.step_id}: {exc}") from None
 
     def _ramp(self, step: Any, journal_done: bool = True) -> None:
         """Move the chamber to the step's setpoint at the procedure's ramp rate.

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 from gyrocal.orchestrator.procedure import (
     AllanTest,
+    MountingSpec,
     Procedure,
     StaticTest,
     SweepTest,
@@ -26,6 +27,9 @@ from gyrocal.orchestrator.procedure import (
 from gyrocal.orchestrator.units import format_duration, format_number
 
 ASSUMED_START_TEMP_C = 25.0   # chamber temperature at the start when the station does not say
+#: What the ETA allows for a remount: an operator turning the hexahedron fixture and
+#: confirming, then the mount check's short turn of the table (a dry run takes seconds).
+REMOUNT_EXPECTED_S = 300.0
 
 
 @dataclass(frozen=True)
@@ -54,6 +58,7 @@ class PlanStep:
     max_wait_s: float | None = None
     revolutions: float | None = None    # table revolutions during the dwell (whole with min_revolutions)
     label: str | None = None
+    mounting: str | None = None         # the fixture mounting (IMU procedures); None for one axis
 
 
 @dataclass(frozen=True)
@@ -153,20 +158,37 @@ class _Expander:
         self.table_dps = rate_dps
         self.last_accel_dps2 = accel
 
-    def temperature_step(self, index: int, step: TemperatureStep) -> None:
-        prefix = f"T{index + 1:02d}"
+    def temperature_step(self, index: int, step: TemperatureStep, id_prefix: str = "",
+                         mounting: str | None = None) -> None:
+        """Ramp, soak and the tests of one temperature (in one mounting, if any)."""
+        self.conditions(index, step, id_prefix)
+        self.tests(index, step, id_prefix, mounting)
+
+    def conditions(self, index: int, step: TemperatureStep, id_prefix: str = "") -> None:
+        prefix = f"{id_prefix}T{index + 1:02d}"
         source = f"sequence[{index}]"
-        soak = step.soak
-        criterion = dict(tolerance_c=soak.tolerance_c, hold_s=soak.hold_s, max_wait_s=soak.max_wait_s)
-        common = dict(temp_index=index, setpoint_c=step.setpoint_c, label=step.label, **criterion)
+        common = self._common(index, step)
         ramp_s = abs(step.setpoint_c - self.chamber_c) / step.ramp_c_per_min * 60.0
         self.add(step_id=f"{prefix}.ramp", kind="ramp", source=source, test_index=None, repeat=1,
                  direction="",
                  duration_s=ramp_s, ramp_c_per_min=step.ramp_c_per_min, **common)
         self.chamber_c = step.setpoint_c
         self.add(step_id=f"{prefix}.soak", kind="soak", source=f"{source}.soak", test_index=None,
-                 repeat=1, direction="", duration_s=soak.hold_s, max_duration_s=soak.max_wait_s,
-                 **common)
+                 repeat=1, direction="", duration_s=step.soak.hold_s,
+                 max_duration_s=step.soak.max_wait_s, **common)
+
+    @staticmethod
+    def _common(index: int, step: TemperatureStep) -> dict:
+        soak = step.soak
+        criterion = dict(tolerance_c=soak.tolerance_c, hold_s=soak.hold_s, max_wait_s=soak.max_wait_s)
+        return dict(temp_index=index, setpoint_c=step.setpoint_c, label=step.label, **criterion)
+
+    def tests(self, index: int, step: TemperatureStep, id_prefix: str = "",
+              mounting: str | None = None) -> None:
+        prefix = f"{id_prefix}T{index + 1:02d}" if mounting is None or id_prefix else (
+            f"T{index + 1:02d}.M{mounting}")
+        source = f"sequence[{index}]"
+        common = dict(self._common(index, step), mounting=mounting)
         for test_index, (test, tag) in enumerate(zip(step.tests, _test_tags(step), strict=True)):
             for repeat in range(1, test.repeats + 1):
                 suffix = f".r{repeat}" if test.repeats > 1 else ""
@@ -177,6 +199,15 @@ class _Expander:
                              duration_s=test.duration_s, settle_s=test.settle_s, **base)
                     continue
                 self.sweep(prefix, tag, suffix, test, base)
+
+    def remount(self, step_id: str, spec: MountingSpec, index: int, step: TemperatureStep) -> None:
+        """An operator step: table stopped, the fixture turned to ``spec``, then checked."""
+        self.add(step_id=step_id, kind="remount", source=f"mountings[{spec.name}]",
+                 test_index=None, repeat=1, direction="", duration_s=REMOUNT_EXPECTED_S,
+                 label=spec.instruction, mounting=spec.name, temp_index=index,
+                 setpoint_c=self.chamber_c if self.steps else step.setpoint_c,
+                 tolerance_c=step.soak.tolerance_c, hold_s=step.soak.hold_s,
+                 max_wait_s=step.soak.max_wait_s)
 
     def sweep(self, prefix: str, tag: str, suffix: str, test: SweepTest, base: dict) -> None:
         signs = {"both": (1.0, -1.0), "positive": (1.0,), "negative": (-1.0,)}[test.directions]
@@ -210,8 +241,24 @@ def expand_plan(procedure: Procedure, start_temp_c: float | None = None) -> Plan
         sim = procedure.station.simulation
         start_temp_c = sim.chamber.ambient_c if sim is not None else ASSUMED_START_TEMP_C
     expander = _Expander(procedure, start_temp_c)
-    for index, step in enumerate(procedure.sequence):
-        expander.temperature_step(index, step)
+    sequence = procedure.sequence
+    if not procedure.mountings:
+        for index, step in enumerate(sequence):
+            expander.temperature_step(index, step)
+    elif procedure.mounting_order == "temperatures_inside":
+        # MX.remount, MX.T01.ramp … MX.T05.sf.-200dps, MY.remount, …
+        for spec in procedure.mountings:
+            expander.remount(f"M{spec.name}.remount", spec, 0, sequence[0])
+            for index, step in enumerate(sequence):
+                expander.temperature_step(index, step, id_prefix=f"M{spec.name}.",
+                                          mounting=spec.name)
+    else:
+        # T01.ramp, T01.soak, T01.MX.remount, T01.MX.sf.+10dps … T01.MZ.…, T02.ramp, …
+        for index, step in enumerate(sequence):
+            expander.conditions(index, step)
+            for spec in procedure.mountings:
+                expander.remount(f"T{index + 1:02d}.M{spec.name}.remount", spec, index, step)
+                expander.tests(index, step, mounting=spec.name)
     ids = [s.step_id for s in expander.steps]
     if len(set(ids)) != len(ids):   # cannot happen for a validated procedure; journals depend on it
         raise AssertionError(f"duplicate step ids in the plan of {procedure.file}")
@@ -245,7 +292,9 @@ def format_plan(plan: Plan) -> str:
         else:
             move = format_duration(step.transition_s + step.settle_s)
             logged = format_duration(step.duration_s)
-        rate = "-" if step.kind in ("ramp", "soak") else (
+        if step.kind == "remount":
+            move, logged = "operator", "-"
+        rate = "-" if step.kind in ("ramp", "soak", "remount") else (
             f"{step.rate_dps:+g} deg/s" if step.rate_dps else "0 deg/s")
         if step.kind == "dwell" and step.revolutions is not None:
             rate += f" ({step.revolutions:.3g} rev)"

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from gyrocal.inputs import YamlDocument, load_yaml
+from gyrocal.models.imu_model import Mounting
 from gyrocal.orchestrator.metrics import METRICS, NEEDS_TEXT, units_match
 from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
 from gyrocal.orchestrator.schema import (
@@ -170,6 +171,42 @@ class TemperatureStep:
     label: str | None
 
 
+#: ``mounting_order``: every temperature in one mounting, then remount (what operators
+#: usually do: three remounts a night), or every mounting at each temperature (the
+#: vendor notes' method: the fixture is turned three times at each temperature).
+MOUNTING_ORDERS = ("temperatures_inside", "mountings_inside")
+
+
+@dataclass(frozen=True)
+class MountingSpec:
+    """One face of the hexahedron fixture: which IMU axis points up the table axis."""
+
+    name: str                 # in step ids (``MX.T01.sf.+10dps``): letters, digits, - and _
+    up: Mounting
+    face: str | None = None   # the fixture face the operator is told to use
+
+    @property
+    def instruction(self) -> str:
+        face = f"face {self.face}: " if self.face else ""
+        return f"mount {self.name} ({face}IMU {self.up.label} up along the table axis)"
+
+
+def _mounting_axis(value: object) -> Mounting:
+    if not isinstance(value, str):
+        raise UnitError(f"must be an IMU axis with its sign (+x, -y, z), got {describe(value)}")
+    try:
+        return Mounting.parse(value)
+    except ValueError as exc:
+        raise UnitError(str(exc)) from None
+
+
+def _mounting_name(value: object) -> str:
+    name = text(value)
+    if not name or not all(c.isalnum() or c in "-_" for c in name):
+        raise UnitError(f"must be letters, digits, - or _ (it is part of every step id), got {name!r}")
+    return name
+
+
 @dataclass(frozen=True)
 class AcceptanceLimit:
     name: str
@@ -199,6 +236,8 @@ class Procedure:
     file: str                  # as given, for messages
     path: Path                 # resolved
     files: tuple[Path, ...]    # the procedure, its includes and the station file (for the manifest)
+    mountings: tuple[MountingSpec, ...] = ()   # a multi-axis IMU calibration; () for one axis
+    mounting_order: str = "temperatures_inside"
 
 
 # -- loading ----------------------------------------------------------------------------
@@ -287,12 +326,50 @@ class _Parser:
             for index, item in enumerate(_list(ctx, ("sequence",), raw, "sequence"))
         ) if present else ()
         acceptance = self.acceptance(fields, sequence)
+        mountings = self.mountings(fields)
+        order = fields.take("mounting_order", choice(MOUNTING_ORDERS), required=False,
+                            default="temperatures_inside")
+        if fields.has("mounting_order") and not mountings:
+            ctx.report(fields.child("mounting_order"), "only meaningful with a mountings: list")
         fields.raw("templates")   # free-form: a home for YAML anchors (&sweep) used elsewhere
         fields.finish()
         files = tuple(self.document.files) + tuple(self.station_files)
         return Procedure(version, name, description, uut, self.station, self.safety, defaults,
                          quality, sequence, acceptance, self.document.file, self.document.path,
-                         files)
+                         files, mountings, order)
+
+    def mountings(self, parent: Fields) -> tuple[MountingSpec, ...]:
+        present, raw = parent.raw("mountings")
+        if not present:
+            return ()
+        specs: list[MountingSpec] = []
+        names: dict[str, int] = {}
+        ups: dict[Mounting, int] = {}
+        for index, item in enumerate(_list(self.ctx, ("mountings",), raw, "mountings")):
+            path: KeyPath = ("mountings", index)
+            fields = Fields(self.ctx, path, item, "a mounting")
+            if not fields.valid:
+                continue
+            name = fields.take("name", _mounting_name)
+            up = fields.take("up", _mounting_axis)
+            face = fields.take("face", text, required=False)
+            fields.finish()
+            if name is not None and name in names:
+                self.ctx.report(fields.child("name"),
+                                f"name {name!r} is used twice (also mountings[{names[name]}])")
+            if up is not None and up in ups:
+                self.ctx.report(fields.child("up"), f"IMU {up.label} up is already "
+                                f"mountings[{ups[up]}]")
+            if name is not None and up is not None:
+                names.setdefault(name, index)
+                ups.setdefault(up, index)
+                specs.append(MountingSpec(name, up, face))
+        axes = {spec.up.up_axis for spec in specs}
+        if specs and len(specs) == len(raw if isinstance(raw, list) else ()) and len(axes) < 3:
+            missing = ", ".join(a for i, a in enumerate("xyz") if i not in axes)
+            self.ctx.report(("mountings",), f"the three-axis matrix needs every IMU axis up once; "
+                            f"no mounting has {missing} up")
+        return tuple(specs)
 
     def section(self, parent: Fields, key: str, *, required: bool = True) -> Fields:
         present, raw = parent.raw(key)

@@ -11,6 +11,7 @@ plan step before which it is armed:
     table.interlock_open:always@T01.sf.+50dps
     gyro.lose_frames:40              40 frames lost from the start
     table.late_reply:1:delay_s=2     parameters as key=value after the count
+    fixture.wrong_mount@T01.MY.remount   the simulated fixture turns to the wrong face
 
 ``always`` arms it until the run ends. Every fault armed is journaled
 (``fault_injected``), so the audit trail says which troubles were deliberate.
@@ -23,7 +24,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 _SPEC = re.compile(
-    r"^(?P<role>chamber|table|gyro)\.(?P<fault>[a-z_]+)"
+    r"^(?P<role>chamber|table|gyro|fixture)\.(?P<fault>[a-z_]+)"
     r"(?::(?P<count>always|\d+))?(?P<params>(?::[a-z_]+=[^:@]+)*)(?:@(?P<step>\S+))?$"
 )
 
@@ -95,7 +96,7 @@ class FaultPlan:
     def arm_due(self, simulated, step_id: str | None, journal=None) -> None:
         """Arm every injection whose step has come (``step_id`` None: the ones from the start)."""
         injectors = {"chamber": simulated.chamber_faults, "table": simulated.table_faults,
-                     "gyro": simulated.gyro_faults}
+                     "gyro": simulated.gyro_faults, "fixture": simulated.fixture_faults}
         for index, injection in enumerate(self.injections):
             if index in self._armed or injection.before_step not in (None, step_id):
                 continue

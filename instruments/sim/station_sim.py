@@ -25,12 +25,14 @@ from gyrocal.instruments.sim.chamber_server import (
 from gyrocal.instruments.sim.faults import FaultInjector
 from gyrocal.instruments.sim.gyro_pty import FAULTS as GYRO_FAULTS
 from gyrocal.instruments.sim.gyro_pty import SimulatedGyroPort
+from gyrocal.instruments.sim.imu_source import FIXTURE_FAULTS, ImuPhysicsSource, SimulatedFixture
 from gyrocal.instruments.sim.table_server import FAULTS as TABLE_FAULTS
 from gyrocal.instruments.sim.table_server import SimulatedAcutrol
 from gyrocal.models.chamber import ChamberPhysics
 from gyrocal.models.clock import RealClock, SimClock
-from gyrocal.models.gyro_model import GyroModel, load_model
+from gyrocal.models.gyro_model import GyroModel
 from gyrocal.models.gyro_sim import GyroSimulator
+from gyrocal.models.imu_model import ImuModel, load_any_model
 from gyrocal.models.table import TablePhysics
 
 #: Seed offsets so the chamber, table and gyro noise streams are independent.
@@ -80,7 +82,7 @@ class SimulatedStation:
     """Starts/stops the three simulators of a station; exposes their addresses and faults."""
 
     def __init__(self, station, clock: RealClock | SimClock, seed: int | None = None,
-                 model: GyroModel | None = None, gyro_block_frames: int | None = None,
+                 model: GyroModel | ImuModel | None = None, gyro_block_frames: int | None = None,
                  sample_rate_hz: float | None = None) -> None:
         sim = station.simulation
         if sim is None:
@@ -89,7 +91,9 @@ class SimulatedStation:
         self.station = station
         self.clock = clock
         self.seed = sim.seed if seed is None else int(seed)
-        self.model = model if model is not None else load_model(sim.gyro_model)
+        # A version-2 model file is a three-axis IMU on a hexahedron fixture; version 1 is
+        # the single-axis gyro every other procedure calibrates.
+        self.model = model if model is not None else load_any_model(sim.gyro_model)
         limits = station.chamber.limits
         self.chamber_physics = ChamberPhysics(
             clock,
@@ -114,8 +118,8 @@ class SimulatedStation:
         # A real STIM300 is configured for its output rate; the simulated one takes
         # the procedure's rate so dry runs log exactly what the procedure asks for.
         self.sample_rate_hz = float(sample_rate_hz or gyro_cfg.sample_rate_hz)
-        self.gyro_simulator = GyroSimulator(self.model, self.sample_rate_hz,
-                                            seed=self.seed + _SEED_GYRO)
+        self.fixture_faults = FaultInjector(FIXTURE_FAULTS, owner="simulated fixture")
+        self.fixture: SimulatedFixture | None = None
         self.chamber_faults = FaultInjector(CHAMBER_FAULTS, owner="simulated chamber")
         self.table_faults = FaultInjector(TABLE_FAULTS, owner="simulated table")
         self.gyro_faults = FaultInjector(GYRO_FAULTS, owner="simulated gyro")
@@ -123,8 +127,18 @@ class SimulatedStation:
         self.chamber_server = chamber_cls(self.chamber_physics, self.chamber_faults,
                                           unit_id=station.chamber.unit_id)
         self.table_server = SimulatedAcutrol(self.table_physics, self.table_faults)
-        self.source = GyroPhysicsSource(self.gyro_simulator, self.table_physics,
-                                        self.chamber_physics, start_s=clock.now_s())
+        self.source: GyroPhysicsSource | ImuPhysicsSource
+        if isinstance(self.model, ImuModel):
+            self.fixture = SimulatedFixture(self.fixture_faults)
+            self.source = ImuPhysicsSource(
+                self.model, self.sample_rate_hz, self.seed + _SEED_GYRO, self.table_physics,
+                self.chamber_physics, station.site.latitude_deg, self.fixture,
+                start_s=clock.now_s())
+        else:
+            self.gyro_simulator = GyroSimulator(self.model, self.sample_rate_hz,
+                                                seed=self.seed + _SEED_GYRO)
+            self.source = GyroPhysicsSource(self.gyro_simulator, self.table_physics,
+                                            self.chamber_physics, start_s=clock.now_s())
         if gyro_block_frames is None:
             # Per block the model is evaluated once (its fixed cost is ~0.2 ms), so blocks must
             # be large; 512 frames (0.26 s at 2 kHz, 2 s at 250 Hz) keeps that cost under 1 µs a

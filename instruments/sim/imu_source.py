@@ -1,0 +1,102 @@
+"""A simulated three-axis IMU on a hexahedron fixture, on the simulated rate table.
+
+The fixture holds the IMU in one of its mountings (which axis points up
+along the table axis). Its body rate is the table rate plus the Earth rate,
+both turned into IMU axes (``models/imu_model.py``); the misalignment
+matrix mixes them, and each axis is then a complete single-axis gyro model
+(bias, scale factor, temperature, noise, effects) with its own noise seed.
+
+In a dry run nobody stands at the table, so the fixture turns by itself
+when the run asks for a remount. The ``wrong_mount`` fault makes it turn to
+the wrong face (the next axis up, as a tired operator might), which the
+run's mount check must catch before it calibrates anything.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+
+from gyrocal.instruments.sim.faults import FaultInjector
+from gyrocal.models.gyro_sim import GyroSimulator
+from gyrocal.models.imu_model import ImuModel, Mounting, body_rate_dps
+
+FIXTURE_FAULTS = ("wrong_mount",)
+#: Where the fixture stands before the first remount: IMU +Z up (how it ships).
+HOME_MOUNTING = Mounting(2, 1.0)
+
+
+class SimulatedFixture:
+    """The hexahedron fixture: its current mounting, turned on request."""
+
+    def __init__(self, faults: FaultInjector | None = None,
+                 mounting: Mounting = HOME_MOUNTING) -> None:
+        self.faults = faults if faults is not None else FaultInjector(FIXTURE_FAULTS,
+                                                                      owner="simulated fixture")
+        self._lock = threading.Lock()
+        self._mounting = mounting
+
+    @property
+    def mounting(self) -> Mounting:
+        with self._lock:
+            return self._mounting
+
+    def mount(self, requested: Mounting) -> Mounting:
+        """Turn the fixture; returns the mounting it really ended in."""
+        actual = requested
+        if self.faults.take("wrong_mount") is not None:
+            actual = Mounting((requested.up_axis + 1) % 3, requested.sign)
+        with self._lock:
+            self._mounting = actual
+        return actual
+
+
+class ImuPhysicsSource:
+    """Feeds the simulated gyro port all three axes for the table/chamber state at each frame."""
+
+    def __init__(self, model: ImuModel, fs_hz: float, seed: int, table, chamber,
+                 latitude_deg: float, fixture: SimulatedFixture, start_s: float,
+                 skip_step_s: float = 1.0) -> None:
+        self.model = model
+        self.simulators = [GyroSimulator(axis, fs_hz, seed=seed + 7919 * i)
+                           for i, axis in enumerate(model.axes)]
+        self.table = table
+        self.chamber = chamber
+        self.latitude_deg = float(latitude_deg)
+        self.fixture = fixture
+        self.start_s = float(start_s)
+        self.skip_step_s = skip_step_s
+
+    def _state(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        t_q = np.maximum(t_s, self.start_s)    # no physics before the servers started
+        return (np.asarray(self.table.rate_dps(t_q), dtype=float),
+                np.asarray(self.chamber.air_temperature_c(t_q), dtype=float),
+                np.asarray(self.table.angle_deg(t_q), dtype=float))
+
+    def axis_inputs(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(input rate per axis (n, 3) deg/s, chamber °C, table angle) at ``t_s``."""
+        rate, chamber, angle = self._state(t_s)
+        body = body_rate_dps(self.fixture.mounting, rate, angle, self.latitude_deg)
+        # E changes with temperature by µrad per kelvin: one value per block is exact
+        # to far below the noise (a block is at most a few seconds).
+        mix = np.eye(3) + self.model.misalignment_rad(float(np.mean(chamber)))
+        return body @ mix.T, chamber, angle
+
+    def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        t_s = np.asarray(t_s, dtype=float)
+        first = self.simulators[0]
+        if float(t_s[0]) - first.t_next_s > 0.5 / first.fs_hz:
+            for axis, sim in enumerate(self.simulators):
+                def inputs_at(grid: np.ndarray, axis: int = axis):
+                    rates, chamber, angle = self.axis_inputs(grid)
+                    return rates[:, axis], chamber, angle
+                sim.skip_to(float(t_s[0]), inputs_at, self.skip_step_s)
+        rates, chamber, angle = self.axis_inputs(t_s)
+        outputs = []
+        sensor = None
+        for axis, sim in enumerate(self.simulators):
+            samples = sim.generate(rates[:, axis], chamber, angle)
+            outputs.append(samples.gyro)
+            sensor = samples.sensor_temp_c if sensor is None else sensor
+        return np.stack(outputs, axis=1), sensor
