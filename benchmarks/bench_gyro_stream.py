@@ -29,8 +29,8 @@ def make_buffer(
     (every identifier byte is a candidate) path.
     """
     rng = np.random.default_rng(seed)
-    rate = rng.normal(0.0, 50.0, n_frames)
-    temp = 25.0 + rng.normal(0.0, 0.1, n_frames) if with_temperature else None
+    rate = rng.normal(0.0, 50.0, (n_frames, 3))
+    temp = 25.0 + rng.normal(0.0, 0.1, (n_frames, 3)) if with_temperature else None
     frames = encode_frame_array(rate, np.arange(n_frames), temp_c=temp, latency_us=250)
     if corrupt_fraction:
         bad = rng.choice(n_frames, int(corrupt_fraction * n_frames), replace=False)
@@ -59,7 +59,7 @@ def bench_decode(
 
 
 def bench_encode(n_frames: int, repeat: int) -> float:
-    rate = np.random.default_rng(2).normal(0.0, 50.0, n_frames)
+    rate = np.random.default_rng(2).normal(0.0, 50.0, (n_frames, 3))
     best_s = float("inf")
     for _ in range(repeat):
         t0 = time.perf_counter()

@@ -79,9 +79,16 @@ class GyroBlock:
     lost_frames: int = 0             # counter gaps (frames never received)
     garbage_bytes: int = 0           # bytes skipped while re-synchronising
     extra: dict = field(default_factory=dict)
+    rate_xyz: np.ndarray | None = None     # (n, 3) all three axes of a multi-axis unit; ``rate`` is the unit under test
+    flagged: np.ndarray | None = None      # bool per sample: the status byte marks it not valid for the unit under test
 
     def __len__(self) -> int:
         return int(self.rate.shape[0])
+
+    @property
+    def flagged_count(self) -> int:
+        """Samples the unit itself marks as saturated or in error (bad data, like lost frames)."""
+        return 0 if self.flagged is None else int(np.count_nonzero(self.flagged))
 
 
 @runtime_checkable

@@ -39,6 +39,16 @@ SAMPLE_COLUMNS = (
     "table_angle_deg",
 )
 
+#: Columns a chunk carries when the gyro gives them (older chunks lack them):
+#: the three axes of a multi-axis unit (``gyro`` is the unit under test's axis),
+#: the raw status byte, and ``status``, a bit set of :data:`SAMPLE_FLAGS` (0 = good).
+OPTIONAL_SAMPLE_COLUMNS = ("gyro_x", "gyro_y", "gyro_z", "gyro_status", "status")
+
+#: ``status`` bits: the gyro's status byte marks the sample saturated / in error
+#: for the unit under test. Analyses use only rows with ``status == 0``.
+SAMPLE_FLAG_GYRO_FLAGGED = 0x01
+SAMPLE_FLAGS = {"gyro_flagged": SAMPLE_FLAG_GYRO_FLAGGED}
+
 
 #: Manifest fields that say whose run this is; journaled in run_started so an edit shows.
 IDENTITY_KEYS = ("run_id", "operator", "unit_under_test", "station_name", "mode", "seed",
@@ -155,7 +165,12 @@ class RunFolder:
         if missing:
             raise ValueError(f"sample chunk lacks columns {missing}")
         rows = len(columns["t_s"])
-        table = pa.table({name: pa.array(np.asarray(columns[name], dtype=np.float64)) for name in SAMPLE_COLUMNS})
+        data = {name: pa.array(np.asarray(columns[name], dtype=np.float64)) for name in SAMPLE_COLUMNS}
+        for name in OPTIONAL_SAMPLE_COLUMNS:
+            if name in columns:
+                kind = np.uint8 if name in ("gyro_status", "status") else np.float64
+                data[name] = pa.array(np.asarray(columns[name], dtype=kind))
+        table = pa.table(data)
         rel = Path(SAMPLES) / step_id / f"attempt{attempt}-chunk{chunk_index:05d}.parquet"
         write_atomic(self.path / rel, lambda tmp: pq.write_table(table, tmp, compression="zstd"))
         return ChunkRecord(str(rel), sha256_file(self.path / rel), rows)
@@ -165,8 +180,10 @@ class RunFolder:
         if not records:
             return {name: np.empty(0) for name in SAMPLE_COLUMNS}
         tables = [pq.read_table(self.path / rel) for rel in records]
-        table = pa.concat_tables(tables)
-        return {name: table.column(name).to_numpy() for name in SAMPLE_COLUMNS}
+        optional = [name for name in OPTIONAL_SAMPLE_COLUMNS
+                    if all(name in t.column_names for t in tables)]
+        table = pa.concat_tables([t.select([*SAMPLE_COLUMNS, *optional]) for t in tables])
+        return {name: table.column(name).to_numpy() for name in (*SAMPLE_COLUMNS, *optional)}
 
     def journal_events(self) -> list[dict[str, Any]]:
         path = self.path / JOURNAL

@@ -45,6 +45,7 @@ STATION_VERSION = 1
 CHAMBER_DRIVERS = ("watlow_f4", "watlow_f4t")
 TABLE_DRIVERS = ("acutrol3000",)
 GYRO_DRIVERS = ("stim300",)
+GYRO_AXES = ("x", "y", "z")
 SIM_ADDRESS = "sim"   # "started by --sim": the simulator's loopback address is chosen at run time
 
 _HOST_PORT = r"[A-Za-z0-9_.\-]+:\d{1,5}"
@@ -133,6 +134,8 @@ class GyroConfig:
     rate_lsb: float           # output units per LSB
     with_temperature: bool
     timeout_s: float
+    axis: str = "x"           # unit under test among the datagram's x, y, z (all three are logged)
+    crlf: bool = False        # datagrams terminated by CR LF (a STIM300 setting)
 
 
 @dataclass(frozen=True)
@@ -343,6 +346,8 @@ def _gyro(ctx: Context, parent: Fields) -> GyroConfig:
         fields.take("rate_lsb", number(above=0.0)),
         fields.take("with_temperature", boolean, required=False, default=True),
         fields.take("timeout_s", duration(bare_seconds=True), required=False, default=2.0),
+        fields.take("axis", choice(GYRO_AXES), required=False, default="x"),
+        fields.take("crlf", boolean, required=False, default=False),
     )
     fields.finish()
     return gyro

@@ -154,7 +154,7 @@ def read_run_folder_log(run_dir: Path) -> MeasuredLog:
     chunks of bad or interrupted attempts stay on disk (nothing is deleted)
     but do not enter the analysis.
     """
-    from gyrocal.orchestrator.run_folder import RunFolder
+    from gyrocal.orchestrator.run_folder import OPTIONAL_SAMPLE_COLUMNS, RunFolder
 
     folder = RunFolder.open(run_dir)
     events = folder.journal_events()
@@ -163,6 +163,13 @@ def read_run_folder_log(run_dir: Path) -> MeasuredLog:
     for event in events:
         if event.get("event") == "step_completed" and event.get("chunks"):
             data = folder.read_chunks(event["chunks"])
+            status = data.pop("status", None)
+            for name in OPTIONAL_SAMPLE_COLUMNS:
+                data.pop(name, None)
+            if status is not None:
+                # Samples the gyro flagged (saturated, in error) are bad data: never analysed.
+                good = status == 0
+                data = {name: values[good] for name, values in data.items()}
             parts.append(data)
             labels.append(np.full(len(data["t_s"]), event["step_id"], dtype=object))
     if not parts:

@@ -95,6 +95,17 @@ def per_rate_sf(dwells: Sequence[Dwell]) -> dict[float, float]:
     return result
 
 
+def _ratio(numerator: float, denominator: float) -> float:
+    """``numerator / denominator``, NaN when the denominator is 0.
+
+    A gyro whose output does not change with rate (saturated, dead) has a
+    zero scale factor; its relative figures are undefined, and NaN lets the
+    results' sanity check call the run INVALID instead of the report crashing.
+    """
+    denominator = float(denominator)
+    return float(numerator) / denominator if denominator != 0.0 else float("nan")
+
+
 def analyze_scale_factor(dwells: Sequence[Dwell]) -> ScaleFactorResult:
     """All scale-factor figures from the dwells of one temperature.
 
@@ -118,15 +129,15 @@ def analyze_scale_factor(dwells: Sequence[Dwell]) -> ScaleFactorResult:
     sf_plus = _side_sf(rate[positive], output[positive], zero_out, line.bias)
     sf_minus = _side_sf(rate[negative], output[negative], zero_out, line.bias)
     mean_side = 0.5 * (sf_plus + sf_minus)
-    asymmetry_ppm = (sf_plus - sf_minus) / mean_side * 1e6
+    asymmetry_ppm = _ratio(sf_plus - sf_minus, mean_side) * 1e6
 
     by_rate = per_rate_sf(dwells)
     if not by_rate:
         raise ValueError("no rate has both a positive and a negative dwell")
     values = np.array(list(by_rate.values()))
-    rms_pct = float(values.std(ddof=1) / values.mean() * 100.0) if values.size > 1 else 0.0
+    rms_pct = _ratio(values.std(ddof=1), values.mean()) * 100.0 if values.size > 1 else 0.0
     full_scale = abs(line.sf) * float(np.max(np.abs(rate)))
-    max_ppm_fs = float(np.max(np.abs(line.residuals)) / full_scale * 1e6)
+    max_ppm_fs = _ratio(np.max(np.abs(line.residuals)), full_scale) * 1e6
     return ScaleFactorResult(
         temp_c=float(next(iter(temps))), sf=line.sf, bias=line.bias, sf_plus=sf_plus,
         sf_minus=sf_minus, asymmetry_ppm=float(asymmetry_ppm), sf_by_rate=by_rate,

@@ -1,33 +1,39 @@
-"""The STIM300-style single-axis gyro datagram: layout, vectorised encoder and decoder.
+"""The STIM300 gyro datagrams 0x90 and 0x94: layout, vectorised encoder and decoder.
 
 This module is the one place the wire format is defined. Everything else
-(driver, simulator, tests) imports these constants.
+(driver, simulator, benchmarks) imports these constants; the tests build
+their expected bytes by hand from the datasheet tables instead.
 
-Layout (all multi-byte fields big-endian)::
+Layout (all multi-byte fields big-endian; STIM300 datasheet, datagram
+content tables; cross-checked against a public reader of real units,
+geirhovland/stim300 ``stim300_read.py``)::
 
-    0x90 frame, rate only, 12 bytes
-      offset 0   identifier     0x90
-      offset 1   rate           3 bytes, two's complement, raw LSB counts
-      offset 4   status         1 byte  (0 = OK, bits below)
-      offset 5   counter        1 byte, frame index modulo 256
-      offset 6   latency_us     2 bytes, unsigned, sampling-to-transmit delay
-      offset 8   crc            4 bytes, CRC-32/MPEG-2 of bytes 0..7
+    0x90 "rate", 18 bytes                 0x94 "rate + temperature", 25 bytes
+      0      identifier 0x90                0      identifier 0x94
+      1..9   rate x, y, z: 3 × 24-bit       1..9   rate x, y, z
+             two's complement               10     status (rates)
+      10     status                         11..16 temperature x, y, z: 3 × 16-bit
+      11     counter (mod 256)                     two's complement, 1/256 °C
+      12..13 latency, µs                    17     temperature status
+      14..17 CRC-32                         18     counter
+                                            19..20 latency, µs
+                                            21..24 CRC-32
 
-    0x94 frame, rate + temperature, 14 bytes
-      offset 0   identifier     0x94
-      offset 1   rate           3 bytes, two's complement
-      offset 4   status         1 byte
-      offset 5   temperature    2 bytes, two's complement, 1/256 °C per LSB
-      offset 7   counter        1 byte
-      offset 8   latency_us     2 bytes
-      offset 10  crc            4 bytes, CRC-32/MPEG-2 of bytes 0..9
+CRC rule (datasheet): CRC-32 (poly 0x04C11DB7, init 0xFFFFFFFF, MSB first,
+no final XOR) over the datagram from the identifier up to the CRC, padded
+with dummy 0x00 bytes to a whole number of 32-bit words: 14 + 2 dummy bytes
+for 0x90, 21 + 3 for 0x94. The unit may be set to append CR LF after each
+datagram (``crlf=True``); the terminator is outside the CRC.
 
-Rate scaling: ``rate = raw * lsb`` in the unit's output units; ``lsb`` is a
-per-station setting (default 2**-14, the STIM300's deg/s LSB). A rate whose
-raw value would exceed ±(2**23 − 1) is clipped to full scale and flagged
-with :data:`STATUS_RATE_SATURATED` — never wrapped, because a wrapped sample
-is a plausible-looking wrong number in a calibration. Same for temperature
-with :data:`STATUS_TEMP_SATURATED`.
+Rate scaling: ``rate = raw * lsb``; ``lsb`` is a station setting whose
+default 2**-14 deg/s is the ±400 deg/s range's LSB. Temperature LSB 1/256 °C.
+
+Status byte bits (datasheet status table, bit 7 first; cited in this form by
+public STIM300 drivers): 7 system integrity error, 6 start-up, 5 outside
+operating conditions, 4 overload, 3 error in measurement channel, 2/1/0 the
+z/y/x channel the overload or error refers to. The encoder never wraps an
+out-of-range value: it clips it to full scale and sets overload + the axis
+bit, because a wrapped sample is a plausible-looking wrong number.
 
 Decoding is vectorised over whole buffers (see :class:`FrameDecoder`): it is
 equivalent to the byte-by-byte scanner
@@ -42,6 +48,7 @@ equivalent to the byte-by-byte scanner
 so a stray identifier byte in garbage never costs a good frame (CRC-valid
 frames win), corrupt frames are counted and never yield a sample, and every
 byte of the stream is exactly one of: frame, CRC-error frame, garbage.
+With CR LF termination a frame is only valid if its terminator is intact.
 """
 
 from __future__ import annotations
@@ -50,46 +57,103 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyrocal.instruments.gyro.crc32_mpeg2 import crc32_mpeg2_rows, crc32_mpeg2_words
+from gyrocal.instruments.gyro.crc32_mpeg2 import crc32_mpeg2_rows
 
 ID_RATE = 0x90
 ID_RATE_TEMP = 0x94
 
+AXES = ("x", "y", "z")
 RAW_FULL_SCALE = 2**23 - 1
-DEFAULT_LSB = 2.0**-14          # output units per LSB (deg/s on a STIM300)
+DEFAULT_LSB = 2.0**-14          # deg/s per LSB, STIM300 ±400 deg/s range
 TEMP_LSB_C = 1.0 / 256.0
 TEMP_RAW_FULL_SCALE = 2**15 - 1
 
 STATUS_OK = 0x00
-STATUS_RATE_SATURATED = 0x01
-STATUS_TEMP_SATURATED = 0x02
+STATUS_AXIS_X = 0x01
+STATUS_AXIS_Y = 0x02
+STATUS_AXIS_Z = 0x04
+STATUS_CHANNEL_ERROR = 0x08
+STATUS_OVERLOAD = 0x10
+STATUS_OUTSIDE_OPERATING = 0x20
+STATUS_STARTUP = 0x40
+STATUS_SYSTEM_INTEGRITY = 0x80
+STATUS_AXIS_BITS = (STATUS_AXIS_X, STATUS_AXIS_Y, STATUS_AXIS_Z)
+STATUS_WHOLE_UNIT = STATUS_SYSTEM_INTEGRITY | STATUS_STARTUP | STATUS_OUTSIDE_OPERATING
+STATUS_CHANNEL_FLAGS = STATUS_OVERLOAD | STATUS_CHANNEL_ERROR
 
 RATE_OFFSET = 1
-STATUS_OFFSET = 4
+STATUS_OFFSET = 10
+CRLF = b"\r\n"
+
+
+def axis_index(axis: str) -> int:
+    """0, 1, 2 for ``x``, ``y``, ``z`` (the station file's ``axis:``)."""
+    try:
+        return AXES.index(axis)
+    except ValueError:
+        raise ValueError(f"axis must be one of x, y, z, got {axis!r}") from None
+
+
+def flagged(status: np.ndarray, axis: int) -> np.ndarray:
+    """Samples the status byte marks as not valid for ``axis`` (bool array).
+
+    Whole-unit conditions (system integrity, start-up, outside operating
+    conditions) flag every axis. Overload / channel error flag the axes
+    whose bit is set; with no axis bit set they are taken to mean all axes
+    (the conservative reading: a calibration must not keep a doubtful sample).
+    """
+    status = np.asarray(status, dtype=np.uint8)
+    axis_bits = status & np.uint8(0x07)
+    channel = (status & np.uint8(STATUS_CHANNEL_FLAGS)) != 0
+    this_axis = ((axis_bits & np.uint8(STATUS_AXIS_BITS[axis])) != 0) | (axis_bits == 0)
+    return ((status & np.uint8(STATUS_WHOLE_UNIT)) != 0) | (channel & this_axis)
 
 
 @dataclass(frozen=True)
 class FrameLayout:
-    """Byte offsets of one frame type (see the module docstring)."""
+    """Byte offsets of one datagram type (see the module docstring)."""
 
     identifier: int
-    length: int
     temp_offset: int | None
+    temp_status_offset: int | None
     counter_offset: int
     latency_offset: int
     crc_offset: int
+    crlf: bool = False
 
     @property
     def with_temperature(self) -> bool:
         return self.temp_offset is not None
 
+    @property
+    def length(self) -> int:
+        """Bytes on the wire per datagram, terminator included."""
+        return self.crc_offset + 4 + (2 if self.crlf else 0)
 
-LAYOUT_RATE = FrameLayout(ID_RATE, 12, None, 5, 6, 8)
-LAYOUT_RATE_TEMP = FrameLayout(ID_RATE_TEMP, 14, 5, 7, 8, 10)
+    @property
+    def crc_dummy_bytes(self) -> int:
+        """Zero bytes appended before the CRC is computed (to a multiple of 4)."""
+        return -self.crc_offset % 4
 
 
-def layout_for(with_temperature: bool) -> FrameLayout:
-    return LAYOUT_RATE_TEMP if with_temperature else LAYOUT_RATE
+LAYOUT_RATE = FrameLayout(ID_RATE, None, None, 11, 12, 14)
+LAYOUT_RATE_TEMP = FrameLayout(ID_RATE_TEMP, 11, 17, 18, 19, 21)
+
+
+def layout_for(with_temperature: bool, crlf: bool = False) -> FrameLayout:
+    base = LAYOUT_RATE_TEMP if with_temperature else LAYOUT_RATE
+    if not crlf:
+        return base
+    return FrameLayout(base.identifier, base.temp_offset, base.temp_status_offset,
+                       base.counter_offset, base.latency_offset, base.crc_offset, crlf=True)
+
+
+def frame_crc(rows: np.ndarray, layout: FrameLayout) -> np.ndarray:
+    """CRC of each datagram row under the dummy-byte rule (uint32 per row)."""
+    n = rows.shape[0]
+    padded = np.zeros((n, layout.crc_offset + layout.crc_dummy_bytes), dtype=np.uint8)
+    padded[:, : layout.crc_offset] = rows[:, : layout.crc_offset]
+    return crc32_mpeg2_rows(padded)
 
 
 # --------------------------------------------------------------------------- encode
@@ -102,15 +166,16 @@ def encode_frames(
     temp_c: np.ndarray | None = None,
     latency_us: int | np.ndarray = 0,
     lsb: float = DEFAULT_LSB,
+    crlf: bool = False,
 ) -> bytes:
-    """Encode samples into concatenated frames (0x94 if ``temp_c`` is given, else 0x90).
+    """Encode samples into concatenated datagrams (0x94 if ``temp_c`` is given, else 0x90).
 
-    ``counter`` is taken modulo 256, so the absolute frame index may be passed.
-    Saturation bits are OR-ed into ``status``. NaN cannot be represented and
-    raises ``ValueError`` naming the first offending sample.
+    ``rate`` is (n, 3) x/y/z; ``temp_c`` (n, 3) or broadcastable. ``counter``
+    is taken modulo 256, so the absolute frame index may be passed. Clipping
+    sets overload + the axis bit in ``status`` (rates) or the temperature
+    status. NaN cannot be represented and raises ``ValueError``.
     """
-    frames = encode_frame_array(rate, counter, status, temp_c, latency_us, lsb)
-    return frames.tobytes()
+    return encode_frame_array(rate, counter, status, temp_c, latency_us, lsb, crlf).tobytes()
 
 
 def encode_frame_array(
@@ -120,6 +185,7 @@ def encode_frame_array(
     temp_c: np.ndarray | None = None,
     latency_us: int | np.ndarray = 0,
     lsb: float = DEFAULT_LSB,
+    crlf: bool = False,
 ) -> np.ndarray:
     """As :func:`encode_frames` but returns the (n_frames, frame_length) uint8 array.
 
@@ -127,9 +193,11 @@ def encode_frame_array(
     """
     if not lsb > 0:
         raise ValueError(f"lsb must be > 0, got {lsb!r}")
-    rate = np.asarray(rate, dtype=np.float64).ravel()
+    rate = np.asarray(rate, dtype=np.float64)
+    if rate.ndim != 2 or rate.shape[1] != 3:
+        raise ValueError(f"rate must have shape (n, 3) (x, y, z), got {rate.shape}")
     n = rate.shape[0]
-    layout = layout_for(temp_c is not None)
+    layout = layout_for(temp_c is not None, crlf)
     counter = np.broadcast_to(np.asarray(counter), (n,))
     status_out = np.zeros(n, np.uint8) if status is None else np.broadcast_to(
         np.asarray(status, dtype=np.uint8), (n,)).copy()
@@ -137,43 +205,55 @@ def encode_frame_array(
     if latency.size and (latency.min() < 0 or latency.max() > 0xFFFF):
         raise ValueError("latency_us must be within 0..65535")
 
-    raw_rate, rate_saturated = _to_raw(rate, lsb, RAW_FULL_SCALE, "rate")
-    status_out[rate_saturated] |= STATUS_RATE_SATURATED
-
     frames = np.empty((n, layout.length), dtype=np.uint8)
     frames[:, 0] = layout.identifier
-    raw_u32 = raw_rate.astype(np.int64) & 0xFFFFFF
-    frames[:, 1] = raw_u32 >> 16
-    frames[:, 2] = (raw_u32 >> 8) & 0xFF
-    frames[:, 3] = raw_u32 & 0xFF
-    if layout.temp_offset is not None:
-        temp = np.broadcast_to(np.asarray(temp_c, dtype=np.float64), (n,))
-        raw_temp, temp_saturated = _to_raw(temp / TEMP_LSB_C, 1.0, TEMP_RAW_FULL_SCALE, "temp_c")
-        status_out[temp_saturated] |= STATUS_TEMP_SATURATED
-        raw_t16 = raw_temp.astype(np.int64) & 0xFFFF
-        frames[:, layout.temp_offset] = raw_t16 >> 8
-        frames[:, layout.temp_offset + 1] = raw_t16 & 0xFF
+    raw_rate, rate_saturated = _to_raw(rate / lsb, RAW_FULL_SCALE, "rate")
+    status_out |= _overload_bits(rate_saturated)
+    _put_int(frames, RATE_OFFSET, raw_rate, 3)
     frames[:, STATUS_OFFSET] = status_out
+    if layout.temp_offset is not None and layout.temp_status_offset is not None:
+        temp = np.broadcast_to(np.asarray(temp_c, dtype=np.float64).reshape(-1, 3 if np.ndim(temp_c) == 2 else 1), (n, 3))
+        raw_temp, temp_saturated = _to_raw(temp / TEMP_LSB_C, TEMP_RAW_FULL_SCALE, "temp_c")
+        _put_int(frames, layout.temp_offset, raw_temp, 2)
+        frames[:, layout.temp_status_offset] = _overload_bits(temp_saturated)
     frames[:, layout.counter_offset] = np.asarray(counter, dtype=np.int64) & 0xFF
-    latency64 = latency.astype(np.int64)
-    frames[:, layout.latency_offset] = latency64 >> 8
-    frames[:, layout.latency_offset + 1] = latency64 & 0xFF
-    crc = crc32_mpeg2_rows(frames[:, : layout.crc_offset])
+    _put_int(frames, layout.latency_offset, latency.astype(np.int64)[:, None], 2)
+    crc = frame_crc(frames, layout)
     for byte in range(4):
         frames[:, layout.crc_offset + byte] = (crc >> np.uint32(24 - 8 * byte)) & np.uint32(0xFF)
+    if layout.crlf:
+        frames[:, -2] = 0x0D
+        frames[:, -1] = 0x0A
     return frames
 
 
-def _to_raw(values: np.ndarray, lsb: float, full_scale: int, what: str) -> tuple[np.ndarray, np.ndarray]:
+def _put_int(frames: np.ndarray, offset: int, values: np.ndarray, width: int) -> None:
+    """Write the columns of ``values`` as consecutive big-endian ``width``-byte fields."""
+    mask = (1 << (8 * width)) - 1
+    raw = values.astype(np.int64) & mask
+    for col in range(raw.shape[1]):
+        for byte in range(width):
+            frames[:, offset + col * width + byte] = (raw[:, col] >> (8 * (width - 1 - byte))) & 0xFF
+
+
+def _overload_bits(saturated: np.ndarray) -> np.ndarray:
+    """Status bits for clipped channels: overload plus the bit of each clipped axis."""
+    bits = np.zeros(saturated.shape[0], np.uint8)
+    for axis, axis_bit in enumerate(STATUS_AXIS_BITS):
+        bits[saturated[:, axis]] |= np.uint8(STATUS_OVERLOAD | axis_bit)
+    return bits
+
+
+def _to_raw(scaled: np.ndarray, full_scale: int, what: str) -> tuple[np.ndarray, np.ndarray]:
     """Round to LSB counts, clip at ±full scale and say which samples were clipped."""
-    bad = np.isnan(values)
+    bad = np.isnan(scaled)
     if bad.any():
-        first = int(np.flatnonzero(bad)[0])
+        first = int(np.flatnonzero(bad.any(axis=1))[0])
         raise ValueError(f"{what}[{first}] is NaN: a datagram cannot carry it")
     with np.errstate(over="ignore", invalid="ignore"):
-        scaled = np.rint(values / lsb)
-    saturated = np.abs(scaled) > full_scale
-    return np.clip(scaled, -full_scale, full_scale).astype(np.int32), saturated
+        rounded = np.rint(scaled)
+    saturated = np.abs(rounded) > full_scale
+    return np.clip(rounded, -full_scale, full_scale).astype(np.int32), saturated
 
 
 # --------------------------------------------------------------------------- decode
@@ -183,12 +263,13 @@ def _to_raw(values: np.ndarray, lsb: float, full_scale: int, what: str) -> tuple
 class DecodedFrames:
     """Samples from frames whose CRC checked, in arrival order, plus what was dropped."""
 
-    rate: np.ndarray            # float64, output units (raw * lsb)
-    status: np.ndarray          # uint8
+    rate: np.ndarray            # float64 (n, 3) x, y, z in output units (raw * lsb)
+    status: np.ndarray          # uint8 status byte of the rates
     counter: np.ndarray         # uint8
     index: np.ndarray           # int64, frames since decoder reset, counter gaps unwrapped
     latency_us: np.ndarray      # uint16
-    temp_c: np.ndarray | None   # float64 (0x94 frames) or None
+    temp_c: np.ndarray | None   # float64 (n, 3) (0x94 datagrams) or None
+    temp_status: np.ndarray | None = None   # uint8 temperature status (0x94) or None
     crc_errors: int = 0         # frame-length spans that started with the identifier and failed CRC
     garbage_bytes: int = 0      # bytes skipped while re-synchronising
     lost_frames: int = 0        # frames missing according to counter gaps
@@ -207,10 +288,10 @@ class FrameDecoder:
     the next :meth:`feed`.
     """
 
-    def __init__(self, with_temperature: bool = False, lsb: float = DEFAULT_LSB) -> None:
+    def __init__(self, with_temperature: bool = False, lsb: float = DEFAULT_LSB, crlf: bool = False) -> None:
         if not lsb > 0:
             raise ValueError(f"lsb must be > 0, got {lsb!r}")
-        self.layout = layout_for(with_temperature)
+        self.layout = layout_for(with_temperature, crlf)
         self.lsb = float(lsb)
         self.total_frames = 0
         self.total_crc_errors = 0
@@ -263,7 +344,7 @@ class FrameDecoder:
         n = buf.shape[0]
         cand = np.flatnonzero(buf[: n - length + 1] == layout.identifier)
         frames = _gather_frames(buf, cand, length)
-        ok = _crc_ok(_as_rows(frames, length))
+        ok = _crc_ok(_as_rows(frames, length), layout)
         if ok.all():
             valid = cand
         else:
@@ -306,7 +387,7 @@ class FrameDecoder:
         rows = buf[p0 : p0 + m * length].reshape(m, length)
         if not (rows[:, 0] == layout.identifier).all():
             return None
-        ok = _crc_ok(rows)
+        ok = _crc_ok(rows, layout)
         frames = rows.view(f"V{length}").reshape(m)
         if ok.all():
             return frames, 0, p0 + m * length
@@ -317,7 +398,7 @@ class FrameDecoder:
         inner = inner[buf[inner] == layout.identifier]
         if inner.size and inner.max() + length > n:
             return None
-        if inner.size and _crc_ok(_as_rows(_gather_frames(buf, inner, length), length)).any():
+        if inner.size and _crc_ok(_as_rows(_gather_frames(buf, inner, length), length), layout).any():
             return None
         return frames[ok], int(failed.size), p0 + m * length
 
@@ -347,20 +428,16 @@ class FrameDecoder:
         layout = self.layout
         if rows.shape[0] == 0:
             return self._empty()
-        words = rows.view(">u2")
-        high = (words[:, 0].astype(np.uint32) << np.uint32(24)).view(np.int32) >> 8
-        raw = high | words[:, 1].astype(np.int32)
-        rate = raw * self.lsb
+        rate = _get_int(rows, RATE_OFFSET, 3, 3) * self.lsb
         status = rows[:, STATUS_OFFSET].copy()
         counter = rows[:, layout.counter_offset].copy()
-        latency = words[:, layout.latency_offset // 2].astype(np.uint16)
-        temp_c = None
-        if layout.temp_offset is not None:
-            t = layout.temp_offset
-            raw_t = ((rows[:, t].astype(np.uint16) << np.uint16(8)) | rows[:, t + 1]).view(np.int16)
-            temp_c = raw_t * TEMP_LSB_C
+        latency = _get_int(rows, layout.latency_offset, 1, 2, signed=False)[:, 0].astype(np.uint16)
+        temp_c = temp_status = None
+        if layout.temp_offset is not None and layout.temp_status_offset is not None:
+            temp_c = _get_int(rows, layout.temp_offset, 3, 2) * TEMP_LSB_C
+            temp_status = rows[:, layout.temp_status_offset].copy()
         index, lost = self._unwrap(counter)
-        return DecodedFrames(rate, status, counter, index, latency, temp_c, lost_frames=lost)
+        return DecodedFrames(rate, status, counter, index, latency, temp_c, temp_status, lost_frames=lost)
 
     def _unwrap(self, counter: np.ndarray) -> tuple[np.ndarray, int]:
         """Frame index from the 8-bit counter; a step of 0 (mod 256) counts as 256 lost.
@@ -383,15 +460,28 @@ class FrameDecoder:
         return index, int(step.sum()) - int(step.size)
 
     def _empty(self) -> DecodedFrames:
-        empty_f = np.empty(0, np.float64)
+        with_temp = self.layout.with_temperature
         return DecodedFrames(
-            rate=empty_f,
+            rate=np.empty((0, 3), np.float64),
             status=np.empty(0, np.uint8),
             counter=np.empty(0, np.uint8),
             index=np.empty(0, np.int64),
             latency_us=np.empty(0, np.uint16),
-            temp_c=empty_f.copy() if self.layout.with_temperature else None,
+            temp_c=np.empty((0, 3), np.float64) if with_temp else None,
+            temp_status=np.empty(0, np.uint8) if with_temp else None,
         )
+
+
+def _get_int(rows: np.ndarray, offset: int, count: int, width: int, signed: bool = True) -> np.ndarray:
+    """``count`` consecutive big-endian ``width``-byte fields from ``offset`` as int64 columns."""
+    out = np.zeros((rows.shape[0], count), dtype=np.int64)
+    for col in range(count):
+        for byte in range(width):
+            out[:, col] = (out[:, col] << 8) | rows[:, offset + col * width + byte]
+    if signed:
+        sign = np.int64(1) << np.int64(8 * width - 1)
+        out = (out ^ sign) - sign
+    return out
 
 
 def _gather_frames(buf: np.ndarray, starts: np.ndarray, length: int) -> np.ndarray:
@@ -404,12 +494,15 @@ def _gather_frames(buf: np.ndarray, starts: np.ndarray, length: int) -> np.ndarr
     return windows[starts]
 
 
-def _crc_ok(rows: np.ndarray) -> np.ndarray:
-    """CRC check of each frame row (the CRC is the last 4 bytes, big-endian)."""
-    words = rows.view(">u2")
-    crc_word = words.shape[1] - 2
-    stored = (words[:, crc_word].astype(np.uint32) << np.uint32(16)) | words[:, crc_word + 1]
-    return crc32_mpeg2_words(words[:, :crc_word].astype(np.uint16)) == stored
+def _crc_ok(rows: np.ndarray, layout: FrameLayout) -> np.ndarray:
+    """Validity of each datagram row: CRC under the dummy-byte rule, and the CR LF if configured."""
+    c = layout.crc_offset
+    stored = ((rows[:, c].astype(np.uint32) << np.uint32(24)) | (rows[:, c + 1].astype(np.uint32) << np.uint32(16))
+              | (rows[:, c + 2].astype(np.uint32) << np.uint32(8)) | rows[:, c + 3])
+    ok = frame_crc(rows, layout) == stored
+    if layout.crlf:
+        ok &= (rows[:, -2] == 0x0D) & (rows[:, -1] == 0x0A)
+    return ok
 
 
 def _as_rows(frames: np.ndarray, length: int) -> np.ndarray:

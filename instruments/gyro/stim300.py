@@ -17,7 +17,13 @@ import numpy as np
 import serial
 
 from gyrocal.instruments.errors import InstrumentConnectionError, InstrumentTimeout
-from gyrocal.instruments.gyro.datagram import DEFAULT_LSB, DecodedFrames, FrameDecoder
+from gyrocal.instruments.gyro.datagram import (
+    DEFAULT_LSB,
+    DecodedFrames,
+    FrameDecoder,
+    axis_index,
+    flagged,
+)
 from gyrocal.instruments.interfaces import GyroBlock, Identity
 
 _POLL_S = 0.05                  # longest single blocking read, so deadlines are honoured
@@ -37,6 +43,8 @@ class Stim300Gyro:
         lsb: float = DEFAULT_LSB,
         timeout_s: float = 1.0,
         name: str = "gyro",
+        axis: str = "x",
+        crlf: bool = False,
     ) -> None:
         self.port = port
         self.name = name
@@ -45,7 +53,10 @@ class Stim300Gyro:
         self.with_temperature = bool(with_temperature)
         self.lsb = float(lsb)
         self.timeout_s = float(timeout_s)
-        self._decoder = FrameDecoder(with_temperature=with_temperature, lsb=lsb)
+        self.axis = axis
+        self._axis = axis_index(axis)
+        self.crlf = bool(crlf)
+        self._decoder = FrameDecoder(with_temperature=with_temperature, lsb=lsb, crlf=self.crlf)
         self._frame_length = self._decoder.layout.length
         try:
             self._serial = serial.serial_for_url(
@@ -65,7 +76,8 @@ class Stim300Gyro:
             address=self.port,
             description=(
                 f"STIM300-style datagram 0x{layout.identifier:02X} ({layout.length}-byte frames), "
-                f"{self.sample_rate_hz:g} Hz, lsb={self.lsb:g}, {self.baudrate} baud"
+                f"{self.sample_rate_hz:g} Hz, lsb={self.lsb:g}, {self.baudrate} baud, "
+                f"unit under test: {self.axis} axis{', CR LF' if self.crlf else ''}"
             ),
         )
 
@@ -150,17 +162,20 @@ class Stim300Gyro:
 
     def _take(self, n: int) -> GyroBlock:
         parts = self._surplus
-        rate = _concat([p.rate for p in parts], np.float64)
+        rate = _concat([p.rate for p in parts], np.float64).reshape(-1, 3)
         status = _concat([p.status for p in parts], np.uint8)
         counter = _concat([p.counter for p in parts], np.uint8)
         index = _concat([p.index for p in parts], np.int64)
         latency = _concat([p.latency_us for p in parts], np.uint16)
-        temp = _concat([p.temp_c for p in parts], np.float64) if self.with_temperature else None
+        temp = temp_status = None
+        if self.with_temperature:
+            temp = _concat([p.temp_c for p in parts if p.temp_c is not None], np.float64).reshape(-1, 3)
+            temp_status = _concat([p.temp_status for p in parts if p.temp_status is not None], np.uint8)
 
         if rate.shape[0] > n:
             rest = DecodedFrames(
                 rate[n:], status[n:], counter[n:], index[n:], latency[n:],
-                None if temp is None else temp[n:],
+                None if temp is None else temp[n:], None if temp_status is None else temp_status[n:],
             )
             self._surplus, self._surplus_count = [rest], rate.shape[0] - n
         else:
@@ -171,16 +186,22 @@ class Stim300Gyro:
         if n:
             lost = int(index[-1] - self._last_index_returned) - n
             self._last_index_returned = int(index[-1])
+        extra: dict = {"latency_us": latency[:n]}
+        if temp is not None and temp_status is not None:
+            extra["temperature_xyz_c"] = temp[:n]
+            extra["temperature_status"] = temp_status[:n]
         block = GyroBlock(
-            rate=rate[:n],
+            rate=rate[:n, self._axis],
             counter=counter[:n],
             index=index,
             status=status[:n],
-            temperature_c=None if temp is None else temp[:n],
+            temperature_c=None if temp is None else temp[:n, self._axis],
             crc_errors=self._pending_crc_errors,
             lost_frames=lost,
             garbage_bytes=self._pending_garbage_bytes,
-            extra={"latency_us": latency[:n]},
+            extra=extra,
+            rate_xyz=rate[:n],
+            flagged=flagged(status[:n], self._axis),
         )
         self._pending_crc_errors = 0
         self._pending_garbage_bytes = 0

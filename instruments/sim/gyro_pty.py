@@ -1,4 +1,4 @@
-"""A simulated STIM300-style gyro streaming datagrams into a pseudo-terminal.
+"""A simulated STIM300 gyro streaming 0x90 / 0x94 datagrams into a pseudo-terminal.
 
 The driver opens ``port_name`` exactly as it would open ``/dev/ttyUSB0``, so
 the same serial code path (pyserial, termios, select, partial reads) is
@@ -7,8 +7,13 @@ exercised in dry runs and tests.
 Frames lie on an absolute grid ``t_k = k / sample_rate_hz`` with
 ``counter = k mod 256``. Time follows the shared clock:
 
-* ``RealClock``: the stream starts at the current time; a block is written
-  once the clock has reached its end time (paced like the real instrument).
+* ``RealClock`` (any speed): the stream starts at the current time; a block
+  is written once the clock has reached its end time (paced like the real
+  instrument, ``speed`` times faster in wall time). A real unit never waits
+  for its reader: frames the reader did not take in time are lost in the
+  UART, so the writer never falls more than :data:`_REAL_LAG_BLOCKS` blocks
+  behind the clock — older frames are dropped (a counter gap), never
+  replayed late as if they were current.
 * ``SimClock``: time moves as fast as the consumer reads. Before producing a
   block the writer jumps forward if someone else advanced the clock past it
   (those frames were never read by anybody, so they appear as a counter
@@ -20,8 +25,8 @@ Faults (armed on the :class:`FaultInjector`; see :data:`FAULTS`):
 
 * ``corrupt_frames``: each firing flips one payload byte of one frame (CRC fails).
 * ``lose_frames``: each firing omits one frame (counter gap).
-* ``saturate``: each firing sends one frame at positive full scale, flagged
-  :data:`STATUS_RATE_SATURATED`.
+* ``saturate``: each firing sends one frame whose unit-under-test axis is at
+  positive full scale; the encoder sets overload + that axis bit.
 * ``garbage``: each firing inserts ``n_bytes`` (param, default 32) random
   bytes before the next block.
 * ``stall``: stop sending for ``duration_s`` wall seconds (param), or while
@@ -59,6 +64,7 @@ FAULTS = ("corrupt_frames", "lose_frames", "garbage", "stall", "saturate")
 GyroSource = Callable[[np.ndarray], tuple[np.ndarray, "np.ndarray | None"]]
 
 _POLL_S = 0.05          # how often blocking waits look at the stop flag
+_REAL_LAG_BLOCKS = 2    # real clock: frames older than this many blocks behind the clock are dropped
 _EPS_FRAMES = 1e-6      # tolerance when converting clock time to a frame number
 
 
@@ -76,6 +82,8 @@ class SimulatedGyroPort:
         block_frames: int = 256,
         latency_us: int = 250,
         seed: int = 0,
+        axis: int = 0,
+        crlf: bool = False,
     ) -> None:
         if not sample_rate_hz > 0:
             raise ValueError(f"sample_rate_hz must be > 0, got {sample_rate_hz!r}")
@@ -85,7 +93,9 @@ class SimulatedGyroPort:
         self.clock = clock
         self.sample_rate_hz = float(sample_rate_hz)
         self.with_temperature = bool(with_temperature)
-        self.layout = layout_for(with_temperature)
+        self.layout = layout_for(with_temperature, crlf)
+        self.crlf = bool(crlf)
+        self.axis = int(axis)       # the simulated unit is single-axis: its output on this axis, 0 on the others
         self.lsb = float(lsb)
         self.faults = faults if faults is not None else FaultInjector(FAULTS, owner="simulated gyro")
         self.block_frames = int(block_frames)
@@ -168,9 +178,11 @@ class SimulatedGyroPort:
 
     def _produce_block(self) -> None:
         fs = self.sample_rate_hz
+        k_now = math.floor(self.clock.now_s() * fs + _EPS_FRAMES)
         if isinstance(self.clock, SimClock):
-            k_now = math.floor(self.clock.now_s() * fs + _EPS_FRAMES)
             self.next_frame = max(self.next_frame, k_now)
+        else:
+            self.next_frame = max(self.next_frame, k_now - _REAL_LAG_BLOCKS * self.block_frames)
         k0 = self.next_frame
         k = np.arange(k0, k0 + self.block_frames, dtype=np.int64)
         t_end_s = (k0 + self.block_frames) / fs
@@ -191,12 +203,13 @@ class SimulatedGyroPort:
         Returns (bytes, garbage prefix length, grid index of the first frame written).
         """
         t_s = k / self.sample_rate_hz
-        rate, temp_c = self.source(t_s)
-        rate = np.array(rate, dtype=np.float64, copy=True).reshape(k.shape)
+        rate_axis, temp_c = self.source(t_s)
+        rate = np.zeros((k.size, 3), dtype=np.float64)
+        rate[:, self.axis] = np.asarray(rate_axis, dtype=np.float64).reshape(k.shape)
         if self.with_temperature:
             if temp_c is None:
                 raise ValueError("simulated gyro: with_temperature=True but the source gave no temperature")
-            temp_c = np.broadcast_to(np.asarray(temp_c, dtype=np.float64), k.shape)
+            temp_c = np.broadcast_to(np.asarray(temp_c, dtype=np.float64).reshape(-1, 1), (k.size, 3))
         else:
             temp_c = None
 
@@ -204,12 +217,13 @@ class SimulatedGyroPort:
         n_corrupt = self._take_up_to("corrupt_frames", k.size - n_lost)
         n_saturate = self._take_up_to("saturate", k.size - n_lost - n_corrupt)
         saturated = slice(n_lost + n_corrupt, n_lost + n_corrupt + n_saturate)
-        rate[saturated] = 2.0 * RAW_FULL_SCALE * self.lsb
+        rate[saturated, self.axis] = 2.0 * RAW_FULL_SCALE * self.lsb
 
-        frames = encode_frame_array(rate, k, temp_c=temp_c, latency_us=self.latency_us, lsb=self.lsb)
+        frames = encode_frame_array(rate, k, temp_c=temp_c, latency_us=self.latency_us, lsb=self.lsb,
+                                    crlf=self.crlf)
         # Flip the middle rate byte: never the identifier, so the span still
         # looks like a frame and must be caught by the CRC.
-        frames[n_lost : n_lost + n_corrupt, RATE_OFFSET + 1] ^= 0xFF
+        frames[n_lost : n_lost + n_corrupt, RATE_OFFSET + 3 * self.axis + 1] ^= 0xFF
         frames = frames[n_lost:]
         self.injected["lose_frames"] += n_lost
         self.injected["corrupt_frames"] += n_corrupt
@@ -243,7 +257,9 @@ class SimulatedGyroPort:
     def _write_all(self, data: bytes, frames_from: int, k_first: int) -> int | None:
         """Blocking write into the master, with ``select`` so that stop() is prompt.
 
-        Returns the number of frames written, None if stopped. On a SimClock,
+        Returns the number of frames written, None if stopped. On a real
+        clock, frames more than :data:`_REAL_LAG_BLOCKS` blocks older than
+        the clock are dropped (a real UART would have lost them). On a SimClock,
         frames whose time the clock has already passed are stale: while the
         writer waited for the reader, someone else moved time on (the
         orchestrator changed the table rate, settled, and flushed its input),
@@ -257,6 +273,7 @@ class SimulatedGyroPort:
         position = 0
         skipped = 0
         simulated = isinstance(self.clock, SimClock)
+        lag_frames = 0 if simulated else _REAL_LAG_BLOCKS * self.block_frames
         while position < len(data):
             if self._stop.is_set():
                 return None
@@ -264,10 +281,10 @@ class SimulatedGyroPort:
             if not writable:
                 continue
             limit = len(data)
-            if simulated and position >= frames_from:
+            if position >= frames_from:
                 offset = (position - frames_from) % length
                 if offset == 0:
-                    k_now = math.ceil(self.clock.now_s() * self.sample_rate_hz - _EPS_FRAMES)
+                    k_now = math.ceil(self.clock.now_s() * self.sample_rate_hz - _EPS_FRAMES) - lag_frames
                     keep_from = min(frames_from + max(0, k_now - k_first) * length, len(data))
                     if keep_from > position:
                         skipped += (keep_from - position) // length

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyrocal.instruments.gyro.datagram import axis_index
 from gyrocal.instruments.sim.chamber_server import (
     FAULTS as CHAMBER_FAULTS,
 )
@@ -148,6 +149,7 @@ class SimulatedStation:
             self.source, clock, sample_rate_hz=self.sample_rate_hz,
             with_temperature=gyro_cfg.with_temperature, lsb=gyro_cfg.rate_lsb,
             faults=self.gyro_faults, block_frames=gyro_block_frames, seed=self.seed + _SEED_PTY,
+            axis=axis_index(gyro_cfg.axis), crlf=gyro_cfg.crlf,
         )
         self._started = False
 

@@ -166,3 +166,13 @@ def test_bad_inputs_are_named():
         piecewise_linear([1.0, 1.0, 2.0], [0.0, 1.0, 2.0])
     with pytest.raises(ValueError, match="at least 4"):
         polynomial([1.0, 2.0, 3.0], [0.0, 1.0, 2.0], degree=2)
+
+
+def test_a_flat_output_gives_undefined_figures_not_a_crash():
+    """Regression: a gyro stuck at full scale (``gyro.saturate:always``) crashed the report
+    with ZeroDivisionError. Its scale factor is 0 and the relative figures are NaN."""
+    dwells = [Dwell(25.0, w, 400.0) for w in (10.0, -10.0, 50.0, -50.0)]
+    result = analyze_scale_factor(dwells)
+    assert result.sf == pytest.approx(0.0, abs=1e-12)
+    assert math.isnan(result.asymmetry_ppm)
+    assert math.isnan(result.nonlinearity_rms_pct)

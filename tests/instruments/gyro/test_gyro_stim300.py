@@ -9,9 +9,10 @@ import time
 
 import numpy as np
 import pytest
+from stim300_bytes import hand_frame_94
 
 from gyrocal.instruments.errors import InstrumentConnectionError, InstrumentTimeout
-from gyrocal.instruments.gyro.datagram import RAW_FULL_SCALE, STATUS_RATE_SATURATED, encode_frames
+from gyrocal.instruments.gyro.datagram import RAW_FULL_SCALE, encode_frames
 from gyrocal.instruments.gyro.stim300 import Stim300Gyro
 from gyrocal.instruments.interfaces import GyroStream
 from gyrocal.instruments.sim.faults import FaultInjector
@@ -159,7 +160,7 @@ def test_garbage_is_skipped_and_every_byte_accounted_for(rig):
     assert sim.injected["garbage_bytes"] == 4 * 53
     # A random identifier byte followed by a frame length of garbage is a
     # "CRC error" span; either way every injected byte is accounted for.
-    skipped = sum(b.garbage_bytes + 12 * b.crc_errors for b in blocks)
+    skipped = sum(b.garbage_bytes + 18 * b.crc_errors for b in blocks)   # 0x90 is 18 bytes
     assert skipped == 4 * 53
     assert sum(b.lost_frames for b in blocks) == 0
 
@@ -170,7 +171,9 @@ def test_saturated_frames_are_flagged_at_full_scale(rig):
     gyro.read_samples(100)
     faults.arm("saturate", count=4)
     block = gyro.read_samples(5000)
-    flagged = (block.status & STATUS_RATE_SATURATED) != 0
+    flagged = block.flagged
+    assert np.array_equal(flagged, (block.status & 0x10) != 0)      # datasheet bit 4: overload
+    assert block.flagged_count == 4
     assert int(flagged.sum()) == 4 == sim.injected["saturate"]
     assert np.all(block.rate[flagged] == RAW_FULL_SCALE * LSB)
     k = np.rint(block.rate[~flagged] / LSB).astype(np.int64)
@@ -231,8 +234,31 @@ def test_pyserial_url_ports_work_too():
     """``loop://`` echoes what is written to it: the driver reads it like a line."""
     gyro = Stim300Gyro("loop://", lsb=LSB)
     try:
-        gyro._serial.write(encode_frames(np.arange(5) * LSB, np.arange(5), lsb=LSB))
+        rate = np.zeros((5, 3))
+        rate[:, 0] = np.arange(5) * LSB
+        gyro._serial.write(encode_frames(rate, np.arange(5), lsb=LSB))
         block = gyro.read_samples(5, timeout_s=1)
         assert np.rint(block.rate / LSB).tolist() == [0, 1, 2, 3, 4]
     finally:
         gyro.close()
+
+
+@pytest.mark.parametrize(("axis", "column"), [("x", 0), ("y", 1), ("z", 2)])
+def test_station_axis_selects_the_unit_under_test_and_all_three_are_kept(axis, column):
+    """Datasheet-built 0x94 datagrams with CR LF; the driver hands over the chosen axis."""
+    raw = [(100, -200, 300), (101, -201, 301), (102, -202, 302)]
+    # frame 1: overload on y (datasheet status bits 4 and 1)
+    status = [0x00, 0x12, 0x00]
+    data = b"".join(hand_frame_94(r, s, (6400, 6656, 6912), 0, k, 500) + b"\r\n"
+                    for k, (r, s) in enumerate(zip(raw, status, strict=True)))
+    gyro = Stim300Gyro("loop://", lsb=LSB, with_temperature=True, axis=axis, crlf=True)
+    try:
+        gyro._serial.write(data)
+        block = gyro.read_samples(3, timeout_s=1)
+    finally:
+        gyro.close()
+    assert np.rint(block.rate_xyz / LSB).astype(int).tolist() == [list(r) for r in raw]
+    assert np.rint(block.rate / LSB).astype(int).tolist() == [r[column] for r in raw]
+    assert block.temperature_c.tolist() == [[25.0, 26.0, 27.0][column]] * 3
+    assert block.flagged.tolist() == [False, axis == "y", False]
+    assert block.crc_errors == 0 and block.garbage_bytes == 0

@@ -46,26 +46,33 @@ def read_raw(port_name: str, n_bytes: int, timeout_s: float = 5.0) -> bytes:
 
 
 def minimal_decode_0x94(data: bytes):
-    """Find the first valid 0x94 frame, then unpack consecutive frames with struct."""
-    start = next(
-        i for i in range(len(data) - 14)
-        if data[i] == 0x94 and bitwise_crc(data[i : i + 10]) == struct.unpack(">I", data[i + 10 : i + 14])[0]
-    )
+    """Find the first valid 0x94 datagram, then unpack consecutive ones with struct.
+
+    Layout and CRC rule from the STIM300 datasheet: 25 bytes (identifier,
+    3 × 24-bit rates, status, 3 × 16-bit temperatures, temperature status,
+    counter, 2-byte latency, CRC-32 over the first 21 bytes + 3 dummy zeros).
+    """
+    def crc_ok(i):
+        return bitwise_crc(data[i : i + 21] + bytes(3)) == struct.unpack(">I", data[i + 21 : i + 25])[0]
+
+    start = next(i for i in range(len(data) - 25) if data[i] == 0x94 and crc_ok(i))
     frames = []
-    for i in range(start, len(data) - 13, 14):
-        ident, r_hi, r_lo, status, temp, counter, latency, crc = struct.unpack(">BBHBhBHI", data[i : i + 14])
+    for i in range(start, len(data) - 24, 25):
+        ident, rx, ry, rz, status, tx, ty, tz, tstatus, counter, latency, crc = struct.unpack(
+            ">B3s3s3sBhhhBBHI", data[i : i + 25])
         assert ident == 0x94, f"lost sync at byte {i}"
-        assert crc == bitwise_crc(data[i : i + 10]), f"bad CRC at byte {i}"
-        raw = (r_hi << 16) | r_lo
-        raw -= (1 << 24) if raw & 0x800000 else 0
-        frames.append((raw, status, temp, counter, latency))
+        assert crc_ok(i), f"bad CRC at byte {i}"
+        raw = int.from_bytes(rx, "big", signed=True)
+        assert int.from_bytes(ry, "big", signed=True) == int.from_bytes(rz, "big", signed=True) == 0
+        assert tx == ty == tz and tstatus == 0
+        frames.append((raw, status, tx, counter, latency))
     return frames
 
 
 def test_simulator_speaks_the_documented_layout_to_an_independent_reader():
     with SimulatedGyroPort(source, SimClock(), sample_rate_hz=FS_HZ, with_temperature=True,
                            lsb=LSB, block_frames=50) as sim:
-        data = read_raw(sim.port_name, 14 * 600)
+        data = read_raw(sim.port_name, 25 * 600)
     frames = minimal_decode_0x94(data)
     assert len(frames) >= 590
     counters = np.array([f[3] for f in frames])
@@ -90,7 +97,7 @@ def test_without_a_reader_simulated_time_stops_at_the_buffer():
         held_s = clock.now_s()
         time.sleep(0.2)
         assert clock.now_s() == held_s
-        assert 0 < held_s <= (20480 / 12 + 2 * 32) / FS_HZ
+        assert 0 < held_s <= (20480 / 18 + 2 * 32) / FS_HZ
         assert sim.running
     assert not sim.running
 
@@ -111,11 +118,11 @@ def test_real_clock_stream_starts_at_the_current_time_and_is_paced():
     fs_hz = 100.0
     time.sleep(0.1)                                     # the session clock has been running
     with SimulatedGyroPort(source, clock, sample_rate_hz=fs_hz, lsb=LSB, block_frames=5) as sim:
-        got = read_raw(sim.port_name, 12 * 15, timeout_s=5)
+        got = read_raw(sim.port_name, 18 * 15, timeout_s=5)
         # Written blocks never lie in the future of the clock.
         assert sim.next_frame / fs_hz <= clock.now_s() + 5 / fs_hz
-    assert len(got) == 12 * 15
-    counters = list(got[5::12])
+    assert len(got) == 18 * 15
+    counters = list(got[11::18])     # 0x90: counter at offset 11
     assert got[0] == 0x90
     assert counters[0] >= 10, "frames from before the gyro started must not be replayed"
     assert np.all(np.diff(counters) == 1)
