@@ -322,12 +322,19 @@ class RunEngine:
             # A restarted dry run has a new simulated fixture, and a real one may have
             # been touched while the run was down: the mounting is checked again.
             self._ensure_mounting(step)
-        if setpoint is None or step.kind in ("ramp", "remount"):
+        if setpoint is None or step.kind == "ramp" or self._ramp_follows(step):
             return
         self.journal.append("restore_conditions", step_id=step.step_id, setpoint_c=setpoint)
         self._ramp(step, journal_done=False)
         if step.kind != "soak":
             self._soak(step, journal_done=False)
+
+    def _ramp_follows(self, step: Any) -> bool:
+        """A remount right before a ramp needs no temperature of its own."""
+        if step.kind != "remount":
+            return False
+        later = self.steps[self.steps.index(step) + 1:]
+        return bool(later) and later[0].kind == "ramp"
 
     # -- remount (multi-axis IMU) --------------------------------------------------------------
     def _mounting_of(self, step: Any) -> Mounting:
@@ -380,7 +387,7 @@ class RunEngine:
         n = max(8, int(self.inst.sample_rate_hz * CHECK_READ_S))
         block = gyro.read_samples(n, timeout_s=self._read_timeout_s(CHECK_READ_S))
         self._set_table_rate(0.0)
-        rate_xyz = getattr(block, "rate_xyz", None)
+        rate_xyz = block.rate_xyz
         if rate_xyz is None:
             raise RunFaultError(f"step {step.step_id}: the gyro driver gives one axis; a "
                                 "multi-axis calibration needs all three (STIM300 datagram)")
@@ -586,7 +593,7 @@ class RunEngine:
         context_chamber = [self._poll_chamber()]
         self._check_table_rate(result, rate_dps, self.inst.table.read_rate_dps())
         angle_start = (t0, rate_dps, angle_start[2])
-        pending: dict[str, list[np.ndarray]] = {"index": [], "gyro": [], "sensor": []}
+        pending: dict[str, list[np.ndarray]] = {"index": [], "gyro": [], "sensor": [], "xyz": []}
         pending_n = 0
         chunk_index = 0
         last_index = -1
@@ -604,6 +611,8 @@ class RunEngine:
                 last_index = int(index[-1])
             pending["index"].append(index)
             pending["gyro"].append(np.asarray(block.rate, dtype=np.float64))
+            if block.rate_xyz is not None:     # all three axes (a multi-axis IMU calibration)
+                pending["xyz"].append(np.asarray(block.rate_xyz, dtype=np.float64).reshape(-1, 3))
             temp = block.temperature_c
             pending["sensor"].append(np.full(len(block), np.nan) if temp is None
                                      else np.asarray(temp, dtype=np.float64))
@@ -623,7 +632,7 @@ class RunEngine:
                                     path=record.path, sha256=record.sha256, rows=record.rows)
                 result.chunks.append(record.path)
                 chunk_index += 1
-                pending = {"index": [], "gyro": [], "sensor": []}
+                pending = {"index": [], "gyro": [], "sensor": [], "xyz": []}
                 pending_n = 0
         return result
 
@@ -656,7 +665,7 @@ class RunEngine:
         chamber = np.interp(t_s, context_t, context_chamber)
         rate = np.full(t_s.shape, float(rate_dps))
         angle = integrate_angle(rate, t_s, angle_start)
-        return {
+        columns = {
             "t_s": t_s,
             "table_rate_dps": rate,
             "chamber_temp_c": chamber,
@@ -664,6 +673,11 @@ class RunEngine:
             "sensor_temp_c": np.concatenate(pending["sensor"]),
             "table_angle_deg": angle,
         }
+        xyz = pending.get("xyz") or []
+        if sum(len(x) for x in xyz) == len(t_s):
+            stacked = np.concatenate(xyz)
+            columns.update(gyro_x=stacked[:, 0], gyro_y=stacked[:, 1], gyro_z=stacked[:, 2])
+        return columns
 
     # -- the end -----------------------------------------------------------------------------
     def _finish(self) -> None:

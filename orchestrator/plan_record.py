@@ -55,6 +55,11 @@ def plan_record(procedure, plan) -> dict[str, Any]:
             },
         },
         "steps": [_plain(step) for step in plan.steps],
+        # a multi-axis IMU calibration: which IMU axis each mounting puts up the table axis
+        "mountings": [{"name": m.name, "up": m.up.label, "up_axis": m.up.up_axis,
+                       "sign": m.up.sign, "face": m.face} for m in procedure.mountings],
+        "mounting_order": procedure.mounting_order if procedure.mountings else None,
+        "unit_under_test_axis": station.gyro.axis,
         "eta_s": plan.total_s,
     }
 

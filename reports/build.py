@@ -47,6 +47,7 @@ from gyrocal.reports import bias as bias_mod
 from gyrocal.reports import compensation as comp
 from gyrocal.reports.allan_summary import allan_curve, curve_json, fit_curve, fit_uncertainty_json
 from gyrocal.reports.dwell import Dwell, dwell_mean
+from gyrocal.reports.imu.section import imu_section
 from gyrocal.reports.results import evaluate_acceptance, finite_or_none, results_bytes
 from gyrocal.reports.scale_factor import ScaleFactorResult, analyze_scale_factor
 
@@ -104,6 +105,18 @@ def _read_columns(folder: RunFolder, chunks: list[str]) -> dict[str, np.ndarray]
     return {name: table.column(name).to_numpy() for name in _READ_COLUMNS}
 
 
+def _unit_under_test_mountings(plan: dict[str, Any]) -> set[str]:
+    """The mountings whose up axis is the station's unit-under-test axis, + sign.
+
+    In a multi-axis IMU run the single-axis sections (scale factor, bias,
+    Allan…) are those of that axis, from the mounting that puts it up; the
+    three-axis matrix is the ``imu`` section.
+    """
+    axis = "xyz".index(str(plan.get("unit_under_test_axis") or "x"))
+    return {m["name"] for m in plan.get("mountings") or []
+            if int(m["up_axis"]) == axis and float(m["sign"]) > 0}
+
+
 def _mean_or_none(values: np.ndarray) -> float | None:
     finite = values[np.isfinite(values)]
     return float(finite.mean()) if finite.size else None
@@ -143,11 +156,14 @@ def read_run(run_dir: Path, notes: list[str]) -> RunData:
     done = completed_attempts(data.events)
     hold = longest_hold(data.plan.get("steps", []), data.events)
     longest = None if hold is None else hold["step_id"]
+    own = _unit_under_test_mountings(data.plan)
     for step_id, event in done.items():
         step = plan_steps.get(step_id)
         if step is None:
             notes.append(f"step {step_id}: logged but not in plan.json; ignored")
             continue
+        if step.get("mounting") is not None and step["mounting"] not in own:
+            continue    # another IMU axis up: only the ``imu`` section uses it
         columns = _read_columns(folder, event["chunks"])
         output = columns["gyro"]
         if output.size == 0:
@@ -205,6 +221,11 @@ def _scale_factor(data: RunData, notes: list[str]) -> list[tuple[ScaleFactorResu
         }
         out.append((result, entry))
     return out
+
+
+def _imu(data: RunData, notes: list[str]) -> dict[str, Any] | None:
+    latitude = ((data.plan.get("station") or {}).get("site") or {}).get("latitude_deg")
+    return imu_section(data.folder.path, data.plan, data.events, float(latitude or 0.0), notes)
 
 
 def _earth_rate_dph(plan: dict[str, Any], notes: list[str]) -> float:
@@ -392,6 +413,7 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
         "bias_temperature": bias_temperature,
         "allan": _allan(data, nominal_sf, notes),
         "compensation": compensation,
+        "imu": _imu(data, notes),
         "earth_rate_removed_dph": earth_dph,
         "reference_temp_c": REFERENCE_TEMP_C,
         "run": {key: manifest.get(key) for key in

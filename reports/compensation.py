@@ -41,14 +41,14 @@ class CompensationTable:
             return np.polyval(self.coefficients, t)
         temps = np.array([p[0] for p in self.points])
         values = np.array([p[1] for p in self.points])
-        return _interp_extrap(temps, values, t)
+        return interp_extrap(temps, values, t)
 
     def to_pairs(self) -> list[list[float]]:
         """[[temp_c, value], …] for results.json."""
         return [[float(t), float(v)] for t, v in self.points]
 
 
-def _interp_extrap(temps: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
+def interp_extrap(temps: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
     inside = np.interp(t, temps, values)
     low_slope = (values[1] - values[0]) / (temps[1] - temps[0])
     high_slope = (values[-1] - values[-2]) / (temps[-1] - temps[-2])
@@ -80,7 +80,7 @@ def piecewise_linear(temps_c: Sequence[float], values: Sequence[float]) -> Compe
     loo = np.empty(temps.size)
     for i in range(temps.size):
         keep = np.arange(temps.size) != i
-        loo[i] = vals[i] - _interp_extrap(temps[keep], vals[keep], temps[i : i + 1])[0]
+        loo[i] = vals[i] - interp_extrap(temps[keep], vals[keep], temps[i : i + 1])[0]
     return CompensationTable(
         kind="piecewise_linear",
         points=[[float(t), float(v)] for t, v in zip(temps, vals, strict=True)],

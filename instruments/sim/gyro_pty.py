@@ -61,6 +61,7 @@ from gyrocal.models.clock import RealClock, SimClock
 
 FAULTS = ("corrupt_frames", "lose_frames", "garbage", "stall", "saturate")
 
+#: frame times → (rate: (n,) for a single-axis gyro or (n, 3) for an IMU, temperature or None)
 GyroSource = Callable[[np.ndarray], tuple[np.ndarray, "np.ndarray | None"]]
 
 _POLL_S = 0.05          # how often blocking waits look at the stop flag
@@ -203,9 +204,13 @@ class SimulatedGyroPort:
         Returns (bytes, garbage prefix length, grid index of the first frame written).
         """
         t_s = k / self.sample_rate_hz
-        rate_axis, temp_c = self.source(t_s)
-        rate = np.zeros((k.size, 3), dtype=np.float64)
-        rate[:, self.axis] = np.asarray(rate_axis, dtype=np.float64).reshape(k.shape)
+        rate_out, temp_c = self.source(t_s)
+        rate_out = np.asarray(rate_out, dtype=np.float64)
+        if rate_out.ndim == 2:      # a three-axis IMU source: every axis as it is
+            rate = np.array(rate_out, dtype=np.float64, copy=True).reshape(k.size, 3)
+        else:                       # a single-axis gyro: its output on the unit-under-test axis
+            rate = np.zeros((k.size, 3), dtype=np.float64)
+            rate[:, self.axis] = rate_out.reshape(k.shape)
         if self.with_temperature:
             if temp_c is None:
                 raise ValueError("simulated gyro: with_temperature=True but the source gave no temperature")

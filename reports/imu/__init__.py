@@ -1,0 +1,1 @@
+"""Multi-axis IMU calibration: the matrix per temperature and its report section."""

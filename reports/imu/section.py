@@ -1,0 +1,194 @@
+"""The ``imu`` section of results.json: matrices per temperature, compensation tables, check.
+
+Only runs whose plan has ``mountings`` get it. It reads the three axis
+columns of every completed dwell (``gyro_x``/``gyro_y``/``gyro_z``), trims
+each to the whole revolutions the plan asked for, fits the matrix at each
+temperature (``matrix.py``), builds piecewise-linear and polynomial tables
+over temperature for every scale factor, misalignment element and bias (with
+leave-one-out residuals, ``reports/compensation.py``), and a check table:
+what the compensation leaves on the calibration dwells, per axis and
+temperature — in sample (the table at its own points) and leave-one-out (the
+temperature's own point removed from the table, i.e. what it would leave at a
+temperature it was not calibrated at).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from gyrocal.models.imu_model import AXES, Mounting
+from gyrocal.orchestrator.logged_steps import completed_attempts
+from gyrocal.reports import compensation as comp
+from gyrocal.reports.dwell import dwell_mean
+from gyrocal.reports.imu.matrix import ImuDwell, MatrixFit, compensate, fit_all
+
+_AXIS_COLUMNS = ("gyro_x", "gyro_y", "gyro_z")
+
+
+def read_imu_dwells(run_dir: Path, plan: dict[str, Any], events: list[dict[str, Any]],
+                    notes: list[str]) -> list[ImuDwell]:
+    """Every completed dwell of a mountings plan, reduced to three axis means."""
+    mountings = {m["name"]: Mounting(int(m["up_axis"]), float(m["sign"]))
+                 for m in plan.get("mountings") or []}
+    fs_hz = float(plan["sample_rate_hz"])
+    steps = {s["step_id"]: s for s in plan.get("steps", [])}
+    dwells = []
+    for step_id, event in completed_attempts(events).items():
+        step = steps.get(step_id)
+        if step is None or step.get("kind") != "dwell" or step.get("mounting") not in mountings:
+            continue
+        tables = [pq.read_table(Path(run_dir) / rel) for rel in event["chunks"]]
+        table = pa.concat_tables(tables) if len(tables) > 1 else tables[0]
+        if not all(c in table.column_names for c in _AXIS_COLUMNS):
+            notes.append(f"imu: step {step_id} has no three-axis columns; left out")
+            continue
+        if "status" in table.column_names:
+            good = table.column("status").to_numpy() == 0
+        else:
+            good = np.ones(table.num_rows, dtype=bool)
+        turns = step.get("revolutions")
+        whole = int(turns) if turns and float(turns).is_integer() else "all"
+        means = [dwell_mean(table.column(c).to_numpy()[good], fs_hz, 0.0, step["rate_dps"],
+                            revolutions=whole) for c in _AXIS_COLUMNS]
+        sensor = table.column("sensor_temp_c").to_numpy()[good]
+        chamber = table.column("chamber_temp_c").to_numpy()[good]
+        temp = sensor[np.isfinite(sensor)] if np.isfinite(sensor).any() else chamber
+        dwells.append(ImuDwell(step_id, int(step["temp_index"]), float(step["setpoint_c"]),
+                               float(np.mean(temp)), mountings[step["mounting"]],
+                               float(step["rate_dps"]), np.array([m.mean for m in means]),
+                               means[0].n_samples))
+    return dwells
+
+
+def _matrix_json(values: np.ndarray, scale: float = 1.0) -> dict[str, float | None]:
+    return {f"{AXES[i]}{AXES[j]}": (None if not np.isfinite(values[i, j]) else
+                                    float(values[i, j] * scale))
+            for i in range(3) for j in range(3) if i != j}
+
+
+def _fit_json(fit: MatrixFit) -> dict[str, Any]:
+    return {
+        "temp_index": fit.temp_index,
+        "setpoint_c": fit.setpoint_c,
+        "temp_c": fit.temp_c,
+        "dwells": len(fit.dwells),
+        "dof": fit.dof,
+        "sensitivity": fit.sensitivity.tolist(),
+        "scale_factor": {a: float(v) for a, v in zip(AXES, fit.scale_factor, strict=True)},
+        "u_scale_factor_ppm": {a: float(u / abs(s) * 1e6) for a, u, s in
+                               zip(AXES, fit.u_scale_factor, fit.scale_factor, strict=True)},
+        "misalignment_urad": _matrix_json(fit.misalignment_rad, 1e6),
+        "u_misalignment_urad": _matrix_json(fit.u_misalignment_rad, 1e6),
+        "bias_dph": {a: float(v) for a, v in zip(AXES, fit.bias_dph, strict=True)},
+        "u_bias_dph": {a: float(v) for a, v in zip(AXES, fit.u_bias_dph, strict=True)},
+        "axes": {AXES[a]: fit.axis_linearity(a) for a in range(3)},
+    }
+
+
+def _element_series(fits: list[MatrixFit]) -> dict[str, list[list[float]]]:
+    """Every calibrated quantity over temperature: sf_x…, e_xy_urad…, bias_x_dph…"""
+    series: dict[str, list[list[float]]] = {}
+    for fit in fits:
+        e = fit.misalignment_rad * 1e6
+        for i, axis in enumerate(AXES):
+            series.setdefault(f"sf_{axis}", []).append([fit.temp_c, float(fit.scale_factor[i])])
+            series.setdefault(f"bias_{axis}_dph", []).append([fit.temp_c, float(fit.bias_dph[i])])
+            for j, other in enumerate(AXES):
+                if i != j:
+                    series.setdefault(f"e_{axis}{other}_urad", []).append([fit.temp_c, float(e[i, j])])
+    return series
+
+
+def _tables(points: list[list[float]]) -> dict[str, Any] | None:
+    if len(points) < 3 or not all(np.isfinite(v) for _, v in points):
+        return None
+    temps = [p[0] for p in points]
+    values = [p[1] for p in points]
+    out = {}
+    for table in (comp.piecewise_linear(temps, values),
+                  comp.polynomial(temps, values, degree=min(2, len(points) - 2))):
+        out[table.kind] = {"points": table.to_pairs(), "coefficients": table.coefficients,
+                           "residual_rms": table.residual_rms,
+                           "loo_residual_rms": table.loo_residual_rms,
+                           "loo_residual_max": table.loo_residual_max}
+    return out
+
+
+def _interpolated(fits: list[MatrixFit], temp_c: float, leave_out: int | None
+                  ) -> tuple[np.ndarray, np.ndarray] | None:
+    """S and b at ``temp_c`` from the piecewise-linear tables (optionally without one point)."""
+    kept = [f for k, f in enumerate(fits) if k != leave_out]
+    if len(kept) < 2:
+        return None
+    temps = np.array([f.temp_c for f in kept])
+    order = np.argsort(temps)
+    temps = temps[order]
+    s = np.array([kept[k].sensitivity for k in order])
+    b = np.array([kept[k].bias_output for k in order])
+
+    def at(values: np.ndarray) -> np.ndarray:
+        flat = values.reshape(len(temps), -1)
+        return np.array([comp.interp_extrap(temps, flat[:, c], np.array([temp_c]))[0]
+                         for c in range(flat.shape[1])]).reshape(values.shape[1:])
+    return at(s), at(b)
+
+
+def _check_table(fits: list[MatrixFit]) -> list[dict[str, Any]]:
+    """Residual body rate after compensation, per temperature and axis (deg/h RMS)."""
+    rows = []
+    for k, fit in enumerate(fits):
+        row: dict[str, Any] = {"temp_c": fit.temp_c, "setpoint_c": fit.setpoint_c}
+        for label, leave_out in (("in_sample", None), ("leave_one_out", k)):
+            cal = (fit.sensitivity, fit.bias_output) if leave_out is None else \
+                _interpolated(fits, fit.temp_c, leave_out)
+            if cal is None or not np.all(np.isfinite(cal[0])):
+                row[label] = None
+                continue
+            residual = np.array([compensate(cal[0], cal[1], d.mean_xyz)
+                                 - d.mounting.up_vector() * (d.rate_dps + fit.earth_vertical_dps)
+                                 for d in fit.dwells]) * 3600.0
+            row[label] = {"rms_dph": {a: float(np.sqrt(np.mean(residual[:, i] ** 2)))
+                                      for i, a in enumerate(AXES)},
+                          "max_dph": {a: float(np.max(np.abs(residual[:, i])))
+                                      for i, a in enumerate(AXES)}}
+        rows.append(row)
+    return rows
+
+
+def imu_section(run_dir: Path, plan: dict[str, Any], events: list[dict[str, Any]],
+                latitude_deg: float, notes: list[str]) -> dict[str, Any] | None:
+    """The ``imu`` block of results.json, or None for a single-axis plan."""
+    if not plan.get("mountings"):
+        return None
+    dwells = read_imu_dwells(run_dir, plan, events, notes)
+    if not dwells:
+        notes.append("imu: no completed three-axis dwell; no matrix")
+        return {"temperatures": [], "compensation": {}, "check": []}
+    try:
+        fits = fit_all(dwells, latitude_deg)
+    except ValueError as exc:
+        notes.append(f"imu: {exc}")
+        return {"temperatures": [], "compensation": {}, "check": []}
+    series = _element_series(fits)
+    if len(fits) < 3:
+        notes.append(f"imu compensation: {len(fits)} temperature(s); tables need ≥ 3")
+    return {
+        "mountings": plan.get("mountings"),
+        "mounting_order": plan.get("mounting_order"),
+        "definitions": {
+            "sensitivity": "S_ij: output units per deg/s of body rate about axis j",
+            "misalignment_urad": "E_ij = S_ij / S_ii (axis i senses E_ij of the rate about j)",
+            "bias_dph": "S⁻¹·b, input-referred, vertical Earth rate removed",
+            "u_*": "standard uncertainty, type A (least squares, dof given)",
+            "check": "RMS body-rate residual on the calibration dwells after compensation",
+        },
+        "temperatures": [_fit_json(f) for f in fits],
+        "compensation": {name: {"points": points, "tables": _tables(points)}
+                         for name, points in series.items()},
+        "check": _check_table(fits),
+    }
