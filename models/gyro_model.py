@@ -207,6 +207,10 @@ def parse_model(data: Any, source: str = "<model>", lines: dict[tuple, int] | No
     if data is None:
         raise where.error((), "empty model (version and scale_factor are required)")
     top = _mapping(data, (), where)
+    if top.get("version") == 2 and not key_prefix:
+        raise where.error(("version",), "unsupported version 2 for a single-axis model: "
+                          "version 2 is a three-axis IMU model (axes:, misalignment_urad:); "
+                          "this use takes a version 1 model")
     _reject_unknown(top, _TOP_KEYS, (), where)
     for required in ("version", "scale_factor"):
         if required not in top:
@@ -215,9 +219,6 @@ def parse_model(data: Any, source: str = "<model>", lines: dict[tuple, int] | No
     version = top["version"]
     if isinstance(version, bool) or not isinstance(version, int):
         raise where.error(("version",), f"must be an integer, got {version!r}")
-    if version == 2 and not key_prefix:
-        raise where.error(("version",), "version 2 is a three-axis IMU model (axes:, "
-                          "misalignment_urad:); this use takes a single-axis (version 1) model")
     if version not in SUPPORTED_VERSIONS:
         raise where.error(("version",), f"unsupported version {version}; supported: {SUPPORTED_VERSIONS}")
 

@@ -87,6 +87,32 @@ SF over temperature: {% if r.sf_temperature %}instability {{ fmt(r.sf_temperatur
 {% endif %}{% else %}{% endfor %}
 {% endfor %}
 
+{% if r.imu %}
+<h2>Three-axis IMU calibration</h2>
+<p>Mountings ({{ r.imu.mounting_order }}): {% for m in r.imu.mountings %}{{ m.name }} = IMU {{ m.up }} up{% if m.face %} (face {{ m.face }}){% endif %}{% if not loop.last %}; {% endif %}{% endfor %}.
+Scale factor S<sub>ii</sub>; misalignment E<sub>ij</sub> = S<sub>ij</sub>/S<sub>ii</sub> (axis i senses E<sub>ij</sub> of the rate about j), µrad; bias S⁻¹·b with the vertical Earth rate removed. ± values are standard uncertainties (type A, least squares).</p>
+{% for t in r.imu.temperatures %}
+<h3>{{ fmt(t.temp_c) }} °C (setpoint {{ fmt(t.setpoint_c) }} °C; {{ t.dwells }} dwells, {{ t.dof }} dof per axis)</h3>
+<table><tr><th>Axis</th><th>Scale factor</th><th>u (ppm)</th><th>E to x (µrad)</th><th>E to y (µrad)</th><th>E to z (µrad)</th><th>Bias (deg/h)</th><th>Nonlinearity RMS (%)</th><th>Asymmetry (ppm)</th></tr>
+{% for a in ["x", "y", "z"] %}<tr><td>{{ a }}</td><td>{{ fmt(t.scale_factor[a], 9) }}</td><td>{{ fmt(t.u_scale_factor_ppm[a], 2) }}</td>
+{% for b in ["x", "y", "z"] %}<td>{% if a == b %}—{% else %}{{ fmt(t.misalignment_urad[a ~ b], 5) }} ± {{ fmt(t.u_misalignment_urad[a ~ b], 2) }}{% endif %}</td>{% endfor %}
+<td>{{ fmt(t.bias_dph[a]) }} ± {{ fmt(t.u_bias_dph[a], 2) }}</td><td>{{ fmt(t.axes[a].nonlinearity_rms_pct, 3) }}</td><td>{{ fmt(t.axes[a].asymmetry_ppm, 3) }}</td></tr>{% endfor %}
+</table>
+{% endfor %}
+<h3>Check: residual body rate after compensation (RMS over the calibration dwells, deg/h)</h3>
+<table><tr><th>Temp (°C)</th><th>x</th><th>y</th><th>z</th><th>leave-one-out x</th><th>y</th><th>z</th></tr>
+{% for c in r.imu.check %}<tr><td>{{ fmt(c.temp_c) }}</td>
+{% for a in ["x", "y", "z"] %}<td>{{ fmt(c.in_sample.rms_dph[a], 3) if c.in_sample else "n/a" }}</td>{% endfor %}
+{% for a in ["x", "y", "z"] %}<td>{{ fmt(c.leave_one_out.rms_dph[a], 3) if c.leave_one_out else "n/a" }}</td>{% endfor %}</tr>{% endfor %}
+</table>
+<h3>Compensation tables over temperature (piecewise linear, the vendor's method)</h3>
+<table><tr><th>Element</th>{% for t in r.imu.temperatures %}<th>{{ fmt(t.temp_c, 3) }} °C</th>{% endfor %}<th>leave-one-out RMS</th><th>polynomial LOO RMS</th></tr>
+{% for name, c in r.imu.compensation.items() %}<tr><td>{{ name }}</td>{% for p in c.points %}<td>{{ fmt(p[1], 9) }}</td>{% endfor %}
+<td>{{ fmt(c.tables.piecewise_linear.loo_residual_rms, 3) if c.tables else "n/a" }}</td>
+<td>{{ fmt(c.tables[c.tables.keys()|reject("equalto", "piecewise_linear")|first].loo_residual_rms, 3) if c.tables else "n/a" }}</td></tr>{% endfor %}
+</table>
+{% endif %}
+
 <h2>Run history (journal)</h2>
 <p>{{ r.journal.event_count }} events; {{ r.journal.retries }} retries, {{ r.journal.faults }} faults, {{ r.journal.bad_steps }} bad (repeated) steps.</p>
 <table><tr><th>#</th><th>Event</th><th>Details</th></tr>

@@ -99,12 +99,15 @@ class MatrixFit:
         slopes = {}
         for sign in (1.0, -1.0):
             side = [d for d, _ in up if np.sign(d.rate_dps) * d.mounting.sign == sign]
-            if side:
-                x = np.array([_input(d, self.earth_vertical_dps)[axis] for d in side])
-                y = np.array([d.mean_xyz[axis] - self.bias_output[axis]
-                              - _cross(self.sensitivity, d, axis, self.earth_vertical_dps)
-                              for d in side])
-                slopes[sign] = float(np.dot(x, y) / np.dot(x, x))
+            x = np.array([_input(d, self.earth_vertical_dps)[axis] for d in side])
+            y = np.array([d.mean_xyz[axis] - _cross(self.sensitivity, d, axis,
+                                                    self.earth_vertical_dps) for d in side])
+            if len(set(np.round(x, 9))) >= 2:
+                # each side's own line (slope and intercept): the asymmetry is the slope
+                # difference alone, not pulled by a bias that the other side shares
+                slopes[sign] = float(np.polyfit(x, y, 1)[0])
+            elif len(x):
+                slopes[sign] = float(np.dot(x, y - self.bias_output[axis]) / np.dot(x, x))
         asym = None
         if len(slopes) == 2:
             asym = (slopes[1.0] - slopes[-1.0]) / (0.5 * (slopes[1.0] + slopes[-1.0])) * 1e6

@@ -25,7 +25,9 @@ from gyrocal.models.gyro_model import (
 pytestmark = pytest.mark.timeout(60)
 
 REPO = Path(__file__).resolve().parents[2]
-EXAMPLES = sorted((REPO / "gyro-models").glob("*.yaml"))
+# single-axis (version 1) examples; the three-axis IMU file is tested in test_imu_model.py
+EXAMPLES = sorted(p for p in (REPO / "gyro-models").glob("*.yaml")
+                  if "\nversion: 2\n" not in "\n" + p.read_text())
 
 
 def write(tmp_path: Path, text: str, name: str = "x.yaml") -> Path:
