@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from gyrocal.cli import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_OK, main
-from gyrocal.models.imu_model import load_any_model
 from gyrocal.models.imu_model import Mounting as M
+from gyrocal.models.imu_model import load_any_model
 from gyrocal.orchestrator.plan import expand_plan
 from gyrocal.orchestrator.procedure import load_procedure
 from gyrocal.orchestrator.remount import CONFIRM_FILE, FileConfirmOperator, check_mounting
