@@ -14,6 +14,7 @@ BENCHMARKS = [
     ["bench_allan_stream.py"],
     ["bench_report.py"],
     ["bench_dry_run.py"],
+    ["bench_imu_dry_run.py"],
     ["bench_discrepancy.py"],
     ["bench_discrepancy_overnight.py"],
 ]
