@@ -19,9 +19,11 @@ import math
 import numpy as np
 from scipy import optimize
 
+from gyrocal.models.noise_terms import FIT_KEYS
+
 #: The five noise coefficients, in the order of :func:`term_avar_columns`
-#: (the results.json / `analyze allan` fit keys of interfaces.md).
-TERM_KEYS = ("Q_arcsec", "N_deg_per_rth", "B_dph", "K_dph_per_rth", "R_dph_per_h")
+#: (the results.json / `analyze allan` fit keys of interfaces.md; models/noise_terms.py).
+TERM_KEYS = FIT_KEYS
 
 #: Allan variance of flicker (bias-instability) noise per B²: 2 ln2 / π.
 B_AVAR_PER_B2 = 2.0 * math.log(2.0) / math.pi

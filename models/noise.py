@@ -251,6 +251,7 @@ class FlickerNoise:
 
 
 # Fixed stream slots: adding or removing one term never changes another's draws.
+# (IEEE symbols of models/noise_terms.py; the order is the draw order, not the table's)
 _SLOTS = ("N", "Q", "B", "K", "R", "markov")
 
 

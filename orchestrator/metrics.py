@@ -11,6 +11,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from gyrocal.models.noise_terms import NOISE_TERMS
+
 
 @dataclass(frozen=True)
 class Metric:
@@ -32,11 +34,7 @@ METRICS: dict[str, Metric] = {
         Metric("sf_temperature.instability_pct", "%", _SWEEP_TEMPS),
         Metric("sf_temperature.sensitivity_ppm_per_c", "ppm/°C", _SWEEP_TEMPS),
         Metric("bias_temperature.sensitivity_dph_per_c", "deg/h/°C", _BIAS_TEMPS),
-        Metric("allan.fit.Q_arcsec", "arcsec", _ALLAN),
-        Metric("allan.fit.N_deg_per_rth", "deg/√h", _ALLAN),
-        Metric("allan.fit.B_dph", "deg/h", _ALLAN),
-        Metric("allan.fit.K_dph_per_rth", "deg/h/√h", _ALLAN),
-        Metric("allan.fit.R_dph_per_h", "deg/h/h", _ALLAN),
+        *(Metric(f"allan.fit.{t.fit_key}", t.unit, _ALLAN) for t in NOISE_TERMS),
         Metric("allan.fit.markov.sigma_dph", "deg/h", _ALLAN),
         Metric("allan.fit.markov.tau_s", "s", _ALLAN),
     )

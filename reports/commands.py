@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from gyrocal.errors import EXIT_ACCEPTANCE_FAILED, EXIT_OK
+from gyrocal.models.noise_terms import FIT_KEYS
 from gyrocal.models.rate_units import output_to_dph
 
 #: Factor from each ``--units`` to deg/h.
@@ -110,7 +111,7 @@ def cmd_analyze_allan(args: argparse.Namespace) -> int:
     for i in shown:
         print(f"  {curve.tau_s[i]:12.5g} {curve.adev[i]:12.5g} {curve.adev_lo[i]:12.5g} "
               f"{curve.adev_hi[i]:12.5g}")
-    for name in ("Q_arcsec", "N_deg_per_rth", "B_dph", "K_dph_per_rth", "R_dph_per_h"):
+    for name in FIT_KEYS:
         term = getattr(fit, name)
         print(f"  {name:>14} = {term.value:.5g}  (68 %: {term.lo:.4g} … {term.hi:.4g})")
     if fit.markov is not None:

@@ -11,11 +11,11 @@ from typing import Any
 
 import jinja2
 
+from gyrocal.models.noise_terms import NOISE_TERMS
 from gyrocal.reports.plots import all_plots
 from gyrocal.reports.report_template import REPORT_TEMPLATE
 
-_TERMS = (("Q_arcsec", "arcsec"), ("N_deg_per_rth", "deg/√h"), ("B_dph", "deg/h"),
-          ("K_dph_per_rth", "deg/h/√h"), ("R_dph_per_h", "deg/h/h"))
+_TERMS = tuple((t.fit_key, t.unit) for t in NOISE_TERMS)
 
 
 def _fmt(value: Any, digits: int = 4) -> str:

@@ -13,6 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from gyrocal.models.noise_terms import NOISE_TERMS
+
 
 @dataclass(frozen=True)
 class MetricValue:
@@ -31,11 +33,8 @@ METRICS: dict[str, tuple[str, ...]] = {
     "bias_tempco_dph_per_c": ("bias_temperature", "sensitivity_dph_per_c"),
     "nonlinearity_rms_pct": ("nonlinearity", "rms_pct"),
     "asymmetry_ppm": ("asymmetry_ppm",),
-    "arw_deg_per_rth": ("allan", "fit", "N_deg_per_rth"),
-    "bias_instability_dph": ("allan", "fit", "B_dph"),
-    "rrw_dph_per_rth": ("allan", "fit", "K_dph_per_rth"),
-    "rate_ramp_dph_per_h": ("allan", "fit", "R_dph_per_h"),
-    "quantization_arcsec": ("allan", "fit", "Q_arcsec"),
+    # the noise terms under their model-file names (models/noise_terms.py)
+    **{t.model_key: ("allan", "fit", t.fit_key) for t in NOISE_TERMS},
 }
 
 

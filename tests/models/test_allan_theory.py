@@ -62,3 +62,21 @@ def test_terms_add_and_flicker_floor():
              + theory.markov_avar(tau, 0.2, 50.0))
     np.testing.assert_allclose(one, parts, rtol=1e-15)
     assert abs(theory.FLICKER_FLOOR_PER_B - 0.6643) < 1e-4
+
+
+def test_the_noise_term_table_is_the_one_every_scheme_follows() -> None:
+    """Model-file keys, fit keys and IEEE symbols come from models/noise_terms.py only."""
+    from dataclasses import fields
+
+    from gyrocal.models.allan_theory import TERM_KEYS
+    from gyrocal.models.gyro_model import NoiseParams
+    from gyrocal.models.noise_terms import FIT_KEYS, MODEL_KEYS, NOISE_TERMS
+    from gyrocal.orchestrator.metrics import METRICS
+    from gyrocal.reports.noise_fit import NoiseFit
+
+    assert set(f.name for f in fields(NoiseParams)) == set(MODEL_KEYS)
+    assert TERM_KEYS == FIT_KEYS == ("Q_arcsec", "N_deg_per_rth", "B_dph", "K_dph_per_rth",
+                                     "R_dph_per_h")
+    assert {f.name for f in fields(NoiseFit)} >= set(FIT_KEYS)
+    assert all(f"allan.fit.{t.fit_key}" in METRICS for t in NOISE_TERMS)
+    assert [t.symbol for t in NOISE_TERMS] == ["Q", "N", "B", "K", "R"]
