@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from gyrocal.inputs import YamlDocument, load_yaml
+from gyrocal.instruments.table.acutrol_protocol import RATE_DECIMALS, commanded_rate_dps
 from gyrocal.models.imu_model import Mounting
 from gyrocal.orchestrator.metrics import METRICS, NEEDS_TEXT, units_match
 from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
@@ -697,6 +698,10 @@ class _Parser:
                     message += " (give magnitudes; `directions` sets the signs)"
                 self.ctx.report(item_path, message)
                 continue
+            if rate != commanded_rate_dps(rate):
+                self.ctx.report(item_path, f"{rate!r} deg/s is finer than a table demand carries "
+                                f"({RATE_DECIMALS} decimals); give {commanded_rate_dps(rate)!r}")
+                continue
             if rate in first_index:
                 self.ctx.report(item_path, f"{format_number(rate)} deg/s is listed twice "
                                 f"(also rates_dps[{first_index[rate]}])")
@@ -725,7 +730,7 @@ class _Parser:
         rates = generate_rates(spacing, start, stop, count)
         if len(set(rates)) != len(rates):
             self.ctx.report(fields.child("count"), f"{count} rates between {format_number(start)} "
-                            f"and {format_number(stop)} deg/s repeat after rounding to 6 digits; "
+                            f"and {format_number(stop)} deg/s repeat at the table's command resolution; "
                             "use fewer")
             return (), None
         return rates, RateSchedule(spacing, start, stop, count)
@@ -800,9 +805,9 @@ def _what_is_measured(sequence: tuple[TemperatureStep, ...]) -> set[str]:
 
 
 def generate_rates(spacing: str, start_dps: float, stop_dps: float, count: int) -> tuple[float, ...]:
-    """Rates of a schedule, rounded to 6 significant digits (what a table command carries)."""
+    """Rates of a schedule, rounded to what a table command carries (``commanded_rate_dps``)."""
     if count == 1:
-        return (float(f"{start_dps:.6g}"),)
+        return (commanded_rate_dps(start_dps),)
     rates = []
     for i in range(count):
         fraction = i / (count - 1)
@@ -810,5 +815,5 @@ def generate_rates(spacing: str, start_dps: float, stop_dps: float, count: int) 
             rate = start_dps * math.exp(math.log(stop_dps / start_dps) * fraction)
         else:
             rate = start_dps + (stop_dps - start_dps) * fraction
-        rates.append(float(f"{rate:.6g}"))
+        rates.append(commanded_rate_dps(rate))
     return tuple(rates)

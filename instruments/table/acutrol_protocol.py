@@ -96,6 +96,11 @@ def parse_status(reply: str) -> tuple[float, float, bool]:
     return parse_float(fields[0]), parse_float(fields[1]), parse_interlock_closed(fields[2])
 
 
+def commanded_rate_dps(rate_dps: float) -> float:
+    """The rate the table receives for a demand of ``rate_dps`` (the wire's resolution)."""
+    return float(f"{rate_dps:.{RATE_DECIMALS}f}")
+
+
 def is_interlock_error(code: int, message: str) -> bool:
     return code in INTERLOCK_ERROR_CODES or "interlock" in message.lower()
 
@@ -108,7 +113,10 @@ ERROR_QUERY = Command(":syst:err?", parse_error)
 
 MODE_RATE = Command(":mode:rate {axis}")
 MODE_OFF = Command(":mode:off {axis}")
-DEMAND_RATE = Command(":demand:rate {axis}, {rate_dps:.6f}")
+#: The rate a demand carries: fixed point with RATE_DECIMALS places. The plan rounds its rates
+#: with :func:`commanded_rate_dps`, so the rate analysed is the rate sent, to the last digit.
+RATE_DECIMALS = 6
+DEMAND_RATE = Command(":demand:rate {axis}, {rate_dps:." + str(RATE_DECIMALS) + "f}")
 LIMIT_ACCELERATION = Command(":limit:acc rate,{axis}, {accel_dps2:.6f}")
 LIMIT_ACCELERATION_QUERY = Command(":limit:acc? rate,{axis}", parse_float)
 

@@ -322,3 +322,13 @@ def test_inline_station_mapping_is_validated_in_place(folder):
     problems, path = problems_for(folder, bad)
     assert problems == [f"{path}:{line_of(bad, 'seed: -1')}: station.simulation.seed: "
                         "-1 is below the minimum 0"]
+
+
+def test_plan_rates_are_exactly_what_the_table_demand_carries(tmp_path) -> None:
+    """Issue 15: the plan's rate and the wire's rate are one definition (1e-6 deg/s fixed point)."""
+    from gyrocal.instruments.table.acutrol_protocol import DEMAND_RATE
+    from gyrocal.orchestrator.procedure import generate_rates
+
+    for rate in generate_rates("log", 0.01, 0.09, 7) + generate_rates("linear", 1.0, 300.0, 11):
+        wire = DEMAND_RATE.text(axis=1, rate_dps=rate).split(",")[1]
+        assert float(wire) == rate, (rate, wire)
