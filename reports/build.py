@@ -359,70 +359,106 @@ def _pick_reference(entries: list[dict[str, Any]]) -> dict[str, Any] | None:
 
 
 def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
-    """Every figure of results.json from reduced run data (see the module docstring)."""
-    plan, manifest = data.plan, data.manifest
-    uut = plan.get("unit_under_test") or {}
+    """Every figure of results.json from reduced run data (see the module docstring).
+
+    One builder per section, in the order the keys appear in the file; each
+    appends what it could not compute to ``notes``.
+    """
+    uut = data.plan.get("unit_under_test") or {}
     nominal_sf = float(uut.get("nominal_scale_factor") or 1.0)
+    sf_results, sweep = _sweep_sections(data, notes)
+    earth_dph = _earth_rate_dph(data.plan, notes)
+    bias = _bias_sections(data, sf_results, nominal_sf, earth_dph, notes)
+    results: dict[str, Any] = {
+        "unit_under_test": {"model": uut.get("model"), "serial": uut.get("serial"),
+                            "output_units": uut.get("output_units"),
+                            "nominal_scale_factor": nominal_sf},
+        **sweep,
+        "bias": bias["bias"],
+        "bias_temperature": bias["bias_temperature"],
+        "allan": _allan(data, nominal_sf, notes),
+        "compensation": _compensation(sweep["scale_factor"], bias["bias"], notes),
+        "imu": _imu(data, notes),
+        "earth_rate_removed_dph": earth_dph,
+        "reference_temp_c": REFERENCE_TEMP_C,
+        **_provenance(data, notes),
+        "definitions": DEFINITIONS,
+    }
+    results["acceptance"] = evaluate_acceptance(results, data.plan.get("acceptance") or [], notes)
+    results["notes"] = notes
+    return results
+
+
+#: How the single numbers of results.json are chosen when several temperatures exist.
+DEFINITIONS = {
+    "scale_factor_ls": f"LS line at the temperature closest to {REFERENCE_TEMP_C:g} °C",
+    "nonlinearity": "worst over temperatures",
+    "asymmetry_ppm": "largest magnitude over temperatures, sign kept",
+    "bias": "static holds: mean/SF(T)·3600 − Earth rate (vertical axis, station latitude)",
+    "allan": "longest static/allan hold, ÷ nominal scale factor, deg/h",
+}
+
+
+def _sweep_sections(data: RunData, notes: list[str]
+                    ) -> tuple[list[ScaleFactorResult], dict[str, Any]]:
+    """scale_factor, scale_factor_ls, nonlinearity, asymmetry_ppm, sf_temperature."""
     sf_pairs = _scale_factor(data, notes)
     sf_results = [r for r, _ in sf_pairs]
     sf_entries = [e for _, e in sf_pairs]
     if not sf_entries:
         notes.append("no ± rate sweep completed: scale factor, nonlinearity and asymmetry are null")
-
     reference = _pick_reference(sf_entries)
-    scale_factor_ls = None if reference is None else {
-        "sf": reference["sf"], "bias": reference["bias"], "temp_c": reference["temp_c"]}
-    nonlinearity = None if not sf_entries else {
-        "rms_pct": max(e["nonlinearity"]["rms_pct"] for e in sf_entries),
-        "max_ppm_fs": max(e["nonlinearity"]["max_ppm_fs"] for e in sf_entries)}
-    asymmetry = None if not sf_entries else max(
-        (e["asymmetry_ppm"] for e in sf_entries), key=abs)
-
     sf_temperature = None
     if len(sf_results) >= 2:
         sf_temperature = bias_mod.sf_temperature(sf_results, REFERENCE_TEMP_C).to_json()
     elif sf_results:
         notes.append("sf_temperature: sweeps at one temperature only; needs two or more")
-
-    earth_dph = _earth_rate_dph(plan, notes)
-    bias_points = _bias(data, sf_results, nominal_sf, earth_dph, notes)
-    bias_temperature = None
-    if len(bias_points) >= 2:
-        bias_temperature = {"sensitivity_dph_per_c": bias_mod.bias_sensitivity_dph_per_c(
-            [bias_mod.BiasPoint(p["temp_c"], p["bias_dph"]) for p in bias_points])}
-    else:
-        notes.append(f"bias_temperature: bias at {len(bias_points)} temperature(s); needs two or more")
-
-    bias_pairs = [[p["temp_c"], p["bias_dph"]] for p in bias_points]
-    sf_pairs_t = [[e["temp_c"], e["sf"]] for e in sf_entries]
-    compensation = {
-        "bias_dph_vs_temp": bias_pairs, "sf_vs_temp": sf_pairs_t,
-        "tables": {"bias_dph": _comp_tables(bias_pairs, "bias", notes),
-                   "sf": _comp_tables(sf_pairs_t, "scale factor", notes)},
-    }
-    results: dict[str, Any] = {
-        "unit_under_test": {"model": uut.get("model"), "serial": uut.get("serial"),
-                            "output_units": uut.get("output_units"),
-                            "nominal_scale_factor": nominal_sf},
+    return sf_results, {
         "scale_factor": sf_entries,
-        "scale_factor_ls": scale_factor_ls,
-        "nonlinearity": nonlinearity,
-        "asymmetry_ppm": asymmetry,
+        "scale_factor_ls": None if reference is None else {
+            "sf": reference["sf"], "bias": reference["bias"], "temp_c": reference["temp_c"]},
+        "nonlinearity": None if not sf_entries else {
+            "rms_pct": max(e["nonlinearity"]["rms_pct"] for e in sf_entries),
+            "max_ppm_fs": max(e["nonlinearity"]["max_ppm_fs"] for e in sf_entries)},
+        "asymmetry_ppm": None if not sf_entries else max(
+            (e["asymmetry_ppm"] for e in sf_entries), key=abs),
         "sf_temperature": sf_temperature,
-        "bias": bias_points,
-        "bias_temperature": bias_temperature,
-        "allan": _allan(data, nominal_sf, notes),
-        "compensation": compensation,
-        "imu": _imu(data, notes),
-        "earth_rate_removed_dph": earth_dph,
-        "reference_temp_c": REFERENCE_TEMP_C,
+    }
+
+
+def _bias_sections(data: RunData, sf_results: list[ScaleFactorResult], nominal_sf: float,
+                   earth_dph: float, notes: list[str]) -> dict[str, Any]:
+    """bias (per temperature) and bias_temperature."""
+    points = _bias(data, sf_results, nominal_sf, earth_dph, notes)
+    sensitivity = None
+    if len(points) >= 2:
+        sensitivity = {"sensitivity_dph_per_c": bias_mod.bias_sensitivity_dph_per_c(
+            [bias_mod.BiasPoint(p["temp_c"], p["bias_dph"]) for p in points])}
+    else:
+        notes.append(f"bias_temperature: bias at {len(points)} temperature(s); needs two or more")
+    return {"bias": points, "bias_temperature": sensitivity}
+
+
+def _compensation(sf_entries: list[dict[str, Any]], bias_points: list[dict[str, Any]],
+                  notes: list[str]) -> dict[str, Any]:
+    bias_pairs = [[p["temp_c"], p["bias_dph"]] for p in bias_points]
+    sf_pairs = [[e["temp_c"], e["sf"]] for e in sf_entries]
+    return {"bias_dph_vs_temp": bias_pairs, "sf_vs_temp": sf_pairs,
+            "tables": {"bias_dph": _comp_tables(bias_pairs, "bias", notes),
+                       "sf": _comp_tables(sf_pairs, "scale factor", notes)}}
+
+
+def _provenance(data: RunData, notes: list[str]) -> dict[str, Any]:
+    """Who, what, where and with what: run, procedure, station, instruments, inputs, journal."""
+    plan, manifest = data.plan, data.manifest
+    station = plan.get("station") or {}
+    return {
         "run": {key: manifest.get(key) for key in
                 ("run_id", "operator", "started_at", "ended_at", "mode", "seed", "speed",
                  "state", "software", "station_name", "plan_sha256")},
         "procedure": plan.get("procedure"),
-        "station": {"name": (plan.get("station") or {}).get("name"),
-                    "file": (plan.get("station") or {}).get("file"),
-                    "site": (plan.get("station") or {}).get("site")},
+        "station": {"name": station.get("name"), "file": station.get("file"),
+                    "site": station.get("site")},
         "instruments": _instruments(data, notes),
         "inputs": {role: {"copy": e.get("copy"), "source": e.get("source"),
                           "sha256": e.get("sha256")}
@@ -433,17 +469,7 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
                    "output_mean": s.output_mean, "n_used": s.n_used, "n_logged": s.n_logged,
                    "revolutions_used": s.trimmed_to_revolutions,
                    "sensor_temp_c": s.sensor_temp_c} for s in data.steps],
-        "definitions": {
-            "scale_factor_ls": f"LS line at the temperature closest to {REFERENCE_TEMP_C:g} °C",
-            "nonlinearity": "worst over temperatures",
-            "asymmetry_ppm": "largest magnitude over temperatures, sign kept",
-            "bias": "static holds: mean/SF(T)·3600 − Earth rate (vertical axis, station latitude)",
-            "allan": "longest static/allan hold, ÷ nominal scale factor, deg/h",
-        },
     }
-    results["acceptance"] = evaluate_acceptance(results, plan.get("acceptance") or [], notes)
-    results["notes"] = notes
-    return results
 
 
 # -- writing ------------------------------------------------------------------------------
