@@ -50,7 +50,11 @@ from gyrocal.reports.discrepancy.periodic import (
     periodic_scan,
     sine_dph,
 )
-from gyrocal.reports.discrepancy.quantization import detect_pulse, line_within_quantization
+from gyrocal.reports.discrepancy.quantization import (
+    PulseLattice,
+    detect_pulse,
+    line_within_quantization,
+)
 from gyrocal.reports.discrepancy.scoring import (
     EffectScores,
     Fit,
@@ -319,14 +323,40 @@ def analyse(model: GyroModel, log: MeasuredLog, seed: int = 0, n_null: int = 500
                         progress or (lambda _line: None))
 
 
+@dataclass
+class _Search:
+    """What the passes of :func:`_analyse` hand on to each other."""
+
+    model: GyroModel                      # the model as given
+    current: GyroModel                    # the model with what has been found so far
+    noise_est: NoiseEstimate | None = None
+    noise: NoiseModel | None = None
+    noise_before: NoiseModel | None = None
+    lattice: PulseLattice | None = None
+    found: list[FoundEffect] = field(default_factory=list)
+    iterations: list[Iteration] = field(default_factory=list)
+    preempted: StepProbe | None = None
+    notes: list[str] = field(default_factory=list)
+
+
 def _analyse(model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
              max_effects: int, max_bins: int, progress: Callable[[str], None]
              ) -> DiscrepancyResult:
+    """The workflow's passes: noise model, effect search, gap metrics, what is left."""
     progress(f"segments and bins of {len(log.t_s):,} samples")
     analysis = _Analysis(model, log, seed, n_null, max_bins)
     progress(f"noise model from {len(analysis.segments.quiet_slices(analysis.fs_hz))} quiet "
              "segments")
-    notes: list[str] = []
+    search = _Search(model, model)
+    _noise_pass(analysis, log, search)
+    _search_pass(analysis, log, search, max_effects, progress)
+    progress("gap metrics before and after")
+    return _gap_pass(analysis, log, search)
+
+
+def _noise_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> None:
+    """Noise from the quiet segments; quantization from the output lattice; a Markov hump."""
+    model, notes = search.model, search.notes
     prior = NoiseModel.of_model(model)
     # the first refit only feeds the quiet-segment noise estimate: ordinary least squares will do
     analysis.whitener = Whitener(np.eye(analysis.bins.n_bins))
@@ -335,16 +365,15 @@ def _analyse(model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
                                analysis.segments.quiet_slices(analysis.fs_hz), prior,
                                allow_markov=not model.has_effect("markov_bias"))
     noise = noise_est.model
-    noise_before = replace(noise, markov_sigma_dph=prior.markov_sigma_dph, markov_tau_s=prior.markov_tau_s)
-    current = model
-    found: list[FoundEffect] = []
+    search.noise_before = replace(noise, markov_sigma_dph=prior.markov_sigma_dph,
+                                  markov_tau_s=prior.markov_tau_s)
     lattice = (None if model.has_effect("quantization")
                else detect_pulse(log.gyro, model.scale_factor, analysis.fs_hz))
     if lattice is not None:
         spec = EffectSpec("quantization", {"pulse_arcsec": lattice.pulse_arcsec})
-        current = current.with_effect(spec)
-        found.append(FoundEffect("quantization", dict(spec.params), lattice.on_lattice, [], "",
-                                 0.0, 0.0, 0.0))
+        search.current = search.current.with_effect(spec)
+        search.found.append(FoundEffect("quantization", dict(spec.params), lattice.on_lattice, [],
+                                        "", 0.0, 0.0, 0.0))
         # white angle noise of a pulse q: Q = q/√12 (IEEE Std 647); keeps the whitening honest
         noise = replace(noise, quantization_arcsec=max(noise.quantization_arcsec,
                                                        lattice.pulse_arcsec / math.sqrt(12.0)))
@@ -357,26 +386,30 @@ def _analyse(model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
 
     if noise.has_markov and not model.has_effect("markov_bias"):
         spec = EffectSpec("markov_bias", {"sigma_dph": noise.markov_sigma_dph, "tau_s": noise.markov_tau_s})
-        current = current.with_effect(spec)
+        search.current = search.current.with_effect(spec)
         delta = noise_est.fit.markov.delta_chi2 if noise_est.fit and noise_est.fit.markov else 0.0
-        found.append(FoundEffect("markov_bias", dict(spec.params), 1.0, [], "", score_from_delta(delta, 2),
-                                 float(delta), float("nan")))
+        search.found.append(FoundEffect("markov_bias", dict(spec.params), 1.0, [], "",
+                                        score_from_delta(delta, 2), float(delta), float("nan")))
         notes.append("markov_bias: Allan hump in the quiet segments, significant by the noise fit's "
                      "99.9 % rule; it is not part of the deterministic search")
     if log.sensor_temp_c is not None:
         notes.append("the log has sensor_temp_c: thermal_lag is not searched (the measured sensor "
                      "temperature is used as it is)")
+    search.noise_est, search.noise, search.lattice = noise_est, noise, lattice
 
-    iterations: list[Iteration] = []
-    preempted: StepProbe | None = None
-    fit = analysis.fit(current)
+
+def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_effects: int,
+                 progress: Callable[[str], None]) -> None:
+    """Name catalogue effects one at a time while the best one beats the simulated threshold."""
+    lattice = search.lattice
+    fit = analysis.fit(search.current)
     for iteration in range(1, max_effects + 1):
         progress(f"effect search, round {iteration}: scoring the catalogue, {analysis.n_null} "
                  "simulated effect-free datasets for the threshold")
         scores = score_library(analysis.builder, fit, analysis.whitener, analysis.y_bins, analysis.space)
         if log.sensor_temp_c is not None:
             scores.pop("thermal_lag", None)
-        scan = None if current.has_effect("periodic_interference") else analysis.scan(fit)
+        scan = None if search.current.has_effect("periodic_interference") else analysis.scan(fit)
         if (scan is not None and lattice is not None
                 and line_within_quantization(scan.amplitude_dph, scan.freq_hz,
                                              lattice.pulse_arcsec)):
@@ -396,10 +429,10 @@ def _analyse(model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
         if ranked[best] > threshold:
             if (step.significant and best != "periodic_interference"
                     and step.delta_chi2 - 2.0 * math.log(step.n_positions) > deltas[best]):
-                preempted = step
+                search.preempted = step
             else:
                 accepted = best
-        iterations.append(Iteration(ranked, deltas, threshold, accepted, step))
+        search.iterations.append(Iteration(ranked, deltas, threshold, accepted, step))
         if accepted is None:
             break
         if accepted == "periodic_interference":
@@ -416,16 +449,21 @@ def _analyse(model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
                                                analysis.space.rate_levels_dps)
             score, delta = refined.score, refined.delta_chi2
         current = fit.model.with_effect(spec)
-        current = _refine_found(analysis, current, [f.name for f in found] + [accepted])
-        fit = analysis.fit(current)
-        found.append(FoundEffect(accepted, {}, probability, rivals, experiment, score, delta, threshold))
+        search.current = _refine_found(analysis, current, [f.name for f in search.found] + [accepted])
+        fit = analysis.fit(search.current)
+        search.found.append(FoundEffect(accepted, {}, probability, rivals, experiment, score, delta,
+                                        threshold))
 
-    progress("gap metrics before and after")
-    after = analysis.fit(current)
+
+def _gap_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> DiscrepancyResult:
+    """The gap metrics before and after against their simulated null, and what is left over."""
+    model, noise, noise_before, notes = search.model, search.noise, search.noise_before, search.notes
+    preempted = search.preempted
+    after = analysis.fit(search.current)
     updated = _final_periodic(analysis, after)
     if updated is not after.model:
         after = analysis.fit(updated)
-    found = [replace(f, parameters=dict(after.model.effect(f.name).params)) for f in found]
+    found = [replace(f, parameters=dict(after.model.effect(f.name).params)) for f in search.found]
     before = analysis.fit(model)
 
     seg_of_bin = analysis.segments.bin_index(analysis.bins)
@@ -471,9 +509,10 @@ def _analyse(model: GyroModel, log: MeasuredLog, seed: int, n_null: int,
             notes.append(f"a bias step near t = {preempted.time_s:.0f} s explains the data better than "
                          f"any catalogue effect (Δχ² {preempted.delta_chi2:.1f}); nothing was named")
     return DiscrepancyResult(
-        found, unexplained, where, metrics, primary, model, after.model, noise_est, iterations,
-        analysis.bins, analysis.segments, np.unique(seg_of_bin), geometry, before.resid_bins,
-        after.resid_bins, signals, scan_before, scan_after, noise_before, float(log.t_s[0]), notes)
+        found, unexplained, where, metrics, primary, model, after.model, search.noise_est,
+        search.iterations, analysis.bins, analysis.segments, np.unique(seg_of_bin), geometry,
+        before.resid_bins, after.resid_bins, signals, scan_before, scan_after, noise_before,
+        float(log.t_s[0]), notes)
 
 
 def _final_periodic(analysis: _Analysis, fit: Fit) -> GyroModel:
