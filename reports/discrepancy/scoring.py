@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
+from scipy import optimize, stats
 from scipy.linalg import cholesky, qr, solve_triangular
 
 from gyrocal.models.gyro_model import EffectSpec, GyroModel
@@ -249,7 +249,7 @@ def score_library(builder: DesignBuilder, base: Fit, whitener: Whitener, y_bins:
 
 def refine_shape(score: EffectScores, builder: DesignBuilder, base: Fit, whitener: Whitener,
                  y_bins: np.ndarray, iterations: int = 12) -> CandidateScore:
-    """Golden-section search in log τ between the best grid point's neighbours."""
+    """Bounded scalar search in log τ between the best grid point's neighbours."""
     best = score.best
     keys = [k for k in best.shape if k.endswith("tau_s")]
     if not keys:
@@ -268,16 +268,11 @@ def refine_shape(score: EffectScores, builder: DesignBuilder, base: Fit, whitene
             cache[x] = score_candidate(score.effect, shape, builder, base, whitener, y_bins)
         return cache[x]
 
-    golden = (math.sqrt(5.0) - 1.0) / 2.0
-    a, b = lo, hi
-    c, d = b - golden * (b - a), a + golden * (b - a)
-    for _ in range(iterations):
-        if evaluate(c).delta_chi2 > evaluate(d).delta_chi2:
-            b, d = d, c
-            c = b - golden * (b - a)
-        else:
-            a, c = c, d
-            d = a + golden * (b - a)
+    if hi > lo:
+        # bounded Brent (scipy) on −Δχ²; every evaluation is cached and the best one seen
+        # wins, so the grid point itself is never lost to a worse refinement
+        optimize.minimize_scalar(lambda x: -evaluate(float(x)).delta_chi2, bounds=(lo, hi),
+                                 method="bounded", options={"maxiter": iterations, "xatol": 1e-3})
     return max(cache.values(), key=lambda s: s.delta_chi2)
 
 

@@ -6,7 +6,7 @@
 2. Estimate the noise on the quiet segments of that residual (a Markov hump
    found there is the ``markov_bias`` effect) and build the whitening.
 3. Score every catalogue effect the model lacks (shape parameters by grid and
-   golden-section search), periodic interference on the full-rate spectrum,
+   a bounded scalar search), periodic interference on the full-rate spectrum,
    and an out-of-catalogue probe (a bias step at any time).
 4. Calibrate the acceptance threshold by simulation: effect-free data from
    the refitted model and the noise model, the maximum score over the whole
@@ -26,7 +26,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import stats
+from scipy import optimize, stats
 
 from gyrocal.models.gyro_model import EffectSpec, GyroModel, ModelError
 from gyrocal.models.indicated import ModelInputs, indicated_rate
@@ -253,7 +253,7 @@ def _step_probe(fit: Fit, whitener: Whitener, bins: Bins, z: np.ndarray) -> Step
 
 
 def _refine_found(analysis: _Analysis, model: GyroModel, names: list[str]) -> GyroModel:
-    """Joint refit of the found effects' τ (golden section in log τ, one pass each)."""
+    """Joint refit of the found effects' τ (bounded scalar search in log τ, one pass each)."""
     for name in names:
         spec = model.effect(name)
         if spec is None or "tau_s" not in spec.params or name == "markov_bias":
@@ -264,22 +264,10 @@ def _refine_found(analysis: _Analysis, model: GyroModel, names: list[str]) -> Gy
             trial = model.with_effect(EffectSpec(name, {**spec.params, "tau_s": math.exp(log_tau)}))
             return analysis.fit(trial).chi2
 
-        a, b = math.log(tau0 / 2.0), math.log(tau0 * 2.0)
-        golden = (math.sqrt(5.0) - 1.0) / 2.0
-        c, d = b - golden * (b - a), a + golden * (b - a)
-        fc, fd = chi2(c), chi2(d)
-        for _ in range(8):
-            if fc < fd:
-                b, d, fd = d, c, fc
-                c = b - golden * (b - a)
-                fc = chi2(c)
-            else:
-                a, c, fc = c, d, fd
-                d = a + golden * (b - a)
-                fd = chi2(d)
-        best = c if fc < fd else d
-        if min(fc, fd) < chi2(math.log(tau0)):
-            model = model.with_effect(EffectSpec(name, {**spec.params, "tau_s": math.exp(best)}))
+        found = optimize.minimize_scalar(chi2, bounds=(math.log(tau0 / 2.0), math.log(tau0 * 2.0)),
+                                         method="bounded", options={"maxiter": 10, "xatol": 1e-3})
+        if found.fun < chi2(math.log(tau0)):
+            model = model.with_effect(EffectSpec(name, {**spec.params, "tau_s": math.exp(found.x)}))
     return analysis.fit(model).model
 
 
