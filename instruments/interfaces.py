@@ -93,6 +93,8 @@ class GyroBlock:
 
 @runtime_checkable
 class GyroStream(Protocol):
+    name: str      # the instrument name its errors carry (InstrumentError.instrument)
+
     def identify(self) -> Identity: ...
     def flush(self) -> None:
         """Discard everything buffered so the next samples are fresh."""

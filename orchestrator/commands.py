@@ -28,7 +28,7 @@ from gyrocal.orchestrator.engine import (
     RunEngine,
     RunFaultError,
 )
-from gyrocal.orchestrator.journal import sha256_file
+from gyrocal.orchestrator.journal import JournalEvent, sha256_file
 from gyrocal.orchestrator.locks import FileLock, instrument_locks, run_folder_lock
 from gyrocal.orchestrator.notify import Notifier
 from gyrocal.orchestrator.plan import Plan, expand_plan, format_plan
@@ -363,7 +363,7 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
     if journal.count == 0:
         # What the auditor must be able to tie to this history: the inputs, the frozen
         # plan and who/what the run was for. The manifest stays mutable run state.
-        journal.append("run_started", run_id=manifest["run_id"],
+        journal.append(JournalEvent.RUN_STARTED, run_id=manifest["run_id"],
                        procedure=procedure.name, steps=len(plan.steps), sim=sim, seed=seed,
                        inputs={role: entry["sha256"]
                                for role, entry in (manifest.get("inputs") or {}).items()},
@@ -388,7 +388,7 @@ def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: P
                        signer: Signer | None = None) -> int:
 
     def on_retry(role: str, attempt: int, exc: InstrumentError) -> None:
-        journal.append("retry", instrument=role, attempt=attempt, command=exc.command,
+        journal.append(JournalEvent.RETRY, instrument=role, attempt=attempt, command=exc.command,
                        detail=exc.detail, reply=_text(exc.reply))
 
     results: dict[str, Any] = {}
@@ -412,14 +412,14 @@ def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: P
                                operator=_fixture_operator(procedure, folder, simulated),
                                mountings={m.name: m.up for m in procedure.mountings})
             engine.run()
-        journal.append("run_closed", outcome="completed")
+        journal.append(JournalEvent.RUN_CLOSED, outcome="completed")
     except RunFaultError as exc:
         print(f"gyrocal: fault: {exc}", file=sys.stderr)
         _report_simulator_crash(simulated, journal)
         return EXIT_FAULT
     except InstrumentError as exc:
         # Raised while connecting, before the engine owned the instruments.
-        journal.append("fault", message=str(exc), state="connecting")
+        journal.append(JournalEvent.FAULT, message=str(exc), state="connecting")
         folder.update_manifest(state="faulted", last_fault=str(exc))
         print(f"gyrocal: fault: {exc}; nothing was commanded. Resume with "
               f"`gyrocal resume {folder.path}` when the instrument answers", file=sys.stderr)
@@ -438,7 +438,7 @@ def _report_simulator_crash(simulated: Any, journal) -> None:
     error = getattr(getattr(simulated, "gyro_port", None), "error", None)
     if error is not None:
         message = f"simulated gyro stopped: {type(error).__name__}: {error}"
-        journal.append("simulator_error", message=message)
+        journal.append(JournalEvent.SIMULATOR_ERROR, message=message)
         print(f"gyrocal: {message}", file=sys.stderr)
 
 

@@ -18,7 +18,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +28,10 @@ from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments
 from gyrocal.instruments.interfaces import Identity
 from gyrocal.models.imu_model import Mounting
+from gyrocal.orchestrator.acquisition import Acquisition, AcquisitionPolicy
+from gyrocal.orchestrator.journal import JournalEvent
 from gyrocal.orchestrator.machine import RunStateMachine
+from gyrocal.orchestrator.plan import PlanStep, StepKind
 from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.remount import (
     CHECK_RATE_DPS,
@@ -71,17 +74,6 @@ class EnginePolicy:
     max_repeats: int = 2                # bad logged step (frame loss, gyro read failure) repeated at most this many times
     safe_setpoint_c: float | None = 25.0  # None = chamber standby is not supported: hold setpoint
     pause_poll_s: float = 0.5           # wall seconds between looks at RUN_DIR/PAUSE while paused
-
-
-@dataclass
-class StepResult:
-    step_id: str
-    attempt: int
-    samples: int = 0
-    lost_frames: int = 0
-    crc_errors: int = 0
-    chunks: list[str] = field(default_factory=list)
-    table_rate_max_dev_dps: float = 0.0
 
 
 def completed_steps(events: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
@@ -158,12 +150,12 @@ class RunEngine:
     def __init__(
         self,
         folder: RunFolder,
-        steps: list[Any],
+        steps: list[PlanStep],
         instruments: Instruments,
         policy: EnginePolicy,
         progress: Progress | None = None,
         on_finished: Callable[[], None] | None = None,
-        before_step: Callable[[Any], None] | None = None,
+        before_step: Callable[[PlanStep], None] | None = None,
         operator: FixtureOperator | None = None,
         mountings: Mapping[str, Mounting] | None = None,
     ) -> None:
@@ -184,6 +176,19 @@ class RunEngine:
         self._step_id: str | None = None    # the plan step being executed (for fault events)
         self._attempts_before: dict[str, int] = {}  # step_id → last attempt journaled by earlier sessions
         self._t_run_start = self.clock.now_s()
+        self.acquisition = Acquisition(
+            instruments, self.clock, folder, self.journal, self.progress,
+            AcquisitionPolicy(policy.chunk_s, policy.block_s, policy.read_timeout_margin_s),
+            poll_chamber=self._poll_chamber, elapsed_s=self._elapsed)
+        #: one executor per step kind (a registry, not a chain of string tests)
+        self._executors: dict[StepKind, Callable[[PlanStep], None]] = {
+            StepKind.RAMP: self._ramp,
+            StepKind.SOAK: self._soak,
+            StepKind.STATIC: self._log_step,
+            StepKind.ALLAN: self._log_step,
+            StepKind.DWELL: self._log_step,
+            StepKind.REMOUNT: self._remount,
+        }
 
     # -- public ----------------------------------------------------------------------------
     def run(self) -> str:
@@ -196,7 +201,7 @@ class RunEngine:
                 self._attempts_before = attempts_started(events)
                 remaining = [s for s in self.steps if s.step_id not in done]
                 if done and remaining:
-                    self.journal.append("resumed", from_step=remaining[0].step_id,
+                    self.journal.append(JournalEvent.RESUMED, from_step=remaining[0].step_id,
                                         completed=len(done))
                     self._step_id = remaining[0].step_id
                     self._restore_conditions(remaining[0])
@@ -206,12 +211,11 @@ class RunEngine:
                         continue
                     self._step_id = step.step_id
                     # ETA: the plan's expected duration of this and every later step
-                    eta_s = sum(float(getattr(s, "expected_s", 0.0) or 0.0)
-                                for s in self.steps[index - 1:] if s.step_id not in done)
+                    eta_s = sum(s.expected_s for s in self.steps[index - 1:]
+                                if s.step_id not in done)
                     self.progress.update(step_id=step.step_id, step_index=index,
                                          step_count=len(self.steps), eta_s=eta_s,
-                                         step_expected_s=float(getattr(step, "expected_s", 0.0)
-                                                               or 0.0),
+                                         step_expected_s=step.expected_s,
                                          step_started_s=self._elapsed())
                     self._pause_if_asked(step)
                     if self.before_step is not None:
@@ -221,15 +225,15 @@ class RunEngine:
                 self._finish()
                 return "done"
             except KeyboardInterrupt as exc:
-                self._go_safe("interrupted", f"interrupted by the operator ({exc or 'Ctrl-C'})")
+                self._go_safe(JournalEvent.INTERRUPTED, f"interrupted by the operator ({exc or 'Ctrl-C'})")
                 raise RunFaultError("run interrupted; instruments safe; continue with "
                                     f"`gyrocal resume {self.folder.path}`") from None
             except (InstrumentError, RunFaultError) as exc:
-                self._go_safe("fault", str(exc), **_fault_fields(exc))
+                self._go_safe(JournalEvent.FAULT, str(exc), **_fault_fields(exc))
                 raise RunFaultError(f"{exc}; instruments safe; continue with "
                                     f"`gyrocal resume {self.folder.path}`") from exc
             except BaseException as exc:
-                self._go_safe("fault", f"internal error: {exc!r}")
+                self._go_safe(JournalEvent.FAULT, f"internal error: {exc!r}")
                 raise
             finally:
                 self.progress.close()
@@ -239,7 +243,7 @@ class RunEngine:
     def pause_file(self) -> Path:
         return self.folder.path / PAUSE_FILE
 
-    def _pause_if_asked(self, step: Any) -> None:
+    def _pause_if_asked(self, step: PlanStep) -> None:
         """Hold between steps while ``RUN_DIR/PAUSE`` exists (``touch`` it; delete to go on).
 
         A pause never cuts a step in half: it takes effect before the next
@@ -251,7 +255,7 @@ class RunEngine:
             return
         self.machine.pause()
         self.inst.table.stop()
-        self.journal.append("paused", before_step=step.step_id,
+        self.journal.append(JournalEvent.PAUSED, before_step=step.step_id,
                             chamber_setpoint_c=self.inst.chamber.read_setpoint_c())
         self.folder.update_manifest(state="paused")
         self.progress.update(paused=True)
@@ -259,7 +263,7 @@ class RunEngine:
             self._poll_chamber()
             time.sleep(self.policy.pause_poll_s)
         self.inst.table.set_rate_mode()
-        self.journal.append("unpaused", before_step=step.step_id)
+        self.journal.append(JournalEvent.UNPAUSED, before_step=step.step_id)
         self.progress.update(paused=False, step_started_s=self._elapsed())
         self.folder.update_manifest(state="running")
         self.machine.unpause()
@@ -272,7 +276,7 @@ class RunEngine:
             ident: Identity = inst.identify()
             identities[ident.role] = {"driver": ident.driver, "address": ident.address,
                                       "description": ident.description}
-            self.journal.append("instrument_identified", role=ident.role, driver=ident.driver,
+            self.journal.append(JournalEvent.INSTRUMENT_IDENTIFIED, role=ident.role, driver=ident.driver,
                                 address=ident.address, description=ident.description)
         self.folder.update_manifest(instruments=identities)
         self.machine.identified()
@@ -291,25 +295,19 @@ class RunEngine:
                                    timeout_s=self.policy.read_timeout_margin_s)
         self._table_dps = table.read_rate_dps()
         self._chamber_c = status.temperature_c
-        self.journal.append("preflight_ok", chamber_c=status.temperature_c,
+        self.journal.append(JournalEvent.PREFLIGHT_OK, chamber_c=status.temperature_c,
                             gyro_samples=len(block), table_rate_dps=self._table_dps)
         self.machine.preflight_ok()
 
     # -- step execution ----------------------------------------------------------------------
-    def _execute(self, step: Any) -> None:
-        kind = step.kind
-        if kind == "ramp":
-            self._ramp(step)
-        elif kind == "soak":
-            self._soak(step)
-        elif kind in ("static", "allan", "dwell"):
-            self._log_step(step)
-        elif kind == "remount":
-            self._remount(step)
-        else:
-            raise RunFaultError(f"plan step {step.step_id}: unknown kind {kind!r}")
+    def _execute(self, step: PlanStep) -> None:
+        """Run ``step`` with the executor registered for its kind."""
+        executor = self._executors.get(step.kind)
+        if executor is None:
+            raise RunFaultError(f"plan step {step.step_id}: no executor for kind {step.kind!r}")
+        executor(step)
 
-    def _restore_conditions(self, step: Any) -> None:
+    def _restore_conditions(self, step: PlanStep) -> None:
         """On resume, bring chamber and table back to the conditions of ``step`` first.
 
         The safe state left the chamber at the safe setpoint (and a restarted
@@ -317,19 +315,19 @@ class RunEngine:
         the setpoint is already commanded: a soak is preceded by a ramp (the
         crash happened mid-soak), a logged step by a ramp and a full soak.
         """
-        setpoint = getattr(step, "setpoint_c", None)
-        if step.kind != "remount" and getattr(step, "mounting", None):
+        setpoint = step.setpoint_c
+        if step.kind != StepKind.REMOUNT and step.mounting:
             # A restarted dry run has a new simulated fixture, and a real one may have
             # been touched while the run was down: the mounting is checked again.
             self._ensure_mounting(step)
         if setpoint is None or step.kind == "ramp" or self._ramp_follows(step):
             return
-        self.journal.append("restore_conditions", step_id=step.step_id, setpoint_c=setpoint)
+        self.journal.append(JournalEvent.RESTORE_CONDITIONS, step_id=step.step_id, setpoint_c=setpoint)
         self._ramp(step, journal_done=False)
         if step.kind != "soak":
             self._soak(step, journal_done=False)
 
-    def _ramp_follows(self, step: Any) -> bool:
+    def _ramp_follows(self, step: PlanStep) -> bool:
         """A remount right before a ramp needs no temperature of its own."""
         if step.kind != "remount":
             return False
@@ -337,18 +335,18 @@ class RunEngine:
         return bool(later) and later[0].kind == "ramp"
 
     # -- remount (multi-axis IMU) --------------------------------------------------------------
-    def _mounting_of(self, step: Any) -> Mounting:
+    def _mounting_of(self, step: PlanStep) -> Mounting:
         if self.operator is None or step.mounting not in self.mountings:
             raise RunFaultError(f"plan step {step.step_id}: mounting {step.mounting!r} but the "
                                 "run has no fixture operator for it")
         return self.mountings[step.mounting]
 
-    def _remount(self, step: Any) -> None:
+    def _remount(self, step: PlanStep) -> None:
         """Hand the table to the operator, wait for the confirmation, check the mounting."""
         mounting = self._mounting_of(step)
         assert self.operator is not None
         attempt = self._attempts_before.get(step.step_id, 0) + 1
-        self.journal.append("step_started", step_id=step.step_id, kind="remount",
+        self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind="remount",
                             mounting=step.mounting, attempt=attempt)
         self._set_table_rate(0.0)
         reading = self.inst.table.read_rate_dps()
@@ -357,35 +355,35 @@ class RunEngine:
                                 "the operator for a remount")
         self.inst.table.stop()
         self.machine.pause()
-        self.journal.append("operator_needed", step_id=step.step_id, mounting=step.mounting,
+        self.journal.append(JournalEvent.OPERATOR_NEEDED, step_id=step.step_id, mounting=step.mounting,
                             instruction=step.label, table_rate_dps=reading)
         self.folder.update_manifest(state="needs_operator")
         self.progress.update(paused=True)
         self.operator.request(step.mounting, mounting, step.label or step.mounting)
         wait_confirmed(self.operator, step.mounting, self.policy.pause_poll_s,
                        on_wait=self._poll_chamber)
-        self.journal.append("operator_confirmed", step_id=step.step_id, mounting=step.mounting)
+        self.journal.append(JournalEvent.OPERATOR_CONFIRMED, step_id=step.step_id, mounting=step.mounting)
         self.progress.update(paused=False, step_started_s=self._elapsed())
         self.folder.update_manifest(state="running")
         self.machine.unpause()
         self.inst.table.set_rate_mode()
         fields = self._mount_check(step, mounting)
-        self.journal.append("step_completed", step_id=step.step_id, attempt=attempt, **fields)
+        self.journal.append(JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=attempt, **fields)
 
-    def _ensure_mounting(self, step: Any) -> None:
+    def _ensure_mounting(self, step: PlanStep) -> None:
         mounting = self._mounting_of(step)
         assert self.operator is not None
         self.operator.resumed(step.mounting, mounting)
-        self.journal.append("mount_recheck", step_id=step.step_id, mounting=step.mounting,
+        self.journal.append(JournalEvent.MOUNT_RECHECK, step_id=step.step_id, mounting=step.mounting,
                             **self._mount_check(step, mounting))
 
-    def _mount_check(self, step: Any, mounting: Mounting) -> dict[str, Any]:
+    def _mount_check(self, step: PlanStep, mounting: Mounting) -> dict[str, Any]:
         """Turn the table briefly; the declared IMU axis must sense it (``remount.py``)."""
         self._set_table_rate(CHECK_RATE_DPS, None, CHECK_SETTLE_S)
         gyro = self.inst.gyro
         gyro.flush()
         n = max(8, int(self.inst.sample_rate_hz * CHECK_READ_S))
-        block = gyro.read_samples(n, timeout_s=self._read_timeout_s(CHECK_READ_S))
+        block = gyro.read_samples(n, timeout_s=self.acquisition.read_timeout_s(CHECK_READ_S))
         self._set_table_rate(0.0)
         rate_xyz = block.rate_xyz
         if rate_xyz is None:
@@ -396,7 +394,7 @@ class RunEngine:
         except MountCheckError as exc:
             raise RunFaultError(f"step {step.step_id}: {exc}") from None
 
-    def _ramp(self, step: Any, journal_done: bool = True) -> None:
+    def _ramp(self, step: PlanStep, journal_done: bool = True) -> None:
         """Move the chamber to the step's setpoint at the procedure's ramp rate.
 
         The ramp is done in software — the setpoint walks from the present
@@ -406,8 +404,8 @@ class RunEngine:
         for (thermal-lag and dT/dt effects depend on it). Alarms are checked at
         every step. Without a ramp rate the setpoint is commanded at once.
         """
-        ramp_c_per_min = getattr(step, "ramp_c_per_min", None)
-        self.journal.append("step_started", step_id=step.step_id, kind="ramp",
+        ramp_c_per_min = step.ramp_c_per_min
+        self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind="ramp",
                             setpoint_c=step.setpoint_c, ramp_c_per_min=ramp_c_per_min, attempt=1)
         self._set_table_rate(0.0)
         self.machine.ramp()
@@ -429,13 +427,13 @@ class RunEngine:
         self.machine.soak()
         self.machine.stable()
         if journal_done:
-            self.journal.append("step_completed", step_id=step.step_id, attempt=1,
+            self.journal.append(JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=1,
                                 ramp_s=self.clock.now_s() - t_start)
 
-    def _soak(self, step: Any, journal_done: bool = True) -> None:
+    def _soak(self, step: PlanStep, journal_done: bool = True) -> None:
         """Wait until the chamber stays within ±tolerance for the hold time, or fault."""
         self.machine.ramp()
-        self.journal.append("step_started", step_id=step.step_id, kind="soak",
+        self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind="soak",
                             setpoint_c=step.setpoint_c, attempt=1)
         self.machine.soak()
         t_start = self.clock.now_s()
@@ -457,7 +455,7 @@ class RunEngine:
             self.clock.sleep(min(self.policy.poll_s, max(step.hold_s / 4, 0.1)))
         self.machine.stable()
         if journal_done:
-            self.journal.append("step_completed", step_id=step.step_id, attempt=1,
+            self.journal.append(JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=1,
                                 soak_s=self.clock.now_s() - t_start)
 
     def _poll_chamber(self) -> float:
@@ -508,7 +506,7 @@ class RunEngine:
     def _rate_band(self, rate_dps: float) -> float:
         return self.policy.rate_tolerance_dps + 1e-3 * abs(rate_dps)
 
-    def _log_step(self, step: Any) -> None:
+    def _log_step(self, step: PlanStep) -> None:
         """Log a step; a bad attempt (frame loss, a gyro read that failed) is repeated.
 
         A gyro read that times out or loses its port leaves a hole in the
@@ -517,26 +515,26 @@ class RunEngine:
         is journaled as a ``retry`` of the gyro. Past ``max_repeats`` the last
         gyro error (or the loss) ends the run in the safe state.
         """
-        rate_dps = float(getattr(step, "rate_dps", 0.0) or 0.0)
-        settle_s = float(getattr(step, "settle_s", 0.0) or 0.0)
+        rate_dps = step.rate_dps
+        settle_s = step.settle_s
         # Attempt numbers continue after those of an interrupted session: its chunks are
         # journaled with their hashes and must never be overwritten by a new attempt.
         first = self._attempts_before.get(step.step_id, 0) + 1
         attempts = first + self.policy.max_repeats
         for attempt in range(first, attempts + 1):
-            self.journal.append("step_started", step_id=step.step_id, kind=step.kind,
+            self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind=step.kind,
                                 rate_dps=rate_dps, attempt=attempt)
-            self._set_table_rate(rate_dps, getattr(step, "accel_dps2", None), settle_s)
+            self._set_table_rate(rate_dps, step.accel_dps2, settle_s)
             self.machine.log()
             try:
-                result = self._record(step, attempt, rate_dps)
+                result = self.acquisition.record(step, attempt, rate_dps)
             except InstrumentError as exc:
                 if not (exc.transient and exc.instrument == self._gyro_name()) or attempt == attempts:
                     raise
                 self.machine.logged()
-                self.journal.append("retry", instrument="gyro", attempt=attempt,
+                self.journal.append(JournalEvent.RETRY, instrument="gyro", attempt=attempt,
                                     command=exc.command, detail=exc.detail, reply=_text(exc.reply))
-                self.journal.append("step_bad", step_id=step.step_id, attempt=attempt,
+                self.journal.append(JournalEvent.STEP_BAD, step_id=step.step_id, attempt=attempt,
                                     reason=f"gyro read failed: {exc}")
                 continue
             self.machine.logged()
@@ -545,7 +543,7 @@ class RunEngine:
             rate_ok = result.table_rate_max_dev_dps <= self._rate_band(rate_dps)
             if loss <= self.policy.max_loss_fraction and rate_ok:
                 self.journal.append(
-                    "step_completed", step_id=step.step_id, attempt=attempt,
+                    JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=attempt,
                     samples=result.samples, lost_frames=result.lost_frames,
                     crc_errors=result.crc_errors, chunks=result.chunks,
                     table_rate_max_dev_dps=result.table_rate_max_dev_dps)
@@ -555,7 +553,7 @@ class RunEngine:
                       f"table rate strayed {result.table_rate_max_dev_dps:.4g} deg/s from "
                       f"{rate_dps:g} deg/s (band {self._rate_band(rate_dps):.4g})")
             self.journal.append(
-                "step_bad", step_id=step.step_id, attempt=attempt, loss_fraction=loss,
+                JournalEvent.STEP_BAD, step_id=step.step_id, attempt=attempt, loss_fraction=loss,
                 lost_frames=result.lost_frames, crc_errors=result.crc_errors,
                 limit=self.policy.max_loss_fraction,
                 table_rate_max_dev_dps=result.table_rate_max_dev_dps, reason=reason)
@@ -563,132 +561,18 @@ class RunEngine:
             f"step {step.step_id}: no good attempt in {self.policy.max_repeats + 1}: {reason}")
 
     def _gyro_name(self) -> str | None:
-        return getattr(self.inst.gyro, "name", None)
-
-    def _read_timeout_s(self, block_s: float) -> float:
-        """Wall seconds a gyro read of ``block_s`` clock seconds may take before it times out.
-
-        On simulated time the stream runs as fast as it is read, so only the
-        margin applies; on (scaled) real time the block itself takes
-        ``block_s / speed`` wall seconds.
-        """
-        if getattr(self.clock, "simulated", False):
-            wall_s = 0.0
-        else:
-            wall_s = block_s / float(getattr(self.clock, "speed", 1.0))
-        return wall_s + self.policy.read_timeout_margin_s
-
-    def _record(self, step: Any, attempt: int, rate_dps: float) -> StepResult:
-        """Log ``step.duration_s`` of gyro samples with chamber and table context, in chunks."""
-        fs = self.inst.sample_rate_hz
-        n_total = int(round(step.duration_s * fs))
-        chunk_n = max(1, int(self.policy.chunk_s * fs))
-        block_n = max(1, min(chunk_n, int(self.policy.block_s * fs)))
-        result = StepResult(step.step_id, attempt)
-        gyro = self.inst.gyro
-        gyro.flush()
-        t0 = self.clock.now_s()
-        angle_start = (t0, 0.0, self._safe_position())
-        context_t = [t0]
-        context_chamber = [self._poll_chamber()]
-        self._check_table_rate(result, rate_dps, self.inst.table.read_rate_dps())
-        angle_start = (t0, rate_dps, angle_start[2])
-        pending: dict[str, list[np.ndarray]] = {"index": [], "gyro": [], "sensor": [], "xyz": []}
-        pending_n = 0
-        chunk_index = 0
-        last_index = -1
-        timeout_s = self._read_timeout_s(block_n / fs)
-        while result.samples < n_total:
-            want = min(block_n, n_total - result.samples)
-            block = gyro.read_samples(want, timeout_s=timeout_s)
-            result.samples += len(block)
-            result.lost_frames += block.lost_frames
-            result.crc_errors += block.crc_errors
-            index = np.asarray(block.index, dtype=np.int64)
-            if last_index >= 0 and len(index) and index[0] <= last_index:
-                index = index - index[0] + last_index + 1
-            if len(index):
-                last_index = int(index[-1])
-            pending["index"].append(index)
-            pending["gyro"].append(np.asarray(block.rate, dtype=np.float64))
-            if block.rate_xyz is not None:     # all three axes (a multi-axis IMU calibration)
-                pending["xyz"].append(np.asarray(block.rate_xyz, dtype=np.float64).reshape(-1, 3))
-            temp = block.temperature_c
-            pending["sensor"].append(np.full(len(block), np.nan) if temp is None
-                                     else np.asarray(temp, dtype=np.float64))
-            pending_n += len(block)
-            context_t.append(t0 + (last_index + 1) / fs)
-            context_chamber.append(self._poll_chamber())
-            reading = self.inst.table.read_rate_dps()
-            self._check_table_rate(result, rate_dps, reading)
-            self.progress.update(table_dps=reading, elapsed_s=self._elapsed())
-            if pending_n >= chunk_n or result.samples >= n_total:
-                columns = self._assemble(pending, t0, fs, context_t, context_chamber,
-                                         rate_dps, angle_start)
-                angle_start = (float(columns["t_s"][-1]), float(columns["table_rate_dps"][-1]),
-                               float(columns["table_angle_deg"][-1]))
-                record = self.folder.write_chunk(step.step_id, attempt, chunk_index, columns)
-                self.journal.append("chunk_written", step_id=step.step_id, attempt=attempt,
-                                    path=record.path, sha256=record.sha256, rows=record.rows)
-                result.chunks.append(record.path)
-                chunk_index += 1
-                pending = {"index": [], "gyro": [], "sensor": [], "xyz": []}
-                pending_n = 0
-        return result
-
-    def _safe_position(self) -> float:
-        return float(self.inst.table.read_position_deg())
-
-    def _check_table_rate(self, result: StepResult, demand_dps: float, reading_dps: float) -> None:
-        """Track how far the table's rate readback strays from the demand during a logged step."""
-        deviation = abs(reading_dps - demand_dps)
-        result.table_rate_max_dev_dps = max(result.table_rate_max_dev_dps, deviation)
-
-    @staticmethod
-    def _assemble(pending: dict[str, list[np.ndarray]], t0: float, fs: float,
-                  context_t: list[float], context_chamber: list[float],
-                  rate_dps: float, angle_start: tuple[float, float, float]
-                  ) -> dict[str, np.ndarray]:
-        """Per-sample columns: chamber temperature interpolated between polls, table rate.
-
-        The logged table rate is the demanded rate. In rate mode the table
-        holds its demand to encoder precision, while its rate *readback* is a
-        noisy single-shot estimate (±0.001 deg/s is 3.6 deg/h, more than the
-        bias being calibrated); the readbacks are kept as a check instead
-        (``table_rate_max_dev_dps`` per step; beyond the rate band the step is
-        bad and repeated). The table angle is the angle read at the start of
-        the step plus the integral of that rate: a position readback modulo
-        360° cannot be unwrapped between polls at high rates, the integral can.
-        """
-        index = np.concatenate(pending["index"])
-        t_s = t0 + index / fs
-        chamber = np.interp(t_s, context_t, context_chamber)
-        rate = np.full(t_s.shape, float(rate_dps))
-        angle = integrate_angle(rate, t_s, angle_start)
-        columns = {
-            "t_s": t_s,
-            "table_rate_dps": rate,
-            "chamber_temp_c": chamber,
-            "gyro": np.concatenate(pending["gyro"]),
-            "sensor_temp_c": np.concatenate(pending["sensor"]),
-            "table_angle_deg": angle,
-        }
-        xyz = pending.get("xyz") or []
-        if sum(len(x) for x in xyz) == len(t_s):
-            stacked = np.concatenate(xyz)
-            columns.update(gyro_x=stacked[:, 0], gyro_y=stacked[:, 1], gyro_z=stacked[:, 2])
-        return columns
+        return self.inst.gyro.name
 
     # -- the end -----------------------------------------------------------------------------
     def _finish(self) -> None:
         self._set_table_rate(0.0)
         self.machine.analyse()
-        self.journal.append("steps_done", steps=len(self.steps))
+        self.journal.append(JournalEvent.STEPS_DONE, steps=len(self.steps))
         self.machine.report()
         if self.on_finished is not None:
             self.on_finished()
         self.machine.finish()
-        self.journal.append("run_completed")
+        self.journal.append(JournalEvent.RUN_COMPLETED)
         self.folder.update_manifest(state="done", ended_at=_now_text())
 
     def _go_safe(self, kind: str, message: str, **fields: Any) -> None:
@@ -714,21 +598,10 @@ class RunEngine:
                 actions["chamber"] = f"setpoint {self.policy.safe_setpoint_c:g} °C"
             except Exception as exc:  # noqa: BLE001
                 actions["chamber"] = f"safe setpoint FAILED: {exc}"
-        self.journal.append("safe_state", actions=actions)
+        self.journal.append(JournalEvent.SAFE_STATE, actions=actions)
         if self.machine.state == "safing":
             self.machine.safed()
         self.folder.update_manifest(state="faulted", ended_at=_now_text(), last_fault=message)
-
-
-def integrate_angle(rate_dps: np.ndarray, t_s: np.ndarray, start: tuple[float, float, float]
-                    ) -> np.ndarray:
-    """Trapezoidal integral of rate continuing from ``start = (t_s, rate_dps, angle_deg)``."""
-    if len(t_s) == 0:
-        return np.empty(0)
-    t_prev, rate_prev, angle_prev = start
-    dt = np.diff(np.concatenate(([t_prev], t_s)))
-    prev = np.concatenate(([rate_prev], rate_dps[:-1]))
-    return angle_prev + np.cumsum(0.5 * (rate_dps + prev) * dt)
 
 
 def _fault_fields(exc: BaseException) -> dict[str, Any]:

@@ -17,10 +17,52 @@ import os
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
 GENESIS_SHA256 = "0" * 64
+
+
+class JournalEvent(str, Enum):
+    """Every event name a run journal holds: the catalogue, in one place.
+
+    A ``str`` enum: an event written as ``JournalEvent.STEP_COMPLETED`` is the
+    text ``"step_completed"`` in the file, and readers may compare either.
+    The report, verify, status and the live page read these names, so a
+    misspelt event is an AttributeError here instead of a silently unmatched
+    string there.
+    """
+
+    RUN_STARTED = "run_started"
+    INSTRUMENT_IDENTIFIED = "instrument_identified"
+    PREFLIGHT_OK = "preflight_ok"
+    RESUMED = "resumed"
+    RESTORE_CONDITIONS = "restore_conditions"
+    STEP_STARTED = "step_started"
+    STEP_COMPLETED = "step_completed"
+    STEP_BAD = "step_bad"
+    CHUNK_WRITTEN = "chunk_written"
+    RETRY = "retry"
+    PAUSED = "paused"
+    UNPAUSED = "unpaused"
+    OPERATOR_NEEDED = "operator_needed"
+    OPERATOR_CONFIRMED = "operator_confirmed"
+    MOUNT_RECHECK = "mount_recheck"
+    FAULT_INJECTED = "fault_injected"
+    FAULT = "fault"
+    INTERRUPTED = "interrupted"
+    SAFE_STATE = "safe_state"
+    SIMULATOR_ERROR = "simulator_error"
+    STEPS_DONE = "steps_done"
+    REPORT_WRITTEN = "report_written"
+    RUN_COMPLETED = "run_completed"
+    RUN_CLOSED = "run_closed"
+    NOTIFIED = "notified"
+    SEALED = "sealed"
+
+    def __str__(self) -> str:     # the name as written in the file (Python 3.10 has no StrEnum)
+        return self.value
 
 
 def sha256_bytes(data: bytes) -> str:
@@ -108,9 +150,9 @@ class Journal:
     def last_sha256(self) -> str:
         return self._last_sha256
 
-    def append(self, name: str, /, **fields: Any) -> dict[str, Any]:
+    def append(self, name: JournalEvent | str, /, **fields: Any) -> dict[str, Any]:
         """Write one event durably and return it as written."""
-        event = {"seq": self.count + 1, "wall_time": time.time(), "event": name, **fields}
+        event = {"seq": self.count + 1, "wall_time": time.time(), "event": str(name), **fields}
         event["prev_sha256"] = self._last_sha256
         raw = _encode(event)
         self._handle.write(raw)
@@ -121,13 +163,13 @@ class Journal:
             listener(event)
         return event
 
-    def append_signed(self, name: str, sign, /, **fields: Any) -> dict[str, Any]:
+    def append_signed(self, name: JournalEvent | str, sign, /, **fields: Any) -> dict[str, Any]:
         """Append an event whose ``signature`` field is ``sign(event)`` over its other fields.
 
         Used for the seal (:mod:`gyrocal.orchestrator.signing`): the event's
         ``prev_sha256`` is the chain head the signature vouches for.
         """
-        event = {"seq": self.count + 1, "wall_time": time.time(), "event": name, **fields}
+        event = {"seq": self.count + 1, "wall_time": time.time(), "event": str(name), **fields}
         event["prev_sha256"] = self._last_sha256
         event["signature"] = sign(event)
         raw = _encode(event)

@@ -26,6 +26,7 @@ from enum import Enum
 from typing import Any
 from urllib.parse import urlsplit
 
+from gyrocal.orchestrator.journal import JournalEvent
 from gyrocal.orchestrator.problems import KeyPath
 
 
@@ -142,7 +143,7 @@ class Notifier:
             for target in self.targets:
                 if what in target.on:
                     error = _send(target, what, *self.message(what, event))
-                    journal.append("notified", on=what.value, target=target.describe(),
+                    journal.append(JournalEvent.NOTIFIED, on=what.value, target=target.describe(),
                                    ok=error is None, error=error)
 
         journal.listeners.append(on_event)

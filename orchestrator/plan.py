@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import Enum
 
 from gyrocal.orchestrator.procedure import (
     AllanTest,
@@ -32,10 +33,28 @@ ASSUMED_START_TEMP_C = 25.0   # chamber temperature at the start when the statio
 REMOUNT_EXPECTED_S = 300.0
 
 
+class StepKind(str, Enum):
+    """What a plan step does; the engine has one executor per kind."""
+
+    RAMP = "ramp"          # chamber to a new setpoint at the procedure's rate
+    SOAK = "soak"          # wait for the temperature to hold within tolerance
+    STATIC = "static"      # log at rest
+    ALLAN = "allan"        # log a long hold at rest (noise terms)
+    DWELL = "dwell"        # log at a constant table rate
+    REMOUNT = "remount"    # an operator turns the IMU fixture (multi-axis procedures)
+
+    def __str__(self) -> str:     # as written in plan.json and the journal
+        return self.value
+
+    @property
+    def logs_data(self) -> bool:
+        return self in (StepKind.STATIC, StepKind.ALLAN, StepKind.DWELL)
+
+
 @dataclass(frozen=True)
 class PlanStep:
     step_id: str                # e.g. "T03.sf.+100dps"; stable across expansions
-    kind: str                   # ramp | soak | static | dwell | allan
+    kind: StepKind
     source: str                 # where it comes from in the procedure, e.g. "sequence[2].tests[1]"
     temp_index: int             # index into the procedure's sequence (T03 is temp_index 2)
     test_index: int | None      # index into that step's tests; None for ramp and soak
@@ -84,7 +103,7 @@ class Plan:
 
     def logged_s(self) -> float:
         """Total gyro data logged for analysis (static, allan and dwell steps)."""
-        return sum(s.duration_s for s in self.steps if s.kind in ("static", "allan", "dwell"))
+        return sum(s.duration_s for s in self.steps if s.kind.logs_data)
 
 
 def _rate_tag(rate_dps: float) -> str:
@@ -169,11 +188,11 @@ class _Expander:
         source = f"sequence[{index}]"
         common = self._common(index, step)
         ramp_s = abs(step.setpoint_c - self.chamber_c) / step.ramp_c_per_min * 60.0
-        self.add(step_id=f"{prefix}.ramp", kind="ramp", source=source, test_index=None, repeat=1,
+        self.add(step_id=f"{prefix}.ramp", kind=StepKind.RAMP, source=source, test_index=None, repeat=1,
                  direction="",
                  duration_s=ramp_s, ramp_c_per_min=step.ramp_c_per_min, **common)
         self.chamber_c = step.setpoint_c
-        self.add(step_id=f"{prefix}.soak", kind="soak", source=f"{source}.soak", test_index=None,
+        self.add(step_id=f"{prefix}.soak", kind=StepKind.SOAK, source=f"{source}.soak", test_index=None,
                  repeat=1, direction="", duration_s=step.soak.hold_s,
                  max_duration_s=step.soak.max_wait_s, **common)
 
@@ -195,14 +214,14 @@ class _Expander:
                 base = dict(common, source=f"{source}.tests[{test_index}]",
                             test_index=test_index, repeat=repeat, label=test.label or step.label)
                 if isinstance(test, StaticTest | AllanTest):
-                    self.add(step_id=f"{prefix}.{tag}{suffix}", kind=test.kind, direction="",
+                    self.add(step_id=f"{prefix}.{tag}{suffix}", kind=StepKind(test.kind), direction="",
                              duration_s=test.duration_s, settle_s=test.settle_s, **base)
                     continue
                 self.sweep(prefix, tag, suffix, test, base)
 
     def remount(self, step_id: str, spec: MountingSpec, index: int, step: TemperatureStep) -> None:
         """An operator step: table stopped, the fixture turned to ``spec``, then checked."""
-        self.add(step_id=step_id, kind="remount", source=f"mountings[{spec.name}]",
+        self.add(step_id=step_id, kind=StepKind.REMOUNT, source=f"mountings[{spec.name}]",
                  test_index=None, repeat=1, direction="", duration_s=REMOUNT_EXPECTED_S,
                  label=spec.instruction, mounting=spec.name, temp_index=index,
                  setpoint_c=self.chamber_c if self.steps else step.setpoint_c,
@@ -215,7 +234,7 @@ class _Expander:
             dwell_s, turns = dwell_for_rate(test, magnitude)
             for sign in signs:
                 rate = sign * magnitude
-                self.add(step_id=f"{prefix}.{tag}.{_rate_tag(rate)}{suffix}", kind="dwell",
+                self.add(step_id=f"{prefix}.{tag}.{_rate_tag(rate)}{suffix}", kind=StepKind.DWELL,
                          rate_dps=rate, direction="+" if sign > 0 else "-",
                          accel_dps2=test.accel_dps2, settle_s=test.settle_s, duration_s=dwell_s,
                          revolutions=turns, **base)

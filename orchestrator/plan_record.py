@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +28,8 @@ def _plain(value: Any) -> Any:
         return [_plain(v) for v in value]
     if isinstance(value, dict):
         return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, Enum):
+        return value.value
     if isinstance(value, (dt.date, Path)):
         return str(value)
     return value

@@ -32,10 +32,11 @@ from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
+from gyrocal.orchestrator.journal import JournalEvent
 from gyrocal.orchestrator.ledger import append_entry, ledger_path_for
 
 #: The journal event that signs the chain head; always the last line a writer leaves.
-SEAL_EVENT = "sealed"
+SEAL_EVENT = JournalEvent.SEALED
 #: The fields of a seal covered by its signature (everything but the signature itself).
 SIGNED_FIELDS = ("seq", "wall_time", "event", "prev_sha256", "run_id", "reason",
                  "key_fingerprint", "public_key")

@@ -38,7 +38,7 @@ import pyarrow.parquet as pq
 
 from gyrocal.models.rate_units import output_to_dph
 from gyrocal.orchestrator.atomic import write_bytes_atomic
-from gyrocal.orchestrator.journal import Journal, sha256_bytes
+from gyrocal.orchestrator.journal import Journal, JournalEvent, sha256_bytes
 from gyrocal.orchestrator.logged_steps import HOLD_KINDS, completed_attempts, longest_hold
 from gyrocal.orchestrator.plan_record import PLAN_RECORD
 from gyrocal.orchestrator.run_folder import RunFolder, RunFolderError
@@ -515,5 +515,5 @@ def _write_report(data: RunData, results: dict[str, Any], journal: Journal,
     root = data.folder.path
     write_bytes_atomic(root / RESULTS_FILE, encoded)
     write_bytes_atomic(root / HTML_FILE, html)
-    journal.append("report_written", files={RESULTS_FILE: sha256_bytes(encoded),
+    journal.append(JournalEvent.REPORT_WRITTEN, files={RESULTS_FILE: sha256_bytes(encoded),
                                             HTML_FILE: sha256_bytes(html)})

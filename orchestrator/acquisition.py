@@ -1,0 +1,178 @@
+"""Acquisition: a logged step's gyro samples, with chamber and table context, into chunks.
+
+One job, apart from the engine that decides when to log: read the gyro in
+blocks, poll the chamber and the table between blocks, build the per-sample
+columns (chamber temperature interpolated between polls, the demanded table
+rate, the integrated table angle, all three axes when the gyro gives them)
+and write them as journaled Parquet chunks.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gyrocal.instruments.factory import Instruments
+from gyrocal.models.clock import RealClock, SimClock
+from gyrocal.orchestrator.journal import Journal, JournalEvent
+from gyrocal.orchestrator.plan import PlanStep
+from gyrocal.orchestrator.progress import Progress
+from gyrocal.orchestrator.run_folder import RunFolder
+
+
+@dataclass
+class StepResult:
+    step_id: str
+    attempt: int
+    samples: int = 0
+    lost_frames: int = 0
+    crc_errors: int = 0
+    chunks: list[str] = field(default_factory=list)
+    table_rate_max_dev_dps: float = 0.0
+
+
+@dataclass
+class AcquisitionPolicy:
+    chunk_s: float            # seconds of samples per Parquet chunk
+    block_s: float            # seconds of samples per driver read (and per context poll)
+    read_timeout_margin_s: float
+
+
+class Acquisition:
+    """Records logged steps for the engine (``record``)."""
+
+    def __init__(self, instruments: Instruments, clock: RealClock | SimClock, folder: RunFolder,
+                 journal: Journal, progress: Progress, policy: AcquisitionPolicy,
+                 poll_chamber: Callable[[], float], elapsed_s: Callable[[], float]) -> None:
+        self.inst = instruments
+        self.clock = clock
+        self.folder = folder
+        self.journal = journal
+        self.progress = progress
+        self.policy = policy
+        self.poll_chamber = poll_chamber
+        self.elapsed_s = elapsed_s
+
+    def read_timeout_s(self, block_s: float) -> float:
+        """Wall seconds a gyro read of ``block_s`` clock seconds may take before it times out.
+
+        On simulated time the stream runs as fast as it is read, so only the
+        margin applies; on (scaled) real time the block itself takes
+        ``block_s / speed`` wall seconds.
+        """
+        wall_s = 0.0 if isinstance(self.clock, SimClock) else block_s / self.clock.speed
+        return wall_s + self.policy.read_timeout_margin_s
+
+    def record(self, step: PlanStep, attempt: int, rate_dps: float) -> StepResult:
+        """Log ``step.duration_s`` of gyro samples with chamber and table context, in chunks."""
+        fs = self.inst.sample_rate_hz
+        n_total = int(round(step.duration_s * fs))
+        chunk_n = max(1, int(self.policy.chunk_s * fs))
+        block_n = max(1, min(chunk_n, int(self.policy.block_s * fs)))
+        result = StepResult(step.step_id, attempt)
+        gyro = self.inst.gyro
+        gyro.flush()
+        t0 = self.clock.now_s()
+        angle_start = (t0, 0.0, self._safe_position())
+        context_t = [t0]
+        context_chamber = [self.poll_chamber()]
+        self._check_table_rate(result, rate_dps, self.inst.table.read_rate_dps())
+        angle_start = (t0, rate_dps, angle_start[2])
+        pending: dict[str, list[np.ndarray]] = {"index": [], "gyro": [], "sensor": [], "xyz": []}
+        pending_n = 0
+        chunk_index = 0
+        last_index = -1
+        timeout_s = self.read_timeout_s(block_n / fs)
+        while result.samples < n_total:
+            want = min(block_n, n_total - result.samples)
+            block = gyro.read_samples(want, timeout_s=timeout_s)
+            result.samples += len(block)
+            result.lost_frames += block.lost_frames
+            result.crc_errors += block.crc_errors
+            index = np.asarray(block.index, dtype=np.int64)
+            if last_index >= 0 and len(index) and index[0] <= last_index:
+                index = index - index[0] + last_index + 1
+            if len(index):
+                last_index = int(index[-1])
+            pending["index"].append(index)
+            pending["gyro"].append(np.asarray(block.rate, dtype=np.float64))
+            if block.rate_xyz is not None:     # all three axes (a multi-axis IMU calibration)
+                pending["xyz"].append(np.asarray(block.rate_xyz, dtype=np.float64).reshape(-1, 3))
+            temp = block.temperature_c
+            pending["sensor"].append(np.full(len(block), np.nan) if temp is None
+                                     else np.asarray(temp, dtype=np.float64))
+            pending_n += len(block)
+            context_t.append(t0 + (last_index + 1) / fs)
+            context_chamber.append(self.poll_chamber())
+            reading = self.inst.table.read_rate_dps()
+            self._check_table_rate(result, rate_dps, reading)
+            self.progress.update(table_dps=reading, elapsed_s=self.elapsed_s())
+            if pending_n >= chunk_n or result.samples >= n_total:
+                columns = self._assemble(pending, t0, fs, context_t, context_chamber,
+                                         rate_dps, angle_start)
+                angle_start = (float(columns["t_s"][-1]), float(columns["table_rate_dps"][-1]),
+                               float(columns["table_angle_deg"][-1]))
+                record = self.folder.write_chunk(step.step_id, attempt, chunk_index, columns)
+                self.journal.append(JournalEvent.CHUNK_WRITTEN, step_id=step.step_id, attempt=attempt,
+                                    path=record.path, sha256=record.sha256, rows=record.rows)
+                result.chunks.append(record.path)
+                chunk_index += 1
+                pending = {"index": [], "gyro": [], "sensor": [], "xyz": []}
+                pending_n = 0
+        return result
+
+    def _safe_position(self) -> float:
+        return float(self.inst.table.read_position_deg())
+
+    def _check_table_rate(self, result: StepResult, demand_dps: float, reading_dps: float) -> None:
+        """Track how far the table's rate readback strays from the demand during a logged step."""
+        deviation = abs(reading_dps - demand_dps)
+        result.table_rate_max_dev_dps = max(result.table_rate_max_dev_dps, deviation)
+
+    @staticmethod
+    def _assemble(pending: dict[str, list[np.ndarray]], t0: float, fs: float,
+                  context_t: list[float], context_chamber: list[float],
+                  rate_dps: float, angle_start: tuple[float, float, float]
+                  ) -> dict[str, np.ndarray]:
+        """Per-sample columns: chamber temperature interpolated between polls, table rate.
+
+        The logged table rate is the demanded rate. In rate mode the table
+        holds its demand to encoder precision, while its rate *readback* is a
+        noisy single-shot estimate (±0.001 deg/s is 3.6 deg/h, more than the
+        bias being calibrated); the readbacks are kept as a check instead
+        (``table_rate_max_dev_dps`` per step; beyond the rate band the step is
+        bad and repeated). The table angle is the angle read at the start of
+        the step plus the integral of that rate: a position readback modulo
+        360° cannot be unwrapped between polls at high rates, the integral can.
+        """
+        index = np.concatenate(pending["index"])
+        t_s = t0 + index / fs
+        chamber = np.interp(t_s, context_t, context_chamber)
+        rate = np.full(t_s.shape, float(rate_dps))
+        angle = integrate_angle(rate, t_s, angle_start)
+        columns = {
+            "t_s": t_s,
+            "table_rate_dps": rate,
+            "chamber_temp_c": chamber,
+            "gyro": np.concatenate(pending["gyro"]),
+            "sensor_temp_c": np.concatenate(pending["sensor"]),
+            "table_angle_deg": angle,
+        }
+        xyz = pending.get("xyz") or []
+        if sum(len(x) for x in xyz) == len(t_s):
+            stacked = np.concatenate(xyz)
+            columns.update(gyro_x=stacked[:, 0], gyro_y=stacked[:, 1], gyro_z=stacked[:, 2])
+        return columns
+
+
+def integrate_angle(rate_dps: np.ndarray, t_s: np.ndarray, start: tuple[float, float, float]
+                    ) -> np.ndarray:
+    """Trapezoidal integral of rate continuing from ``start = (t_s, rate_dps, angle_deg)``."""
+    if len(t_s) == 0:
+        return np.empty(0)
+    t_prev, rate_prev, angle_prev = start
+    dt = np.diff(np.concatenate(([t_prev], t_s)))
+    prev = np.concatenate(([rate_prev], rate_dps[:-1]))
+    return angle_prev + np.cumsum(0.5 * (rate_dps + prev) * dt)
