@@ -1,0 +1,91 @@
+"""The report builder on a small run record written by hand, numbers worked by hand.
+
+Three ± rate pairs at two temperatures and a static hold, written straight
+into a run folder (manifest, plan.json, journal, Parquet chunks) with a
+known scale factor and bias: no engine, no simulator, no procedure. The
+expected figures are computed below from the numbers typed here.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gyrocal.orchestrator.journal import Journal, JournalEvent
+from gyrocal.orchestrator.run_folder import RunFolder
+from gyrocal.reports.build import compute_results, read_run
+
+FS_HZ = 50.0
+LATITUDE = 50.46
+EARTH_DPH = 15.041067 * math.sin(math.radians(LATITUDE))      # 11.600 deg/h
+# truth: SF 1.0002 at 0 °C and 1.0006 at 40 °C; bias 3 deg/h + Earth rate at both
+TRUTH = {0.0: (1.0002, 3.0), 40.0: (1.0006, 3.0)}
+
+
+def _write(tmp_path: Path) -> Path:
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    (tmp_path / "p.yaml").write_text("# hand-made\n")
+    folder = RunFolder.create(tmp_path / "run", tmp_path / "p.yaml", None)
+    steps, n = [], int(10 * FS_HZ)
+    with Journal(folder.path / "journal.jsonl") as journal:
+        journal.append(JournalEvent.RUN_STARTED)
+        for k, (temp, (sf, bias_dph)) in enumerate(TRUTH.items()):
+            for kind, rate in (("static", 0.0), ("dwell", 10.0), ("dwell", -10.0),
+                               ("dwell", 100.0), ("dwell", -100.0)):
+                step_id = f"T{k + 1:02d}.{kind}{rate:+g}"
+                steps.append({"step_id": step_id, "kind": kind, "rate_dps": rate,
+                              "setpoint_c": temp, "temp_index": k, "revolutions": None,
+                              "mounting": None})
+                t = np.arange(n) / FS_HZ
+                gyro = sf * (rate + (bias_dph + EARTH_DPH) / 3600.0) + np.zeros(n)
+                columns = {"t_s": t, "table_rate_dps": np.full(n, rate),
+                           "chamber_temp_c": np.full(n, temp), "gyro": gyro,
+                           "sensor_temp_c": np.full(n, temp), "table_angle_deg": rate * t}
+                chunk = folder.write_chunk(step_id, 1, 0, columns)
+                journal.append(JournalEvent.STEP_STARTED, step_id=step_id, kind=kind, attempt=1)
+                journal.append(JournalEvent.CHUNK_WRITTEN, step_id=step_id, attempt=1,
+                               path=chunk.path, sha256=chunk.sha256, rows=chunk.rows)
+                journal.append(JournalEvent.STEP_COMPLETED, step_id=step_id, attempt=1,
+                               samples=n, lost_frames=0, crc_errors=0, chunks=[chunk.path])
+    plan = {"version": 1, "procedure": {"name": "hand-made", "file": "p.yaml"},
+            "unit_under_test": {"serial": "HAND-1", "nominal_scale_factor": 1.0},
+            "acceptance": [{"name": "asym", "metric": "asymmetry_ppm", "max": 1.0, "min": None,
+                            "unit": "ppm"}],
+            "sample_rate_hz": FS_HZ, "station": {"name": "bench", "site": {"latitude_deg": LATITUDE}},
+            "steps": steps}
+    (folder.path / "plan.json").write_text(json.dumps(plan))
+    return folder.path
+
+
+def test_numbers_follow_from_the_hand_made_record(tmp_path: Path) -> None:
+    notes: list[str] = []
+    results = compute_results(read_run(_write(tmp_path), notes), notes)
+    by_temp = {e["temp_c"]: e for e in results["scale_factor"]}
+    for temp, (sf, _) in TRUTH.items():
+        assert by_temp[temp]["sf"] == pytest.approx(sf, abs=1e-12)
+        assert by_temp[temp]["asymmetry_ppm"] == pytest.approx(0.0, abs=1e-6)
+    # (1.0006 − 1.0002) / 40 °C, in ppm/°C of the 25 °C value: 10 ppm/°C to first order
+    assert results["sf_temperature"]["sensitivity_ppm_per_c"] == pytest.approx(10.0, rel=1e-3)
+    # static holds: mean / SF(T) · 3600 − Earth rate = the bias typed in
+    assert [round(b["bias_dph"], 9) for b in results["bias"]] == [3.0, 3.0]
+    assert results["bias_temperature"]["sensitivity_dph_per_c"] == pytest.approx(0.0, abs=1e-9)
+    assert results["earth_rate_removed_dph"] == pytest.approx(EARTH_DPH, abs=1e-12)
+    assert results["acceptance"][0]["pass"] is True
+    assert results["imu"] is None
+
+
+def test_a_record_without_sweeps_says_what_it_could_not_compute(tmp_path: Path) -> None:
+    run = _write(tmp_path)
+    plan = json.loads((run / "plan.json").read_text())
+    for s in plan["steps"]:
+        if s["kind"] == "dwell":
+            s["kind"] = "static"         # the dwells now count as holds, not sweeps
+    (run / "plan.json").write_text(json.dumps(plan))
+    notes: list[str] = []
+    results = compute_results(read_run(run, notes), notes)
+    assert results["scale_factor"] == [] and results["nonlinearity"] is None
+    assert any("no ± rate sweep completed" in n for n in notes)
