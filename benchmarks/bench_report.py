@@ -23,11 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrocal.orchestrator.journal import sha256_file
 from gyrocal.orchestrator.plan import expand_plan
-from gyrocal.orchestrator.plan_record import write_plan_record
 from gyrocal.orchestrator.procedure import load_procedure
-from gyrocal.orchestrator.run_folder import RunFolder
+from gyrocal.orchestrator.record.journal import sha256_file
+from gyrocal.orchestrator.record.plan_record import write_plan_record
+from gyrocal.orchestrator.record.run_folder import RunFolder
 
 ROOT = Path(__file__).resolve().parents[1]
 CHUNK_S = 600.0

@@ -27,7 +27,7 @@ from gyrocal.errors import (  # noqa: F401 - re-exported: the names scripts alre
 
 def _bad_input_types() -> tuple[type[BaseException], ...]:
     from gyrocal.models.gyro_model import ModelError
-    from gyrocal.orchestrator.run_folder import RunFolderError
+    from gyrocal.orchestrator.record.run_folder import RunFolderError
 
     types: list[type[BaseException]] = [BadInput, ModelError, RunFolderError, FileNotFoundError,
                                         IsADirectoryError, NotADirectoryError]

@@ -16,10 +16,10 @@ import numpy as np
 
 from gyrocal.instruments.factory import Instruments
 from gyrocal.models.clock import RealClock, SimClock
-from gyrocal.orchestrator.journal import Journal, JournalEvent
 from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
-from gyrocal.orchestrator.run_folder import RunFolder
+from gyrocal.orchestrator.record.journal import Journal, JournalEvent
+from gyrocal.orchestrator.record.run_folder import RunFolder
 
 
 @dataclass

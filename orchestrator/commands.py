@@ -28,20 +28,20 @@ from gyrocal.orchestrator.engine import (
     RunEngine,
     RunFaultError,
 )
-from gyrocal.orchestrator.journal import JournalEvent, sha256_file
 from gyrocal.orchestrator.locks import FileLock, instrument_locks, run_folder_lock
 from gyrocal.orchestrator.notify import Notifier
 from gyrocal.orchestrator.plan import Plan, expand_plan, format_plan
-from gyrocal.orchestrator.plan_record import write_plan_record
 from gyrocal.orchestrator.problems import ProcedureError
 from gyrocal.orchestrator.procedure import Procedure, load_procedure
 from gyrocal.orchestrator.progress import Progress
+from gyrocal.orchestrator.record.journal import JournalEvent, sha256_file
+from gyrocal.orchestrator.record.plan_record import write_plan_record
+from gyrocal.orchestrator.record.run_folder import IDENTITY_KEYS, RunFolder, new_run_id
 from gyrocal.orchestrator.remount import (
     FileConfirmOperator,
     SimulatedFixtureOperator,
     write_confirmation,
 )
-from gyrocal.orchestrator.run_folder import IDENTITY_KEYS, RunFolder, new_run_id
 from gyrocal.orchestrator.signing import (
     KeyPairFiles,
     Signer,

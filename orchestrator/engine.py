@@ -29,10 +29,12 @@ from gyrocal.instruments.factory import Instruments
 from gyrocal.instruments.interfaces import Identity
 from gyrocal.models.imu_model import Mounting
 from gyrocal.orchestrator.acquisition import Acquisition, AcquisitionPolicy
-from gyrocal.orchestrator.journal import JournalEvent
 from gyrocal.orchestrator.machine import RunStateMachine
-from gyrocal.orchestrator.plan import PlanStep, StepKind
+from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
+from gyrocal.orchestrator.record.journal import JournalEvent
+from gyrocal.orchestrator.record.run_folder import RunFolder
+from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.remount import (
     CHECK_RATE_DPS,
     CHECK_READ_S,
@@ -42,7 +44,6 @@ from gyrocal.orchestrator.remount import (
     check_mounting,
     wait_confirmed,
 )
-from gyrocal.orchestrator.run_folder import RunFolder
 
 #: An operator creates this file in the run folder to pause before the next step.
 PAUSE_FILE = "PAUSE"

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gyrocal.orchestrator.journal import sha256_bytes
+from gyrocal.orchestrator.record.journal import sha256_bytes
 
 LEDGER_SUFFIX = ".ledger.jsonl"
 

@@ -26,8 +26,8 @@ from enum import Enum
 from typing import Any
 from urllib.parse import urlsplit
 
-from gyrocal.orchestrator.journal import JournalEvent
 from gyrocal.orchestrator.problems import KeyPath
+from gyrocal.orchestrator.record.journal import JournalEvent
 
 
 class NotifyOn(str, Enum):

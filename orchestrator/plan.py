@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from enum import Enum
 
 from gyrocal.orchestrator.procedure import (
     AllanTest,
@@ -25,30 +24,13 @@ from gyrocal.orchestrator.procedure import (
     SweepTest,
     TemperatureStep,
 )
+from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.units import format_duration, format_number
 
 ASSUMED_START_TEMP_C = 25.0   # chamber temperature at the start when the station does not say
 #: What the ETA allows for a remount: an operator turning the hexahedron fixture and
 #: confirming, then the mount check's short turn of the table (a dry run takes seconds).
 REMOUNT_EXPECTED_S = 300.0
-
-
-class StepKind(str, Enum):
-    """What a plan step does; the engine has one executor per kind."""
-
-    RAMP = "ramp"          # chamber to a new setpoint at the procedure's rate
-    SOAK = "soak"          # wait for the temperature to hold within tolerance
-    STATIC = "static"      # log at rest
-    ALLAN = "allan"        # log a long hold at rest (noise terms)
-    DWELL = "dwell"        # log at a constant table rate
-    REMOUNT = "remount"    # an operator turns the IMU fixture (multi-axis procedures)
-
-    def __str__(self) -> str:     # as written in plan.json and the journal
-        return self.value
-
-    @property
-    def logs_data(self) -> bool:
-        return self in (StepKind.STATIC, StepKind.ALLAN, StepKind.DWELL)
 
 
 @dataclass(frozen=True)

@@ -32,8 +32,8 @@ from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
-from gyrocal.orchestrator.journal import JournalEvent
 from gyrocal.orchestrator.ledger import append_entry, ledger_path_for
+from gyrocal.orchestrator.record.journal import JournalEvent
 
 #: The journal event that signs the chain head; always the last line a writer leaves.
 SEAL_EVENT = JournalEvent.SEALED

@@ -293,9 +293,9 @@ def _rate_from_time(file: _File) -> float:
 
 def open_run_folder(run_dir: Path, column: str | None = None) -> RateRecord:
     """The longest completed static/allan hold of a run folder, streamed from its chunks."""
-    from gyrocal.orchestrator.logged_steps import longest_hold
-    from gyrocal.orchestrator.plan_record import read_plan_record
-    from gyrocal.orchestrator.run_folder import RunFolder
+    from gyrocal.orchestrator.record.logged_steps import longest_hold
+    from gyrocal.orchestrator.record.plan_record import read_plan_record
+    from gyrocal.orchestrator.record.run_folder import RunFolder
 
     folder = RunFolder.open(run_dir)
     try:

@@ -37,11 +37,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from gyrocal.models.rate_units import output_to_dph
-from gyrocal.orchestrator.atomic import write_bytes_atomic
-from gyrocal.orchestrator.journal import Journal, JournalEvent, sha256_bytes
-from gyrocal.orchestrator.logged_steps import HOLD_KINDS, completed_attempts, longest_hold
-from gyrocal.orchestrator.plan_record import PLAN_RECORD
-from gyrocal.orchestrator.run_folder import RunFolder, RunFolderError
+from gyrocal.orchestrator.record.atomic import write_bytes_atomic
+from gyrocal.orchestrator.record.journal import Journal, JournalEvent, sha256_bytes
+from gyrocal.orchestrator.record.logged_steps import HOLD_KINDS, completed_attempts, longest_hold
+from gyrocal.orchestrator.record.plan_record import PLAN_RECORD
+from gyrocal.orchestrator.record.run_folder import RunFolder, RunFolderError
 from gyrocal.orchestrator.signing import Signer
 from gyrocal.reports import bias as bias_mod
 from gyrocal.reports import compensation as comp

@@ -59,7 +59,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
 def cmd_ledger(args: argparse.Namespace) -> int:
     """``gyrocal ledger FILE``: every run the station sealed is still where and what it was."""
     from gyrocal.orchestrator.ledger import LedgerError, check_against, read_ledger
-    from gyrocal.orchestrator.run_folder import JOURNAL
+    from gyrocal.orchestrator.record.run_folder import JOURNAL
 
     ledger = Path(args.ledger)
     try:

@@ -154,7 +154,7 @@ def read_run_folder_log(run_dir: Path) -> MeasuredLog:
     chunks of bad or interrupted attempts stay on disk (nothing is deleted)
     but do not enter the analysis.
     """
-    from gyrocal.orchestrator.run_folder import OPTIONAL_SAMPLE_COLUMNS, RunFolder
+    from gyrocal.orchestrator.record.run_folder import OPTIONAL_SAMPLE_COLUMNS, RunFolder
 
     folder = RunFolder.open(run_dir)
     events = folder.journal_events()

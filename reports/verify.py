@@ -41,10 +41,15 @@ from typing import Any
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
-from gyrocal.orchestrator.journal import JournalError, read_journal, sha256_bytes, sha256_file
 from gyrocal.orchestrator.ledger import LedgerError, check_against, read_ledger
-from gyrocal.orchestrator.plan_record import PLAN_RECORD
-from gyrocal.orchestrator.run_folder import IDENTITY_KEYS, JOURNAL, SAMPLES, RunFolder
+from gyrocal.orchestrator.record.journal import (
+    JournalError,
+    read_journal,
+    sha256_bytes,
+    sha256_file,
+)
+from gyrocal.orchestrator.record.plan_record import PLAN_RECORD
+from gyrocal.orchestrator.record.run_folder import IDENTITY_KEYS, JOURNAL, SAMPLES, RunFolder
 from gyrocal.orchestrator.signing import (
     SEAL_EVENT,
     fingerprint,

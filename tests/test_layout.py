@@ -144,3 +144,24 @@ def test_the_contract_sees_a_breach():
     breaches = [t for m, ts in fake.items() for t in ts
                 if _layer(t) not in ALLOWED[_layer(m)] and _layer(t) != _layer(m)]
     assert breaches == ["gyrocal.orchestrator.commands"]
+
+
+#: what reports/ may use of the orchestrator besides the run record: the audit trail's
+#: signatures and ledger, the folder lock, and the signer a rebuilt report is sealed with
+REPORTS_MAY_USE = ("gyrocal.orchestrator.record", "gyrocal.orchestrator.signing",
+                   "gyrocal.orchestrator.ledger", "gyrocal.orchestrator.locks",
+                   "gyrocal.orchestrator.commands")
+
+
+def test_reports_read_runs_only_through_the_run_record():
+    """Issue 15: one owner for the run record; the report and discrepancy read nothing else."""
+    breaches = sorted(
+        f"{module} imports {target}"
+        for module, targets in GRAPH.items() if module.startswith("gyrocal.reports")
+        for target in targets
+        if target.startswith("gyrocal.orchestrator")
+        and not any(target == ok or target.startswith(ok + ".") for ok in REPORTS_MAY_USE))
+    assert not breaches, "\n".join(breaches)
+    record_users = [m for m, t in GRAPH.items() if m.startswith("gyrocal.reports")
+                    and any(x.startswith("gyrocal.orchestrator.record") for x in t)]
+    assert "gyrocal.reports.build" in record_users and "gyrocal.reports.verify" in record_users

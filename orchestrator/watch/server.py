@@ -22,7 +22,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from urllib.parse import parse_qs, urlsplit
 
-from gyrocal.orchestrator.run_folder import RunFolderError
+from gyrocal.orchestrator.record.run_folder import RunFolderError
 from gyrocal.orchestrator.watch.samples import conditions, step_signal
 from gyrocal.orchestrator.watch.snapshot import read_events, read_snapshot
 

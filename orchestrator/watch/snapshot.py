@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from gyrocal.orchestrator.locks import LockHolder, holder
-from gyrocal.orchestrator.run_folder import JOURNAL, MANIFEST, RunFolderError
+from gyrocal.orchestrator.record.run_folder import JOURNAL, MANIFEST, RunFolderError
 
 PLAN_FILE = "plan.json"
 

@@ -22,7 +22,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from gyrocal.models.imu_model import AXES, Mounting
-from gyrocal.orchestrator.logged_steps import completed_attempts
+from gyrocal.orchestrator.record.logged_steps import completed_attempts
+from gyrocal.orchestrator.record.plan_record import PlanRecord
+from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.reports import compensation as comp
 from gyrocal.reports.dwell import dwell_mean
 from gyrocal.reports.imu.matrix import ImuDwell, MatrixFit, compensate, fit_all
@@ -30,17 +32,15 @@ from gyrocal.reports.imu.matrix import ImuDwell, MatrixFit, compensate, fit_all
 _AXIS_COLUMNS = ("gyro_x", "gyro_y", "gyro_z")
 
 
-def read_imu_dwells(run_dir: Path, plan: dict[str, Any], events: list[dict[str, Any]],
+def read_imu_dwells(run_dir: Path, plan: PlanRecord, events: list[dict[str, Any]],
                     notes: list[str]) -> list[ImuDwell]:
     """Every completed dwell of a mountings plan, reduced to three axis means."""
-    mountings = {m["name"]: Mounting(int(m["up_axis"]), float(m["sign"]))
-                 for m in plan.get("mountings") or []}
-    fs_hz = float(plan["sample_rate_hz"])
-    steps = {s["step_id"]: s for s in plan.get("steps", [])}
+    mountings = {m.name: Mounting(m.up_axis, m.sign) for m in plan.mountings}
+    fs_hz = plan.sample_rate_hz
     dwells = []
     for step_id, event in completed_attempts(events).items():
-        step = steps.get(step_id)
-        if step is None or step.get("kind") != "dwell" or step.get("mounting") not in mountings:
+        step = plan.step(step_id)
+        if step is None or step.kind != StepKind.DWELL or step.mounting not in mountings:
             continue
         tables = [pq.read_table(Path(run_dir) / rel) for rel in event["chunks"]]
         table = pa.concat_tables(tables) if len(tables) > 1 else tables[0]
@@ -51,17 +51,16 @@ def read_imu_dwells(run_dir: Path, plan: dict[str, Any], events: list[dict[str, 
             good = table.column("status").to_numpy() == 0
         else:
             good = np.ones(table.num_rows, dtype=bool)
-        turns = step.get("revolutions")
+        turns = step.revolutions
         whole = int(turns) if turns and float(turns).is_integer() else "all"
-        means = [dwell_mean(table.column(c).to_numpy()[good], fs_hz, 0.0, step["rate_dps"],
+        means = [dwell_mean(table.column(c).to_numpy()[good], fs_hz, 0.0, step.rate_dps,
                             revolutions=whole) for c in _AXIS_COLUMNS]
         sensor = table.column("sensor_temp_c").to_numpy()[good]
         chamber = table.column("chamber_temp_c").to_numpy()[good]
         temp = sensor[np.isfinite(sensor)] if np.isfinite(sensor).any() else chamber
-        dwells.append(ImuDwell(step_id, int(step["temp_index"]), float(step["setpoint_c"]),
-                               float(np.mean(temp)), mountings[step["mounting"]],
-                               float(step["rate_dps"]), np.array([m.mean for m in means]),
-                               means[0].n_samples))
+        dwells.append(ImuDwell(step_id, step.temp_index, step.setpoint_c, float(np.mean(temp)),
+                               mountings[step.mounting], step.rate_dps,
+                               np.array([m.mean for m in means]), means[0].n_samples))
     return dwells
 
 
@@ -165,7 +164,7 @@ def imu_section(run_dir: Path, plan: dict[str, Any], events: list[dict[str, Any]
     """The ``imu`` block of results.json, or None for a single-axis plan."""
     if not plan.get("mountings"):
         return None
-    dwells = read_imu_dwells(run_dir, plan, events, notes)
+    dwells = read_imu_dwells(run_dir, PlanRecord.of(plan), events, notes)
     if not dwells:
         notes.append("imu: no completed three-axis dwell; no matrix")
         return {"temperatures": [], "compensation": {}, "check": []}

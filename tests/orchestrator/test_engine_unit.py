@@ -21,8 +21,9 @@ from gyrocal.instruments.interfaces import ChamberStatus, GyroBlock, Identity, T
 from gyrocal.models.clock import SimClock
 from gyrocal.models.imu_model import Mounting
 from gyrocal.orchestrator.engine import EnginePolicy, RunEngine, RunFaultError
-from gyrocal.orchestrator.plan import PlanStep, StepKind
-from gyrocal.orchestrator.run_folder import RunFolder
+from gyrocal.orchestrator.plan import PlanStep
+from gyrocal.orchestrator.record.run_folder import RunFolder
+from gyrocal.orchestrator.record.step_kind import StepKind
 
 FS_HZ = 100.0
 

@@ -14,8 +14,8 @@ from typing import Any
 import pytest
 
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
-from gyrocal.orchestrator.journal import Journal
 from gyrocal.orchestrator.locks import run_folder_lock
+from gyrocal.orchestrator.record.journal import Journal
 from gyrocal.orchestrator.watch.server import WatchServer
 
 

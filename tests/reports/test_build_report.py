@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from gyrocal.cli import main
-from gyrocal.orchestrator.journal import read_journal
+from gyrocal.orchestrator.record.journal import read_journal
 from gyrocal.reports.results import REQUIRED_KEYS, evaluate_acceptance, lookup_metric
 
 ROOT = Path(__file__).resolve().parents[2]

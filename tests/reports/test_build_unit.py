@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gyrocal.orchestrator.journal import Journal, JournalEvent
-from gyrocal.orchestrator.run_folder import RunFolder
+from gyrocal.orchestrator.record.journal import Journal, JournalEvent
+from gyrocal.orchestrator.record.run_folder import RunFolder
 from gyrocal.reports.build import compute_results, read_run
 
 FS_HZ = 50.0

@@ -22,8 +22,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from gyrocal import __version__
-from gyrocal.orchestrator.atomic import write_atomic, write_bytes_atomic
-from gyrocal.orchestrator.journal import Journal, read_journal, sha256_file
+from gyrocal.orchestrator.record.atomic import write_atomic, write_bytes_atomic
+from gyrocal.orchestrator.record.journal import Journal, read_journal, sha256_file
 
 MANIFEST = "manifest.json"
 JOURNAL = "journal.jsonl"

@@ -12,11 +12,13 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
+from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
 from typing import Any
 
-from gyrocal.orchestrator.atomic import write_bytes_atomic
+from gyrocal.orchestrator.record.atomic import write_bytes_atomic
+from gyrocal.orchestrator.record.step_kind import StepKind
 
 PLAN_RECORD = "plan.json"
 
@@ -76,3 +78,69 @@ def write_plan_record(run_dir: Path, procedure, plan) -> Path:
 
 def read_plan_record(run_dir: Path) -> dict[str, Any]:
     return json.loads((Path(run_dir) / PLAN_RECORD).read_text())
+
+
+# -- reading, typed ----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RecordedStep:
+    """One plan step as plan.json keeps it (what an analysis needs of it)."""
+
+    step_id: str
+    kind: StepKind
+    setpoint_c: float
+    rate_dps: float
+    temp_index: int
+    duration_s: float
+    revolutions: float | None = None
+    mounting: str | None = None
+    label: str | None = None
+
+    @classmethod
+    def of(cls, raw: dict[str, Any]) -> RecordedStep:
+        return cls(str(raw["step_id"]), StepKind(raw["kind"]), float(raw["setpoint_c"]),
+                   float(raw.get("rate_dps") or 0.0), int(raw.get("temp_index") or 0),
+                   float(raw.get("duration_s") or 0.0), raw.get("revolutions"),
+                   raw.get("mounting"), raw.get("label"))
+
+
+@dataclass(frozen=True)
+class RecordedMounting:
+    name: str
+    up_axis: int
+    sign: float
+    face: str | None = None
+
+
+@dataclass(frozen=True)
+class PlanRecord:
+    """plan.json, typed: the steps, the sample rate, the mountings, the station's site."""
+
+    sample_rate_hz: float
+    steps: tuple[RecordedStep, ...]
+    mountings: tuple[RecordedMounting, ...]
+    latitude_deg: float | None
+    unit_under_test_axis: str
+
+    @classmethod
+    def of(cls, raw: dict[str, Any]) -> PlanRecord:
+        site = (raw.get("station") or {}).get("site") or {}
+        latitude = site.get("latitude_deg")
+        return cls(
+            sample_rate_hz=float(raw["sample_rate_hz"]),
+            steps=tuple(RecordedStep.of(s) for s in raw.get("steps", [])),
+            mountings=tuple(RecordedMounting(str(m["name"]), int(m["up_axis"]), float(m["sign"]),
+                                             m.get("face"))
+                            for m in raw.get("mountings") or []),
+            latitude_deg=None if latitude is None else float(latitude),
+            unit_under_test_axis=str(raw.get("unit_under_test_axis") or "x"),
+        )
+
+    def step(self, step_id: str) -> RecordedStep | None:
+        return next((s for s in self.steps if s.step_id == step_id), None)
+
+
+def load_plan_record(run_dir: Path) -> PlanRecord:
+    """plan.json of a run folder, typed (KeyError/ValueError name a malformed record)."""
+    return PlanRecord.of(read_plan_record(run_dir))

@@ -1,0 +1,23 @@
+"""What a plan step does: the kinds plan.json and the journal name, one enum."""
+
+from __future__ import annotations
+
+from enum import Enum
+
+
+class StepKind(str, Enum):
+    """What a plan step does; the engine has one executor per kind."""
+
+    RAMP = "ramp"          # chamber to a new setpoint at the procedure's rate
+    SOAK = "soak"          # wait for the temperature to hold within tolerance
+    STATIC = "static"      # log at rest
+    ALLAN = "allan"        # log a long hold at rest (noise terms)
+    DWELL = "dwell"        # log at a constant table rate
+    REMOUNT = "remount"    # an operator turns the IMU fixture (multi-axis procedures)
+
+    def __str__(self) -> str:     # as written in plan.json and the journal
+        return self.value
+
+    @property
+    def logs_data(self) -> bool:
+        return self in (StepKind.STATIC, StepKind.ALLAN, StepKind.DWELL)
