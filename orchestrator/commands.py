@@ -23,11 +23,7 @@ from gyrocal.errors import EXIT_ACCEPTANCE_FAILED, EXIT_FAULT, EXIT_OK, BadInput
 from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments, open_instruments
 from gyrocal.models.clock import RealClock, SimClock, make_clock
-from gyrocal.orchestrator.engine import (
-    EnginePolicy,
-    RunEngine,
-    RunFaultError,
-)
+from gyrocal.orchestrator.engine import EnginePolicy, RunEngine
 from gyrocal.orchestrator.locks import FileLock, instrument_locks, run_folder_lock
 from gyrocal.orchestrator.notify import Notifier
 from gyrocal.orchestrator.plan import Plan, expand_plan, format_plan
@@ -42,6 +38,7 @@ from gyrocal.orchestrator.remount import (
     SimulatedFixtureOperator,
     write_confirmation,
 )
+from gyrocal.orchestrator.run_errors import RunFaultError
 from gyrocal.orchestrator.signing import (
     KeyPairFiles,
     Signer,

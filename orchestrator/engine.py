@@ -22,43 +22,23 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments
 from gyrocal.instruments.interfaces import Identity
 from gyrocal.models.imu_model import Mounting
 from gyrocal.orchestrator.acquisition import Acquisition, AcquisitionPolicy
+from gyrocal.orchestrator.conditions import Conditions
 from gyrocal.orchestrator.machine import RunStateMachine
 from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.record.journal import JournalEvent
 from gyrocal.orchestrator.record.run_folder import RunFolder
 from gyrocal.orchestrator.record.step_kind import StepKind
-from gyrocal.orchestrator.remount import (
-    CHECK_RATE_DPS,
-    CHECK_READ_S,
-    CHECK_SETTLE_S,
-    FixtureOperator,
-    MountCheckError,
-    check_mounting,
-    wait_confirmed,
-)
+from gyrocal.orchestrator.remount import FixtureOperator, RemountExecutor
+from gyrocal.orchestrator.run_errors import RunFaultError, StepQualityError
 
 #: An operator creates this file in the run folder to pause before the next step.
 PAUSE_FILE = "PAUSE"
-
-
-class RunFaultError(Exception):
-    """A condition that ends the run in the safe state (exit code 3); the run is resumable."""
-
-
-class SoakTimeoutError(RunFaultError):
-    pass
-
-
-class StepQualityError(RunFaultError):
-    pass
 
 
 @dataclass(frozen=True)
@@ -172,24 +152,34 @@ class RunEngine:
         self.progress = progress or Progress(enabled=False)
         self.on_finished = on_finished
         self.before_step = before_step      # e.g. a dry run's planned fault injections
-        self._chamber_c: float | None = None
-        self._table_dps: float | None = None
         self._step_id: str | None = None    # the plan step being executed (for fault events)
         self._attempts_before: dict[str, int] = {}  # step_id → last attempt journaled by earlier sessions
         self._t_run_start = self.clock.now_s()
+        self.conditions = Conditions(instruments, self.clock, self.machine, self.journal,
+                                     self.progress, policy, elapsed_s=self._elapsed)
         self.acquisition = Acquisition(
             instruments, self.clock, folder, self.journal, self.progress,
             AcquisitionPolicy(policy.chunk_s, policy.block_s, policy.read_timeout_margin_s),
-            poll_chamber=self._poll_chamber, elapsed_s=self._elapsed)
+            poll_chamber=self.conditions.poll_chamber, elapsed_s=self._elapsed)
         #: one executor per step kind (a registry, not a chain of string tests)
         self._executors: dict[StepKind, Callable[[PlanStep], None]] = {
-            StepKind.RAMP: self._ramp,
-            StepKind.SOAK: self._soak,
+            StepKind.RAMP: self.conditions.ramp,
+            StepKind.SOAK: self.conditions.soak,
             StepKind.STATIC: self._log_step,
             StepKind.ALLAN: self._log_step,
             StepKind.DWELL: self._log_step,
-            StepKind.REMOUNT: self._remount,
         }
+        if operator is not None:
+            self._executors[StepKind.REMOUNT] = self._remount_executor().execute
+
+    def _remount_executor(self) -> RemountExecutor:
+        if self.operator is None:
+            raise RunFaultError("the plan has remount steps but the run has no fixture operator")
+        return RemountExecutor(
+            self.inst, self.conditions, self.acquisition, self.machine, self.journal, self.folder,
+            self.progress, self.operator, self.mountings, self.policy.pause_poll_s,
+            attempts_before=lambda step_id: self._attempts_before.get(step_id, 0),
+            elapsed_s=self._elapsed)
 
     # -- public ----------------------------------------------------------------------------
     def run(self) -> str:
@@ -261,7 +251,7 @@ class RunEngine:
         self.folder.update_manifest(state="paused")
         self.progress.update(paused=True)
         while self.pause_file.exists():
-            self._poll_chamber()
+            self.conditions.poll_chamber()
             time.sleep(self.policy.pause_poll_s)
         self.inst.table.set_rate_mode()
         self.journal.append(JournalEvent.UNPAUSED, before_step=step.step_id)
@@ -294,10 +284,10 @@ class RunEngine:
         probe.flush()
         block = probe.read_samples(max(1, int(self.inst.sample_rate_hz * 0.1)),
                                    timeout_s=self.policy.read_timeout_margin_s)
-        self._table_dps = table.read_rate_dps()
-        self._chamber_c = status.temperature_c
+        self.conditions.table_dps = table.read_rate_dps()
+        self.conditions.chamber_c = status.temperature_c
         self.journal.append(JournalEvent.PREFLIGHT_OK, chamber_c=status.temperature_c,
-                            gyro_samples=len(block), table_rate_dps=self._table_dps)
+                            gyro_samples=len(block), table_rate_dps=self.conditions.table_dps)
         self.machine.preflight_ok()
 
     # -- step execution ----------------------------------------------------------------------
@@ -320,13 +310,13 @@ class RunEngine:
         if step.kind != StepKind.REMOUNT and step.mounting:
             # A restarted dry run has a new simulated fixture, and a real one may have
             # been touched while the run was down: the mounting is checked again.
-            self._ensure_mounting(step)
+            self._remount_executor().ensure(step)
         if setpoint is None or step.kind == "ramp" or self._ramp_follows(step):
             return
         self.journal.append(JournalEvent.RESTORE_CONDITIONS, step_id=step.step_id, setpoint_c=setpoint)
-        self._ramp(step, journal_done=False)
+        self.conditions.ramp(step, journal_done=False)
         if step.kind != "soak":
-            self._soak(step, journal_done=False)
+            self.conditions.soak(step, journal_done=False)
 
     def _ramp_follows(self, step: PlanStep) -> bool:
         """A remount right before a ramp needs no temperature of its own."""
@@ -336,176 +326,8 @@ class RunEngine:
         return bool(later) and later[0].kind == "ramp"
 
     # -- remount (multi-axis IMU) --------------------------------------------------------------
-    def _mounting_of(self, step: PlanStep) -> Mounting:
-        if self.operator is None or step.mounting not in self.mountings:
-            raise RunFaultError(f"plan step {step.step_id}: mounting {step.mounting!r} but the "
-                                "run has no fixture operator for it")
-        return self.mountings[step.mounting]
-
-    def _remount(self, step: PlanStep) -> None:
-        """Hand the table to the operator, wait for the confirmation, check the mounting."""
-        mounting = self._mounting_of(step)
-        assert self.operator is not None
-        attempt = self._attempts_before.get(step.step_id, 0) + 1
-        self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind="remount",
-                            mounting=step.mounting, attempt=attempt)
-        self._set_table_rate(0.0)
-        reading = self.inst.table.read_rate_dps()
-        if abs(reading) > self._rate_band(0.0):
-            raise RunFaultError(f"table: reads {reading:g} deg/s after stop; not handing it to "
-                                "the operator for a remount")
-        self.inst.table.stop()
-        self.machine.pause()
-        self.journal.append(JournalEvent.OPERATOR_NEEDED, step_id=step.step_id, mounting=step.mounting,
-                            instruction=step.label, table_rate_dps=reading)
-        self.folder.update_manifest(state="needs_operator")
-        self.progress.update(paused=True)
-        self.operator.request(step.mounting, mounting, step.label or step.mounting)
-        wait_confirmed(self.operator, step.mounting, self.policy.pause_poll_s,
-                       on_wait=self._poll_chamber)
-        self.journal.append(JournalEvent.OPERATOR_CONFIRMED, step_id=step.step_id, mounting=step.mounting)
-        self.progress.update(paused=False, step_started_s=self._elapsed())
-        self.folder.update_manifest(state="running")
-        self.machine.unpause()
-        self.inst.table.set_rate_mode()
-        fields = self._mount_check(step, mounting)
-        self.journal.append(JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=attempt, **fields)
-
-    def _ensure_mounting(self, step: PlanStep) -> None:
-        mounting = self._mounting_of(step)
-        assert self.operator is not None
-        self.operator.resumed(step.mounting, mounting)
-        self.journal.append(JournalEvent.MOUNT_RECHECK, step_id=step.step_id, mounting=step.mounting,
-                            **self._mount_check(step, mounting))
-
-    def _mount_check(self, step: PlanStep, mounting: Mounting) -> dict[str, Any]:
-        """Turn the table briefly; the declared IMU axis must sense it (``remount.py``)."""
-        self._set_table_rate(CHECK_RATE_DPS, None, CHECK_SETTLE_S)
-        gyro = self.inst.gyro
-        gyro.flush()
-        n = max(8, int(self.inst.sample_rate_hz * CHECK_READ_S))
-        block = gyro.read_samples(n, timeout_s=self.acquisition.read_timeout_s(CHECK_READ_S))
-        self._set_table_rate(0.0)
-        rate_xyz = block.rate_xyz
-        if rate_xyz is None:
-            raise RunFaultError(f"step {step.step_id}: the gyro driver gives one axis; a "
-                                "multi-axis calibration needs all three (STIM300 datagram)")
-        try:
-            return check_mounting(rate_xyz, mounting, CHECK_RATE_DPS)
-        except MountCheckError as exc:
-            raise RunFaultError(f"step {step.step_id}: {exc}") from None
-
-    def _ramp(self, step: PlanStep, journal_done: bool = True) -> None:
-        """Move the chamber to the step's setpoint at the procedure's ramp rate.
-
-        The ramp is done in software — the setpoint walks from the present
-        air temperature to the target at ``ramp_c_per_min``, re-commanded every
-        ``poll_s`` — so the procedure's rate holds on any controller, whatever
-        its own ramp settings, and the gyro sees the dT/dt the procedure asked
-        for (thermal-lag and dT/dt effects depend on it). Alarms are checked at
-        every step. Without a ramp rate the setpoint is commanded at once.
-        """
-        ramp_c_per_min = step.ramp_c_per_min
-        self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind="ramp",
-                            setpoint_c=step.setpoint_c, ramp_c_per_min=ramp_c_per_min, attempt=1)
-        self._set_table_rate(0.0)
-        self.machine.ramp()
-        target_c = float(step.setpoint_c)
-        t_start = self.clock.now_s()
-        if ramp_c_per_min:
-            start_c = self._poll_chamber()
-            rate_c_per_s = float(ramp_c_per_min) / 60.0
-            duration_s = abs(target_c - start_c) / rate_c_per_s
-            # Compare against an end time with a margin, and never sleep less than 1 ms:
-            # a remainder below the clock's float resolution would not move time at all.
-            while (remaining_s := duration_s - (self.clock.now_s() - t_start)) > 1e-3:
-                walked = (duration_s - remaining_s) * rate_c_per_s
-                setpoint = start_c + np.sign(target_c - start_c) * walked
-                self.inst.chamber.set_setpoint_c(round(float(setpoint), 2))
-                self.clock.sleep(max(min(self.policy.poll_s, remaining_s), 1e-3))
-                self._poll_chamber()
-        self.inst.chamber.set_setpoint_c(target_c)
-        self.machine.soak()
-        self.machine.stable()
-        if journal_done:
-            self.journal.append(JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=1,
-                                ramp_s=self.clock.now_s() - t_start)
-
-    def _soak(self, step: PlanStep, journal_done: bool = True) -> None:
-        """Wait until the chamber stays within ±tolerance for the hold time, or fault."""
-        self.machine.ramp()
-        self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind="soak",
-                            setpoint_c=step.setpoint_c, attempt=1)
-        self.machine.soak()
-        t_start = self.clock.now_s()
-        t_in_band: float | None = None
-        while True:
-            temp_c = self._poll_chamber()
-            now = self.clock.now_s()
-            if abs(temp_c - step.setpoint_c) <= step.tolerance_c:
-                t_in_band = now if t_in_band is None else t_in_band
-                if now - t_in_band >= step.hold_s:
-                    break
-            else:
-                t_in_band = None
-            if now - t_start > step.max_wait_s:
-                raise SoakTimeoutError(
-                    f"chamber: soak at {step.setpoint_c:g} °C did not stabilise within "
-                    f"±{step.tolerance_c:g} °C for {step.hold_s:g} s after waiting "
-                    f"{step.max_wait_s:g} s (last reading {temp_c:.2f} °C)")
-            self.clock.sleep(min(self.policy.poll_s, max(step.hold_s / 4, 0.1)))
-        self.machine.stable()
-        if journal_done:
-            self.journal.append(JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=1,
-                                soak_s=self.clock.now_s() - t_start)
-
-    def _poll_chamber(self) -> float:
-        status = self.inst.chamber.read_status()
-        if status.alarm:
-            raise RunFaultError(f"chamber: alarm at {status.temperature_c:.2f} °C "
-                                f"({status.detail or 'no detail'})")
-        self._chamber_c = status.temperature_c
-        self.progress.update(chamber_c=status.temperature_c, elapsed_s=self._elapsed())
-        return status.temperature_c
-
     def _elapsed(self) -> float:
         return self.clock.now_s() - self._t_run_start
-
-    def _set_table_rate(self, rate_dps: float, accel_dps2: float | None = None,
-                        settle_s: float = 0.0) -> None:
-        """Command a rate, wait (on the clock) until the table reads it back, then settle."""
-        table = self.inst.table
-        current = table.read_rate_dps()
-        if abs(current - rate_dps) <= self._rate_band(rate_dps):
-            return
-        if not table.interlock_closed():
-            raise RunFaultError("table: interlock open; refusing to command motion")
-        self.machine.spin()
-        if accel_dps2:
-            table.set_acceleration_limit_dps2(accel_dps2)
-        table.set_rate_dps(rate_dps)
-        accel = accel_dps2 or 10.0
-        expected_s = abs(rate_dps - current) / accel
-        deadline = self.clock.now_s() + self.policy.spin_timeout_factor * expected_s + 10.0
-        while True:
-            reading = table.read_rate_dps()
-            self._table_dps = reading
-            if abs(reading - rate_dps) <= self._rate_band(rate_dps):
-                break
-            if self.clock.now_s() > deadline:
-                raise RunFaultError(f"table: did not reach {rate_dps:g} deg/s "
-                                    f"(reads {reading:g} deg/s) in time")
-            if not table.interlock_closed():
-                raise RunFaultError("table: interlock opened while spinning")
-            self.clock.sleep(max(0.05, min(expected_s / 5, 1.0)))
-        self.progress.update(table_dps=reading, elapsed_s=self._elapsed())
-        if settle_s > 0:
-            self.machine.settle()
-            self.clock.sleep(settle_s)
-        self.machine.settled()
-
-    def _rate_band(self, rate_dps: float) -> float:
-        return self.policy.rate_tolerance_dps + 1e-3 * abs(rate_dps)
 
     def _log_step(self, step: PlanStep) -> None:
         """Log a step; a bad attempt (frame loss, a gyro read that failed) is repeated.
@@ -525,7 +347,7 @@ class RunEngine:
         for attempt in range(first, attempts + 1):
             self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind=step.kind,
                                 rate_dps=rate_dps, attempt=attempt)
-            self._set_table_rate(rate_dps, step.accel_dps2, settle_s)
+            self.conditions.set_table_rate(rate_dps, step.accel_dps2, settle_s)
             self.machine.log()
             try:
                 result = self.acquisition.record(step, attempt, rate_dps)
@@ -541,7 +363,7 @@ class RunEngine:
             self.machine.logged()
             frames = result.samples + result.lost_frames + result.crc_errors
             loss = (result.lost_frames + result.crc_errors) / max(frames, 1)
-            rate_ok = result.table_rate_max_dev_dps <= self._rate_band(rate_dps)
+            rate_ok = result.table_rate_max_dev_dps <= self.conditions.rate_band(rate_dps)
             if loss <= self.policy.max_loss_fraction and rate_ok:
                 self.journal.append(
                     JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=attempt,
@@ -552,7 +374,7 @@ class RunEngine:
             reason = (f"lost {loss:.3%} of frames (limit {self.policy.max_loss_fraction:.3%})"
                       if not loss <= self.policy.max_loss_fraction else
                       f"table rate strayed {result.table_rate_max_dev_dps:.4g} deg/s from "
-                      f"{rate_dps:g} deg/s (band {self._rate_band(rate_dps):.4g})")
+                      f"{rate_dps:g} deg/s (band {self.conditions.rate_band(rate_dps):.4g})")
             self.journal.append(
                 JournalEvent.STEP_BAD, step_id=step.step_id, attempt=attempt, loss_fraction=loss,
                 lost_frames=result.lost_frames, crc_errors=result.crc_errors,
@@ -566,7 +388,7 @@ class RunEngine:
 
     # -- the end -----------------------------------------------------------------------------
     def _finish(self) -> None:
-        self._set_table_rate(0.0)
+        self.conditions.set_table_rate(0.0)
         self.machine.analyse()
         self.journal.append(JournalEvent.STEPS_DONE, steps=len(self.steps))
         self.machine.report()

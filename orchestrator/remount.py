@@ -26,13 +26,23 @@ the STIM300 gyro datagram carries no accelerometers for a gravity check; a
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
+from gyrocal.instruments.factory import Instruments
 from gyrocal.models.imu_model import AXES, Mounting
+from gyrocal.orchestrator.acquisition import Acquisition
+from gyrocal.orchestrator.conditions import Conditions
+from gyrocal.orchestrator.machine import RunStateMachine
+from gyrocal.orchestrator.plan import PlanStep
+from gyrocal.orchestrator.progress import Progress
+from gyrocal.orchestrator.record.journal import Journal, JournalEvent
+from gyrocal.orchestrator.record.run_folder import RunFolder
+from gyrocal.orchestrator.run_errors import RunFaultError
 
 CONFIRM_FILE = "CONFIRM"
 CHECK_RATE_DPS = 10.0        # the mount check's table rate
@@ -148,3 +158,81 @@ def check_mounting(rate_xyz: np.ndarray, mounting: Mounting, table_rate_dps: flo
             f"(per unit table rate: {shown}); remount the fixture as declared and "
             "confirm again (`gyrocal resume` repeats the remount)")
     return fields
+
+
+class RemountExecutor:
+    """The executor of ``remount`` steps (and the mount re-check of a resumed run)."""
+
+    def __init__(self, instruments: Instruments, conditions: Conditions, acquisition: Acquisition,
+                 machine: RunStateMachine, journal: Journal, folder: RunFolder, progress: Progress,
+                 operator: FixtureOperator, mountings: Mapping[str, Mounting], poll_s: float,
+                 attempts_before: Callable[[str], int], elapsed_s: Callable[[], float]) -> None:
+        self.inst = instruments
+        self.conditions = conditions
+        self.acquisition = acquisition
+        self.machine = machine
+        self.journal = journal
+        self.folder = folder
+        self.progress = progress
+        self.operator = operator
+        self.mountings = dict(mountings)
+        self.poll_s = poll_s
+        self.attempts_before = attempts_before
+        self.elapsed_s = elapsed_s
+
+    def mounting_of(self, step: PlanStep) -> Mounting:
+        if step.mounting not in self.mountings:
+            raise RunFaultError(f"plan step {step.step_id}: mounting {step.mounting!r} but the "
+                                "run has no fixture operator for it")
+        return self.mountings[step.mounting]
+
+    def execute(self, step: PlanStep) -> None:
+        """Hand the table to the operator, wait for the confirmation, check the mounting."""
+        mounting = self.mounting_of(step)
+        attempt = self.attempts_before(step.step_id) + 1
+        self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind="remount",
+                            mounting=step.mounting, attempt=attempt)
+        self.conditions.set_table_rate(0.0)
+        reading = self.inst.table.read_rate_dps()
+        if abs(reading) > self.conditions.rate_band(0.0):
+            raise RunFaultError(f"table: reads {reading:g} deg/s after stop; not handing it to "
+                                "the operator for a remount")
+        self.inst.table.stop()
+        self.machine.pause()
+        self.journal.append(JournalEvent.OPERATOR_NEEDED, step_id=step.step_id, mounting=step.mounting,
+                            instruction=step.label, table_rate_dps=reading)
+        self.folder.update_manifest(state="needs_operator")
+        self.progress.update(paused=True)
+        self.operator.request(step.mounting, mounting, step.label or step.mounting)
+        wait_confirmed(self.operator, step.mounting, self.poll_s,
+                       on_wait=self.conditions.poll_chamber)
+        self.journal.append(JournalEvent.OPERATOR_CONFIRMED, step_id=step.step_id, mounting=step.mounting)
+        self.progress.update(paused=False, step_started_s=self.elapsed_s())
+        self.folder.update_manifest(state="running")
+        self.machine.unpause()
+        self.inst.table.set_rate_mode()
+        fields = self.mount_check(step, mounting)
+        self.journal.append(JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=attempt, **fields)
+
+    def ensure(self, step: PlanStep) -> None:
+        mounting = self.mounting_of(step)
+        self.operator.resumed(step.mounting, mounting)
+        self.journal.append(JournalEvent.MOUNT_RECHECK, step_id=step.step_id, mounting=step.mounting,
+                            **self.mount_check(step, mounting))
+
+    def mount_check(self, step: PlanStep, mounting: Mounting) -> dict[str, Any]:
+        """Turn the table briefly; the declared IMU axis must sense it (``remount.py``)."""
+        self.conditions.set_table_rate(CHECK_RATE_DPS, None, CHECK_SETTLE_S)
+        gyro = self.inst.gyro
+        gyro.flush()
+        n = max(8, int(self.inst.sample_rate_hz * CHECK_READ_S))
+        block = gyro.read_samples(n, timeout_s=self.acquisition.read_timeout_s(CHECK_READ_S))
+        self.conditions.set_table_rate(0.0)
+        rate_xyz = block.rate_xyz
+        if rate_xyz is None:
+            raise RunFaultError(f"step {step.step_id}: the gyro driver gives one axis; a "
+                                "multi-axis calibration needs all three (STIM300 datagram)")
+        try:
+            return check_mounting(rate_xyz, mounting, CHECK_RATE_DPS)
+        except MountCheckError as exc:
+            raise RunFaultError(f"step {step.step_id}: {exc}") from None

@@ -20,10 +20,11 @@ from gyrocal.instruments.factory import Instruments
 from gyrocal.instruments.interfaces import ChamberStatus, GyroBlock, Identity, TableStatus
 from gyrocal.models.clock import SimClock
 from gyrocal.models.imu_model import Mounting
-from gyrocal.orchestrator.engine import EnginePolicy, RunEngine, RunFaultError
+from gyrocal.orchestrator.engine import EnginePolicy, RunEngine
 from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.record.run_folder import RunFolder
 from gyrocal.orchestrator.record.step_kind import StepKind
+from gyrocal.orchestrator.run_errors import RunFaultError
 
 FS_HZ = 100.0
 
