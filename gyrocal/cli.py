@@ -14,6 +14,7 @@ import signal
 import sys
 import threading
 from collections.abc import Callable, Sequence
+from typing import Any
 
 from gyrocal.errors import (  # noqa: F401 - re-exported: the names scripts already import
     EXIT_ACCEPTANCE_FAILED,
@@ -225,9 +226,13 @@ def _terminate(signum: int, frame: object) -> None:
 _DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None, *,
+         on_sim_started: Callable[[Any], None] | None = None) -> int:
+    """The command line. ``on_sim_started`` is called with each simulated station a dry run
+    starts (before anything is commanded): how a test reaches the simulators it drives."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.on_sim_started = on_sim_started
     # Installed before anything is loaded or moved: a SIGTERM in the first
     # milliseconds ends as cleanly (exit 3, no traceback) as one during a run.
     # Only the main thread may install handlers (the engine makes the same

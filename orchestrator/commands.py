@@ -52,10 +52,10 @@ from gyrocal.orchestrator.station import load_station
 DEFAULT_SIM_STATION = Path("stations/sim.yaml")
 
 #: Called with each ``SimulatedStation`` right after ``--sim`` starts it, before any
-#: driver connects. Fault-injection tests (and operator drills) arm simulator faults
-#: through it, so faults reach the very simulators a real ``run``/``resume`` talks to.
-#: Empty in normal use.
-SIM_STARTED_HOOKS: list[Callable[[Any], None]] = []
+#: driver connects (``gyrocal.cli.main(..., on_sim_started=)``). Fault-injection tests
+#: arm simulator faults through it, so faults reach the very simulators a real
+#: ``run``/``resume`` talks to. None in normal use.
+SimStarted = Callable[[Any], None]
 
 
 def quiet_library_logs(debug: bool = False) -> None:
@@ -101,7 +101,8 @@ def _policy(procedure: Procedure) -> EnginePolicy:
 
 @contextlib.contextmanager
 def station_instruments(procedure: Procedure, clock, sim: bool, seed: int | None,
-                        on_retry) -> Iterator[tuple[Instruments, Any]]:
+                        on_retry, on_sim_started: SimStarted | None = None
+                        ) -> Iterator[tuple[Instruments, Any]]:
     """Instruments for the run: simulators on loopback (``sim``) or the station's addresses."""
     station = procedure.station
     fs_hz = procedure.defaults.sample_rate_hz
@@ -121,8 +122,8 @@ def station_instruments(procedure: Procedure, clock, sim: bool, seed: int | None
             except ValueError as exc:
                 raise BadInput(str(exc)) from None
             addresses = simulated.addresses
-            for hook in SIM_STARTED_HOOKS:
-                hook(simulated)
+            if on_sim_started is not None:
+                on_sim_started(simulated)
         instruments = open_instruments(station, clock, addresses, on_retry=on_retry,
                                        sample_rate_hz=fs_hz)
         try:
@@ -205,7 +206,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         folder.update_manifest(plan_sha256=sha256_file(record))
         print(f"run folder: {folder.path}", file=sys.stderr)
         signer = run_signer(getattr(args, "signing_key", None), procedure.station.signing_key)
-        return _execute(folder, procedure, plan, clock, args.sim, args.seed, fault_plan, signer)
+        return _execute(folder, procedure, plan, clock, args.sim, args.seed, fault_plan, signer,
+                        on_sim_started=args.on_sim_started)
 
 
 def _station_locks(procedure: Procedure, sim: bool) -> contextlib.AbstractContextManager:
@@ -308,7 +310,8 @@ def _resume_locked(args: argparse.Namespace, folder: RunFolder, held: contextlib
         base = seed if seed is not None else (procedure.station.simulation.seed or 0)
         seed = base + 7919 * resumes
     signer = run_signer(getattr(args, "signing_key", None), procedure.station.signing_key)
-    return _execute(folder, procedure, plan, clock, sim, seed, signer=signer)
+    return _execute(folder, procedure, plan, clock, sim, seed, signer=signer,
+                    on_sim_started=args.on_sim_started)
 
 
 def _operator() -> str:
@@ -353,7 +356,8 @@ def cmd_keys(args: argparse.Namespace) -> int:
 
 
 def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bool,
-             seed: int | None, fault_plan=None, signer: Signer | None = None) -> int:
+             seed: int | None, fault_plan=None, signer: Signer | None = None,
+             on_sim_started: SimStarted | None = None) -> int:
     journal = folder.open_journal()
     manifest = folder.read_manifest()
     Notifier(procedure.station.notify, _run_label(manifest, procedure)).attach(journal)
@@ -369,7 +373,7 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
                        signing_key=None if signer is None else signer.fingerprint)
     try:
         return _execute_journaled(folder, journal, procedure, plan, clock, sim, seed, fault_plan,
-                                  signer)
+                                  signer, on_sim_started)
     finally:
         if signer is not None and not journal.closed:
             signer.seal(journal, manifest["run_id"], reason="controller exit")
@@ -382,7 +386,8 @@ def _run_label(manifest: dict[str, Any], procedure: Procedure) -> str:
 
 def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: Plan, clock,
                        sim: bool, seed: int | None, fault_plan=None,
-                       signer: Signer | None = None) -> int:
+                       signer: Signer | None = None,
+                       on_sim_started: SimStarted | None = None) -> int:
 
     def on_retry(role: str, attempt: int, exc: InstrumentError) -> None:
         journal.append(JournalEvent.RETRY, instrument=role, attempt=attempt, command=exc.command,
@@ -395,7 +400,8 @@ def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: P
 
     simulated: Any = None
     try:
-        with station_instruments(procedure, clock, sim, seed, on_retry) as (instruments, simulated):
+        with station_instruments(procedure, clock, sim, seed, on_retry,
+                                 on_sim_started) as (instruments, simulated):
             before_step = None
             if fault_plan is not None and simulated is not None:
                 fault_plan.arm_due(simulated, None, journal)

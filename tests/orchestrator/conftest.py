@@ -3,7 +3,7 @@
 The runs go through the real command path (``gyrocal.cli.main`` or a
 ``python -m gyrocal`` subprocess) against the real simulators on loopback.
 Faults are armed on the simulators the command starts, through
-``commands.SIM_STARTED_HOOKS``; a trigger arms a fault at a chosen moment of
+``main([...], on_sim_started=sim_capture)``; a trigger arms a fault at a chosen moment of
 the run by watching what the engine commands the real simulated physics to do.
 """
 
@@ -17,8 +17,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-from gyrocal.orchestrator import commands
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 SIM_STATION = REPO_ROOT / "stations" / "sim.yaml"
@@ -106,10 +104,9 @@ class SimCapture:
 
 
 @pytest.fixture
-def sim_capture(monkeypatch: pytest.MonkeyPatch) -> SimCapture:
-    capture = SimCapture()
-    monkeypatch.setattr(commands, "SIM_STARTED_HOOKS", [capture])
-    return capture
+def sim_capture() -> SimCapture:
+    """Pass it to ``main([...], on_sim_started=sim_capture)``."""
+    return SimCapture()
 
 
 def when_table_commanded(sim: Any, rate_dps: float, action: Callable[[], None]) -> None:

@@ -22,8 +22,9 @@ from gyrocal.orchestrator.record.journal import read_journal
 pytestmark = pytest.mark.timeout(60)
 
 
-def run(procedure: Path, out: Path, *extra: str) -> int:
-    return main(["run", str(procedure), "--sim", "--out", str(out), "--seed", "5", *extra])
+def run(procedure: Path, out: Path, *extra: str, capture=None) -> int:
+    return main(["run", str(procedure), "--sim", "--out", str(out), "--seed", "5", *extra],
+                on_sim_started=capture)
 
 
 def assert_table_stopped(sim: Any) -> None:
@@ -36,7 +37,7 @@ def assert_table_stopped(sim: Any) -> None:
 
 def assert_resumes_to_completion(h: Any, out: Path, capture) -> None:
     capture.arm.clear()
-    assert main(["resume", str(out)]) == EXIT_OK
+    assert main(["resume", str(out)], on_sim_started=capture) == EXIT_OK
     assert h.completed_ids(out)[-1] == h.SMALL_PLAN[-1]
     assert set(h.completed_ids(out)) == set(h.SMALL_PLAN)
     assert h.manifest(out)["state"] == "done"
@@ -55,7 +56,7 @@ def fault_event(h: Any, out: Path) -> dict[str, Any]:
 def test_small_plan_is_what_the_tests_expect(h: Any, tmp_path: Path, sim_capture) -> None:
     procedure = h.write_procedure(tmp_path)
     out = tmp_path / "run"
-    assert run(procedure, out) == EXIT_OK
+    assert run(procedure, out, capture=sim_capture) == EXIT_OK
     assert h.completed_ids(out) == list(h.SMALL_PLAN)
     assert h.manifest(out)["steps"] == list(h.SMALL_PLAN)
     # Soaks jump the simulated clock by minutes; the gap in the gyro stream that
@@ -92,7 +93,7 @@ def test_transient_fault_is_retried_and_the_run_completes(h: Any, tmp_path: Path
 
     sim_capture.arm.append(arm)
     out = tmp_path / "run"
-    assert run(h.write_procedure(tmp_path), out) == EXIT_OK
+    assert run(h.write_procedure(tmp_path), out, capture=sim_capture) == EXIT_OK
     sim = sim_capture.last
     faults = sim.chamber_faults if role == "chamber" else sim.table_faults
     assert faults.history.count(fault) == count, "the fault never fired: nothing was tested"
@@ -144,7 +145,7 @@ def test_persistent_fault_goes_safe_and_resumes(h: Any, tmp_path: Path, sim_capt
     procedure = h.write_procedure(tmp_path, max_repeats=1)
     sim_capture.arm.append(lambda sim: arm(h, sim))
     out = tmp_path / "run"
-    assert run(procedure, out) == EXIT_FAULT
+    assert run(procedure, out, capture=sim_capture) == EXIT_FAULT
     err = capsys.readouterr().err
     assert "fault:" in err and words in err and "instruments safe" in err
     assert f"gyrocal resume {out}" in err
@@ -168,7 +169,7 @@ def test_gyro_stall_is_retried_as_a_repeat_before_the_safe_state(h: Any, tmp_pat
     procedure = h.write_procedure(tmp_path, max_repeats=1)
     sim_capture.arm.append(lambda sim: arm_gyro_stall(h, sim))
     out = tmp_path / "run"
-    assert run(procedure, out) == EXIT_FAULT
+    assert run(procedure, out, capture=sim_capture) == EXIT_FAULT
     log = h.events(out)
     retries = [e for e in log if e["event"] == "retry"]
     assert [(e["instrument"], e["attempt"]) for e in retries] == [("gyro", 1)]
@@ -187,7 +188,7 @@ def test_chamber_silent_for_good_stops_the_table_and_reports_the_chamber(h: Any,
     sim_capture.arm.append(lambda sim: h.when_table_commanded(
         sim, 20.0, lambda: sim.chamber_faults.arm("no_reply", count=None)))
     out = tmp_path / "run"
-    assert run(h.write_procedure(tmp_path), out) == EXIT_FAULT
+    assert run(h.write_procedure(tmp_path), out, capture=sim_capture) == EXIT_FAULT
     err = capsys.readouterr().err
     assert "chamber" in err and "instruments safe" in err
     sim = sim_capture.last
@@ -241,7 +242,7 @@ def lose_frames_per_block(h: Any, sim: Any, blocks: int | None, per_block: int =
 def test_frame_loss_above_threshold_repeats_the_step(h: Any, tmp_path: Path, sim_capture) -> None:
     sim_capture.arm.append(lambda sim: lose_frames_per_block(h, sim, blocks=3, per_block=30))
     out = tmp_path / "run"
-    assert run(h.write_procedure(tmp_path, max_loss=0.01), out) == EXIT_OK
+    assert run(h.write_procedure(tmp_path, max_loss=0.01), out, capture=sim_capture) == EXIT_OK
     log = h.events(out)
     bad = [e for e in log if e["event"] == "step_bad"]
     assert [(e["step_id"], e["attempt"]) for e in bad] == [("T01.sf.+20dps", 1)]
@@ -256,7 +257,8 @@ def test_frame_loss_above_threshold_repeats_the_step(h: Any, tmp_path: Path, sim
 def test_frame_loss_beyond_the_repeat_limit_goes_safe(h: Any, tmp_path: Path, sim_capture, capsys) -> None:
     sim_capture.arm.append(lambda sim: lose_frames_per_block(h, sim, blocks=None))
     out = tmp_path / "run"
-    assert run(h.write_procedure(tmp_path, max_loss=0.01, max_repeats=2), out) == EXIT_FAULT
+    assert run(h.write_procedure(tmp_path, max_loss=0.01, max_repeats=2), out,
+               capture=sim_capture) == EXIT_FAULT
     assert "no good attempt in 3" in (err := capsys.readouterr().err) and "(limit 1.000%)" in err
     bad = [e for e in h.events(out) if e["event"] == "step_bad"]
     assert [e["attempt"] for e in bad] == [1, 2, 3]

@@ -45,7 +45,8 @@ def test_a_pause_file_holds_the_run_with_the_table_stopped_until_it_is_removed(
 
     thread = threading.Thread(target=touch_when_started, daemon=True)
     thread.start()
-    assert main(["run", str(procedure), "--sim", "--out", str(out)]) == EXIT_OK
+    assert main(["run", str(procedure), "--sim", "--out", str(out)],
+                on_sim_started=sim_capture) == EXIT_OK
     thread.join(10)
     assert seen["manifest_state"] == "paused"
     assert seen["table_mode"] == "off" and seen["table_rate_dps"] == pytest.approx(0.0, abs=1e-9)

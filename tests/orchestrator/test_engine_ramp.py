@@ -27,7 +27,8 @@ def test_setpoint_walks_to_each_temperature_at_the_procedure_ramp_rate(
     sim_capture.arm.append(record)
     procedure = h.write_procedure(tmp_path)
     procedure.write_text(procedure.read_text().replace("ramp_c_per_min: 5.0", "ramp_c_per_min: 2.0"))
-    assert main(["run", str(procedure), "--sim", "--out", str(tmp_path / "run")]) == EXIT_OK
+    assert main(["run", str(procedure), "--sim", "--out", str(tmp_path / "run")],
+                on_sim_started=sim_capture) == EXIT_OK
 
     t, sp = np.array(writes).T
     # the ramp to 27 °C: from the 23 °C soak, at 2 °C/min, ending exactly on the target

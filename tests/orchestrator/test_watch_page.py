@@ -50,7 +50,8 @@ def test_live_page_shows_paused_then_follows_the_run_to_its_fault(
     codes: list[int] = []
     run = threading.Thread(target=lambda: codes.append(main([
         "run", str(h.write_procedure(tmp_path)), "--sim", "--out", str(out), "--seed", "5",
-        "--inject", "table.interlock_open:always@T02.sf.+20dps"])), daemon=True)
+        "--inject", "table.interlock_open:always@T02.sf.+20dps"], on_sim_started=sim_capture)),
+        daemon=True)
     run.start()
     request.addfinalizer(lambda: (out / "PAUSE").unlink(missing_ok=True))
     WebDriverWait(None, PATIENCE_S, poll_frequency=0.05).until(
