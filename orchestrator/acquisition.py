@@ -19,7 +19,7 @@ from gyrocal.models.clock import RealClock, SimClock
 from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.record.journal import Journal, JournalEvent
-from gyrocal.orchestrator.record.run_folder import RunFolder
+from gyrocal.orchestrator.record.run_folder import SAMPLE_FLAG_GYRO_FLAGGED, RunFolder
 
 
 @dataclass
@@ -80,7 +80,8 @@ class Acquisition:
         context_chamber = [self.poll_chamber()]
         self._check_table_rate(result, rate_dps, self.inst.table.read_rate_dps())
         angle_start = (t0, rate_dps, angle_start[2])
-        pending: dict[str, list[np.ndarray]] = {"index": [], "gyro": [], "sensor": [], "xyz": []}
+        pending: dict[str, list[np.ndarray]] = {"index": [], "gyro": [], "sensor": [], "xyz": [], "raw_status": [],
+                   "flagged": []}
         pending_n = 0
         chunk_index = 0
         last_index = -1
@@ -98,6 +99,9 @@ class Acquisition:
                 last_index = int(index[-1])
             pending["index"].append(index)
             pending["gyro"].append(np.asarray(block.rate, dtype=np.float64))
+            pending["raw_status"].append(np.asarray(block.status, dtype=np.uint8))
+            pending["flagged"].append(np.zeros(len(block), bool) if block.flagged is None
+                                      else np.asarray(block.flagged, dtype=bool))
             if block.rate_xyz is not None:     # all three axes (a multi-axis IMU calibration)
                 pending["xyz"].append(np.asarray(block.rate_xyz, dtype=np.float64).reshape(-1, 3))
             temp = block.temperature_c
@@ -119,7 +123,8 @@ class Acquisition:
                                     path=record.path, sha256=record.sha256, rows=record.rows)
                 result.chunks.append(record.path)
                 chunk_index += 1
-                pending = {"index": [], "gyro": [], "sensor": [], "xyz": []}
+                pending = {"index": [], "gyro": [], "sensor": [], "xyz": [], "raw_status": [],
+                   "flagged": []}
                 pending_n = 0
         return result
 
@@ -160,6 +165,11 @@ class Acquisition:
             "sensor_temp_c": np.concatenate(pending["sensor"]),
             "table_angle_deg": angle,
         }
+        # per sample: the gyro's raw status byte, and the record's own status bits (0 = good;
+        # SAMPLE_FLAG_GYRO_FLAGGED: the unit marks the sample saturated or in error)
+        columns["gyro_status"] = np.concatenate(pending["raw_status"])
+        columns["status"] = np.where(np.concatenate(pending["flagged"]),
+                                     SAMPLE_FLAG_GYRO_FLAGGED, 0).astype(np.uint8)
         xyz = pending.get("xyz") or []
         if sum(len(x) for x in xyz) == len(t_s):
             stacked = np.concatenate(xyz)

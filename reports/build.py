@@ -100,9 +100,24 @@ def _read_plan(folder: RunFolder) -> dict[str, Any]:
 
 
 def _read_columns(folder: RunFolder, chunks: list[str]) -> dict[str, np.ndarray]:
-    tables = [pq.read_table(folder.path / rel, columns=_READ_COLUMNS) for rel in chunks]
+    """The analysed columns of a step's chunks, good samples only.
+
+    A chunk's ``status`` column (0 = good) marks the samples the gyro itself
+    flagged as saturated or in error; they are bad data, never averaged in.
+    Chunks written before the column existed have every sample good.
+    """
+    names = list(_READ_COLUMNS)
+    schemas = [pq.read_schema(folder.path / rel).names for rel in chunks]
+    if all("status" in schema for schema in schemas):
+        names.append("status")
+    tables = [pq.read_table(folder.path / rel, columns=names) for rel in chunks]
     table = pa.concat_tables(tables) if len(tables) > 1 else tables[0]
-    return {name: table.column(name).to_numpy() for name in _READ_COLUMNS}
+    columns = {name: table.column(name).to_numpy() for name in names}
+    status = columns.pop("status", None)
+    if status is not None and np.any(status != 0):
+        good = status == 0
+        columns = {name: values[good] for name, values in columns.items()}
+    return columns
 
 
 def _unit_under_test_mountings(plan: dict[str, Any]) -> set[str]:

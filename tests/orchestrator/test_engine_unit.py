@@ -207,6 +207,7 @@ def test_a_clean_plan_runs_every_step_once_and_logs_the_table_rate(tmp_path: Pat
     data = folder.read_chunks([c["path"] for c in chunks])
     assert len(data["gyro"]) == 200                        # 2 s at 100 Hz
     assert np.all(data["gyro"] == -20.0) and np.all(data["gyro_x"] == -20.0)
+    assert np.all(data["status"] == 0) and np.all(data["gyro_status"] == 0)
     assert rig.table.rate_dps == 0.0                       # stopped at the end
 
 

@@ -89,3 +89,24 @@ def test_a_record_without_sweeps_says_what_it_could_not_compute(tmp_path: Path) 
     results = compute_results(read_run(run, notes), notes)
     assert results["scale_factor"] == [] and results["nonlinearity"] is None
     assert any("no ± rate sweep completed" in n for n in notes)
+
+
+def test_samples_the_gyro_flagged_are_never_averaged_in(tmp_path: Path) -> None:
+    """A chunk's status column (gyro saturated / in error) removes those rows from the figures."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    run = _write(tmp_path)
+    chunk = next((run / "samples" / "T01.dwell+10").glob("*.parquet"))
+    table = pq.read_table(chunk)
+    gyro = table.column("gyro").to_numpy().copy()
+    status = np.zeros(len(gyro), np.uint8)
+    gyro[:50], status[:50] = 400.0, 1            # saturated frames, flagged by the unit
+    table = table.set_column(table.schema.get_field_index("gyro"), "gyro", pa.array(gyro))
+    pq.write_table(table.append_column("status", pa.array(status)), chunk)
+    notes: list[str] = []
+    results = compute_results(read_run(run, notes), notes)
+    sf0 = next(e for e in results["scale_factor"] if e["temp_c"] == 0.0)
+    assert sf0["sf"] == pytest.approx(TRUTH[0.0][0], abs=1e-12)
+    step = next(s for s in results["steps"] if s["step_id"] == "T01.dwell+10")
+    assert step["n_logged"] == 450
