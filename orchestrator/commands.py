@@ -485,7 +485,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     code = cmd_run(argparse.Namespace(
         procedure=str(procedure), station=None, sim=True, out=str(out / "smoke"), speed="max",
         seed=1, operator="demo", sim_station=None, debug=debug,
-        signing_key=str(keys.private)))
+        signing_key=str(keys.private), on_sim_started=None))
     if code == EXIT_FAULT:
         return code
     audit = verify_run_folder(out / "smoke", public_key=keys.public)
@@ -498,7 +498,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     hidden_code = cmd_run(argparse.Namespace(
         procedure=str(procedure), station=None, sim=True, out=str(out / "hidden-effect"),
         speed="max", seed=2, operator="demo", sim_station=str(station), debug=debug,
-        signing_key=str(keys.private)))
+        signing_key=str(keys.private), on_sim_started=None))
     if hidden_code == EXIT_FAULT:
         return hidden_code
     document = run_discrepancy(nominal, out / "hidden-effect", out / "discrepancy")
