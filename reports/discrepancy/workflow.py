@@ -27,11 +27,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import optimize, stats
+from threadpoolctl import threadpool_limits
 
 from gyrocal.models.gyro_model import EffectSpec, GyroModel, ModelError
 from gyrocal.models.indicated import ModelInputs, indicated_rate
 from gyrocal.models.rate_units import output_to_dph
-from gyrocal.reports.discrepancy.blas import single_threaded_blas
 from gyrocal.reports.discrepancy.gap import (
     Metric,
     SegmentGeometry,
@@ -306,7 +306,11 @@ def analyse(model: GyroModel, log: MeasuredLog, seed: int = 0, n_null: int = 500
     ``max_bins`` bounds the size of the GLS (bins are at least 1 s);
     ``progress`` receives a line as each pass starts (the command prints them on stderr).
     """
-    with single_threaded_blas():
+    # One BLAS thread: the matrices are a few thousand rows, where OpenBLAS's threads gain
+    # little and, on a shared 2-core machine, spin against other processes (measured: a
+    # 1-hour log took 24 s threaded, 1.8 s single-threaded). threadpoolctl sets it for
+    # numpy's and scipy's BLAS alike and restores it afterwards.
+    with threadpool_limits(limits=1, user_api="blas"):
         return _analyse(model, log, seed, n_null, max_effects, max_bins,
                         progress or (lambda _line: None))
 

@@ -23,3 +23,16 @@ def test_one_hour_static_then_a_ten_sample_slew_keeps_its_quiet_hour():
     assert len(slew_segments) == 1
     assert not any(q for q, name in zip(segments.quiet, segments.names, strict=True)
                    if "table moving" in name)
+
+
+def test_the_workflow_runs_its_linear_algebra_on_one_blas_thread(monkeypatch) -> None:
+    """Issue 15: threadpoolctl, not hand-written ctypes, limits BLAS inside the analysis."""
+    from threadpoolctl import threadpool_info
+
+    from gyrocal.reports.discrepancy import workflow
+
+    seen = []
+    monkeypatch.setattr(workflow, "_analyse", lambda *a, **k: seen.append(
+        [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]))
+    workflow.analyse(None, None)   # the passes are replaced: only the limit is looked at
+    assert seen and seen[0] and all(n == 1 for n in seen[0])
