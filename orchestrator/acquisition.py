@@ -9,12 +9,14 @@ and write them as journaled Parquet chunks.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from gyrocal.instruments.factory import Instruments
+from gyrocal.instruments.gyro.plausibility import StreamPlausibility
 from gyrocal.models.clock import RealClock, SimClock
 from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
@@ -31,6 +33,14 @@ class StepResult:
     crc_errors: int = 0
     chunks: list[str] = field(default_factory=list)
     table_rate_max_dev_dps: float = 0.0
+    flagged_samples: int = 0        # the gyro's status byte marks them saturated / in error
+    implausible: str | None = None  # why the stream cannot be real (stale, counter jump)
+
+    @property
+    def bad_fraction(self) -> float:
+        """Lost, CRC-failed and flagged frames over all frames of the attempt."""
+        frames = self.samples + self.lost_frames + self.crc_errors
+        return (self.lost_frames + self.crc_errors + self.flagged_samples) / max(frames, 1)
 
 
 @dataclass
@@ -74,6 +84,12 @@ class Acquisition:
         result = StepResult(step.step_id, attempt)
         gyro = self.inst.gyro
         gyro.flush()
+        # On a real clock the stream is checked against wall time (instruments/gyro/
+        # plausibility.py): n samples cannot come faster than the unit makes them.
+        plausible = None if isinstance(self.clock, SimClock) else StreamPlausibility(
+            fs, speed=self.clock.speed)
+        if plausible is not None:
+            plausible.start(time.monotonic())
         t0 = self.clock.now_s()
         angle_start = (t0, 0.0, self._safe_position())
         context_t = [t0]
@@ -92,7 +108,19 @@ class Acquisition:
             result.samples += len(block)
             result.lost_frames += block.lost_frames
             result.crc_errors += block.crc_errors
+            result.flagged_samples += block.flagged_count
             index = np.asarray(block.index, dtype=np.int64)
+            if plausible is not None and len(index):
+                verdict = plausible.check(time.monotonic(), len(block), int(index[0]),
+                                          int(index[-1]))
+                if verdict is not None:
+                    result.implausible = verdict.reason
+                    self.journal.append(JournalEvent.GYRO_IMPLAUSIBLE, step_id=step.step_id,
+                                        attempt=attempt, reason=verdict.reason,
+                                        samples=verdict.samples, frame_span=verdict.frame_span,
+                                        allowed_frames=round(verdict.allowed_frames, 1),
+                                        wall_s=round(verdict.wall_s, 4))
+                    return result        # nothing of this attempt is calibration data
             if last_index >= 0 and len(index) and index[0] <= last_index:
                 index = index - index[0] + last_index + 1
             if len(index):

@@ -26,7 +26,7 @@ from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments
 from gyrocal.instruments.interfaces import Identity
 from gyrocal.models.imu_model import Mounting
-from gyrocal.orchestrator.acquisition import Acquisition, AcquisitionPolicy
+from gyrocal.orchestrator.acquisition import Acquisition, AcquisitionPolicy, StepResult
 from gyrocal.orchestrator.conditions import Conditions
 from gyrocal.orchestrator.machine import RunStateMachine
 from gyrocal.orchestrator.plan import PlanStep
@@ -361,24 +361,21 @@ class RunEngine:
                                     reason=f"gyro read failed: {exc}")
                 continue
             self.machine.logged()
-            frames = result.samples + result.lost_frames + result.crc_errors
-            loss = (result.lost_frames + result.crc_errors) / max(frames, 1)
+            loss = result.bad_fraction
             rate_ok = result.table_rate_max_dev_dps <= self.conditions.rate_band(rate_dps)
-            if loss <= self.policy.max_loss_fraction and rate_ok:
+            if result.implausible is None and loss <= self.policy.max_loss_fraction and rate_ok:
                 self.journal.append(
                     JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=attempt,
                     samples=result.samples, lost_frames=result.lost_frames,
-                    crc_errors=result.crc_errors, chunks=result.chunks,
-                    table_rate_max_dev_dps=result.table_rate_max_dev_dps)
+                    crc_errors=result.crc_errors, flagged_samples=result.flagged_samples,
+                    chunks=result.chunks, table_rate_max_dev_dps=result.table_rate_max_dev_dps)
                 return
-            reason = (f"lost {loss:.3%} of frames (limit {self.policy.max_loss_fraction:.3%})"
-                      if not loss <= self.policy.max_loss_fraction else
-                      f"table rate strayed {result.table_rate_max_dev_dps:.4g} deg/s from "
-                      f"{rate_dps:g} deg/s (band {self.conditions.rate_band(rate_dps):.4g})")
+            reason = _bad_reason(result, loss, self.policy.max_loss_fraction, rate_dps,
+                                 self.conditions.rate_band(rate_dps))
             self.journal.append(
                 JournalEvent.STEP_BAD, step_id=step.step_id, attempt=attempt, loss_fraction=loss,
                 lost_frames=result.lost_frames, crc_errors=result.crc_errors,
-                limit=self.policy.max_loss_fraction,
+                flagged_samples=result.flagged_samples, limit=self.policy.max_loss_fraction,
                 table_rate_max_dev_dps=result.table_rate_max_dev_dps, reason=reason)
         raise StepQualityError(
             f"step {step.step_id}: no good attempt in {self.policy.max_repeats + 1}: {reason}")
@@ -425,6 +422,19 @@ class RunEngine:
         if self.machine.state == "safing":
             self.machine.safed()
         self.folder.update_manifest(state="faulted", ended_at=_now_text(), last_fault=message)
+
+
+def _bad_reason(result: StepResult, loss: float, limit: float, rate_dps: float,
+                band_dps: float) -> str:
+    """Why an attempt is not calibration data (for step_bad and the final fault)."""
+    if result.implausible is not None:
+        return f"gyro stream implausible: {result.implausible}"
+    if loss > limit:
+        flagged = (f" ({result.flagged_samples} flagged saturated/error by the gyro)"
+                   if result.flagged_samples else "")
+        return f"lost {loss:.3%} of frames{flagged} (limit {limit:.3%})"
+    return (f"table rate strayed {result.table_rate_max_dev_dps:.4g} deg/s from "
+            f"{rate_dps:g} deg/s (band {band_dps:.4g})")
 
 
 def _fault_fields(exc: BaseException) -> dict[str, Any]:

@@ -43,6 +43,7 @@ class JournalEvent(str, Enum):
     STEP_COMPLETED = "step_completed"
     STEP_BAD = "step_bad"
     CHUNK_WRITTEN = "chunk_written"
+    GYRO_IMPLAUSIBLE = "gyro_implausible"
     RETRY = "retry"
     PAUSED = "paused"
     UNPAUSED = "unpaused"
