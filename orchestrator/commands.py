@@ -380,6 +380,21 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
         folder.close()
 
 
+def print_verdict(results: dict[str, Any]) -> int:
+    """The acceptance lines and the overall verdict; exit 1 unless PASS."""
+    for item in results.get("acceptance", []):
+        verdict = "PASS" if item["pass"] else "FAIL"
+        value = "not computed" if item["value"] is None else f"{item['value']:.6g}"
+        print(f"  {verdict}  {item['name']}: {value} ({item['kind']} {item['limit']:.6g})")
+    overall = (results.get("verdict") or {}).get("overall")
+    if overall == "INVALID":
+        print("  INVALID: the numbers are not physically possible, no limit was judged:")
+        for reason in results["verdict"]["invalid_because"]:
+            print(f"    {reason}")
+    failed = any(not a.get("pass") for a in results.get("acceptance", []))
+    return EXIT_ACCEPTANCE_FAILED if failed or overall == "INVALID" else EXIT_OK
+
+
 def _run_label(manifest: dict[str, Any], procedure: Procedure) -> str:
     return f"{procedure.unit_under_test.serial} run {manifest.get('run_id')}"
 
@@ -427,13 +442,8 @@ def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: P
         print(f"gyrocal: fault: {exc}; nothing was commanded. Resume with "
               f"`gyrocal resume {folder.path}` when the instrument answers", file=sys.stderr)
         return EXIT_FAULT
-    failed = [a for a in results.get("acceptance", []) if not a.get("pass")]
     print(f"run complete: {folder.path}")
-    for item in results.get("acceptance", []):
-        verdict = "PASS" if item["pass"] else "FAIL"
-        value = "not computed" if item["value"] is None else f"{item['value']:.6g}"
-        print(f"  {verdict}  {item['name']}: {value} (limit {item['limit']:.6g})")
-    return EXIT_ACCEPTANCE_FAILED if failed else EXIT_OK
+    return print_verdict(results)
 
 
 def _report_simulator_crash(simulated: Any, journal) -> None:

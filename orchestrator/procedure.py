@@ -100,6 +100,9 @@ class SoakCriterion:
 class DataQuality:
     max_lost_frame_fraction: float   # lost + CRC-failed frames per logged step
     max_step_repeats: int            # a bad step is repeated at most this many times
+    # how far a measured scale factor may lie from the nominal one before the run is
+    # INVALID rather than judged (reports/sanity.py)
+    sf_tolerance_pct: float = 5.0
 
 
 @dataclass(frozen=True)
@@ -603,6 +606,8 @@ class _Parser:
         quality = DataQuality(
             fields.take("max_lost_frame_fraction", number(0.0, above=None, maximum=0.5)),
             fields.take("max_step_repeats", integer(0, 20)),
+            fields.take("sf_tolerance_pct", number(0.0, above=0.0, maximum=100.0),
+                        required=False, default=5.0),
         )
         fields.finish()
         return quality

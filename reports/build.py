@@ -49,6 +49,7 @@ from gyrocal.reports.allan_summary import allan_curve, curve_json, fit_curve, fi
 from gyrocal.reports.dwell import Dwell, dwell_mean
 from gyrocal.reports.imu.section import imu_section
 from gyrocal.reports.results import evaluate_acceptance, finite_or_none, results_bytes
+from gyrocal.reports.sanity import check_physics, verdict
 from gyrocal.reports.scale_factor import ScaleFactorResult, analyze_scale_factor
 
 REFERENCE_TEMP_C = 25.0
@@ -400,6 +401,8 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
         "definitions": DEFINITIONS,
     }
     results["acceptance"] = evaluate_acceptance(results, data.plan.get("acceptance") or [], notes)
+    sf_tolerance = (data.plan.get("sanity") or {}).get("sf_tolerance_pct")
+    results["verdict"] = verdict(check_physics(results, sf_tolerance), results["acceptance"])
     results["notes"] = notes
     return results
 

@@ -22,7 +22,7 @@ from gyrocal.models.rate_units import output_to_dph
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from gyrocal.orchestrator.commands import report_signer
+    from gyrocal.orchestrator.commands import print_verdict, report_signer
     from gyrocal.orchestrator.locks import run_folder_lock
     from gyrocal.reports.build import HTML_FILE, build_report
 
@@ -34,15 +34,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     print(f"report: {Path(args.run_dir) / HTML_FILE}")
     for note in results.get("notes", []):
         print(f"  note: {note}")
-    return _print_acceptance(results.get("acceptance", []))
-
-
-def _print_acceptance(acceptance: list[dict]) -> int:
-    for item in acceptance:
-        verdict = "PASS" if item["pass"] else "FAIL"
-        value = "not computed" if item["value"] is None else f"{item['value']:.6g}"
-        print(f"  {verdict}  {item['name']}: {value} ({item['kind']} {item['limit']:.6g})")
-    return EXIT_ACCEPTANCE_FAILED if any(not a["pass"] for a in acceptance) else EXIT_OK
+    return print_verdict(results)
 
 
 def cmd_verify(args: argparse.Namespace) -> int:

@@ -10,11 +10,14 @@ REPORT_TEMPLATE = """<!DOCTYPE html>
 body{font-family:sans-serif;max-width:60em;margin:1em auto;color:#222}
 table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #bbb;padding:2px 6px;font-size:90%}
 th{background:#eee}.pass{color:#070;font-weight:bold}.fail{color:#b00;font-weight:bold}
-.warn{background:#fdd}code{font-size:85%}img{max-width:100%}
+.warn{background:#fdd}.invalid{background:#b00;color:#fff;padding:.5em 1em;margin:.5em 0}code{font-size:85%}img{max-width:100%}
 </style></head><body>
 <h1>Gyro calibration report</h1>
-<p><b>Overall: {% if all_pass %}<span class="pass">PASS</span>{% else %}<span class="fail">FAIL</span>{% endif %}</b>
-({{ r.acceptance|length }} acceptance limit(s))</p>
+{% set overall = r.verdict.overall if r.verdict else ("PASS" if all_pass else "FAIL") %}
+{% if overall == "INVALID" %}<div class="invalid"><b>INVALID</b> — the numbers are not physically possible, so no limit was judged:
+<ul>{% for reason in r.verdict.invalid_because %}<li>{{ reason }}</li>{% endfor %}</ul></div>{% endif %}
+<p><b>Overall: {% if overall == "PASS" %}<span class="pass">PASS</span>{% else %}<span class="fail">{{ overall }}</span>{% endif %}</b>
+({{ r.acceptance|length }} acceptance limit(s){% if r.verdict %}; physics checks: {% for c in r.verdict.sanity %}{{ c.name }} {{ "ok" if c.ok else "FAILED" }}{% if not loop.last %}, {% endif %}{% endfor %}{% endif %})</p>
 
 <h2>Unit, procedure, run</h2>
 <table>

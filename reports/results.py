@@ -28,6 +28,13 @@ def lookup_metric(results: dict[str, Any], metric: str) -> Any:
     return node
 
 
+#: Metrics whose sign is physical (a max limit bounds their magnitude); every other
+#: metric with a max limit is a size or a spread, and a negative value of it is impossible.
+SIGNED_METRICS = frozenset({"asymmetry_ppm", "scale_factor_ls.bias",
+                            "sf_temperature.sensitivity_ppm_per_c",
+                            "bias_temperature.sensitivity_dph_per_c"})
+
+
 def evaluate_acceptance(results: dict[str, Any], limits: list[dict[str, Any]],
                         notes: list[str]) -> list[dict[str, Any]]:
     """One verdict per limit: {name, metric, kind, limit, unit, value, pass}.
@@ -47,6 +54,12 @@ def evaluate_acceptance(results: dict[str, Any], limits: list[dict[str, Any]],
             number = None
             notes.append(f"acceptance {limit['name']!r}: {limit['metric']} was not computed, "
                          "so the limit fails")
+        elif kind == "max" and number < 0 and limit["metric"] not in SIGNED_METRICS:
+            passed = False
+            notes.append(f"acceptance {limit['name']!r}: {limit['metric']} = {number:g} cannot "
+                         "be negative, so the limit fails")
+        elif kind == "max" and limit["metric"] in SIGNED_METRICS:
+            passed = abs(number) <= bound      # a signed figure's limit is on its size
         else:
             passed = number <= bound if kind == "max" else number >= bound
         verdicts.append({"name": limit["name"], "metric": limit["metric"], "kind": kind,

@@ -64,7 +64,7 @@ AFTER_CLOSE = ("report_written", SEAL_EVENT)
 #: results.json keys that are numbers computed from the samples (interfaces.md).
 RECOMPUTED_KEYS = ("unit_under_test", "scale_factor", "scale_factor_ls", "nonlinearity",
                    "asymmetry_ppm", "sf_temperature", "bias", "bias_temperature", "allan",
-                   "compensation", "imu", "acceptance")
+                   "compensation", "imu", "acceptance", "verdict")
 #: Relative tolerance of the recomputation (the same code on the same samples: rounding only).
 RECOMPUTE_RTOL = 1e-9
 

@@ -46,6 +46,7 @@ def plan_record(procedure, plan) -> dict[str, Any]:
         "unit_under_test": _plain(procedure.unit_under_test),
         "acceptance": _plain(procedure.acceptance),
         "sample_rate_hz": procedure.defaults.sample_rate_hz,
+        "sanity": {"sf_tolerance_pct": procedure.data_quality.sf_tolerance_pct},
         "station": {
             "name": station.name,
             "file": station.file,

@@ -1,0 +1,87 @@
+"""Physical sense before any verdict: a run whose numbers are impossible is INVALID, never PASS.
+
+A scale factor of 1e-6 against a nominal 1.0 is not a failed gyro, it is a
+failed measurement (stale frames, a table that never turned, a units mix-up),
+and no acceptance limit should be judged on it. So before acceptance the
+report checks what physics demands of any gyro calibration:
+
+* each scale factor lies within ``sf_tolerance_pct`` (procedure
+  ``data_quality.sf_tolerance_pct``, default 5 %) of the unit's nominal one;
+* nonlinearity and the scale-factor instability are finite and non-negative;
+* every dwell's mean output has the sign of its commanded rate (× the nominal
+  scale factor's sign) wherever the rate is large enough (≥ 1 deg/s) that no
+  bias could flip it;
+* every bias is finite.
+
+A failed check makes the verdict INVALID (exit 1, a red banner in the report
+naming the check).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+DEFAULT_SF_TOLERANCE_PCT = 5.0
+SIGN_CHECK_MIN_RATE_DPS = 1.0
+
+
+@dataclass(frozen=True)
+class SanityCheck:
+    name: str
+    ok: bool
+    detail: str
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def check_physics(results: dict[str, Any], sf_tolerance_pct: float | None = None
+                  ) -> list[SanityCheck]:
+    """The checks above, on a results dict (results.json before its verdict)."""
+    tolerance = DEFAULT_SF_TOLERANCE_PCT if sf_tolerance_pct is None else float(sf_tolerance_pct)
+    nominal = float((results.get("unit_under_test") or {}).get("nominal_scale_factor") or 1.0)
+    checks = []
+    bad_sf = [f"{e.get('temp_c')} °C: {e.get('sf')!r}" for e in results.get("scale_factor") or []
+              if not _finite(e.get("sf")) or abs(e["sf"] / nominal - 1.0) * 100 > tolerance]
+    checks.append(SanityCheck(
+        "scale factor near nominal", not bad_sf,
+        f"within ±{tolerance:g} % of the nominal {nominal:g}" if not bad_sf else
+        f"outside ±{tolerance:g} % of the nominal {nominal:g}: {'; '.join(bad_sf)}"))
+    nonlinear = results.get("nonlinearity")
+    instability = (results.get("sf_temperature") or {}).get("instability_pct")
+    negative = [f"{name} = {value!r}" for name, value in
+                (("nonlinearity.rms_pct", None if nonlinear is None else nonlinear.get("rms_pct")),
+                 ("nonlinearity.max_ppm_fs", None if nonlinear is None else nonlinear.get("max_ppm_fs")),
+                 ("sf_temperature.instability_pct", instability))
+                if value is not None and not (_finite(value) and value >= 0)]
+    checks.append(SanityCheck("non-negative spreads", not negative,
+                              "finite and ≥ 0" if not negative else ", ".join(negative)))
+    flipped = [f"{s['step_id']} ({s['rate_dps']:+g} deg/s) mean {s['output_mean']!r}"
+               for s in results.get("steps") or []
+               if s.get("kind") == "dwell" and abs(s.get("rate_dps") or 0) >= SIGN_CHECK_MIN_RATE_DPS
+               and not (_finite(s.get("output_mean"))
+                        and math.copysign(1, s["output_mean"]) == math.copysign(1, s["rate_dps"] * nominal))]
+    checks.append(SanityCheck("dwell signs follow the table", not flipped,
+                              "every dwell's mean has its rate's sign" if not flipped else
+                              "; ".join(flipped[:5])))
+    bad_bias = [f"{b.get('temp_c')} °C: {b.get('bias_dph')!r}" for b in results.get("bias") or []
+                if not _finite(b.get("bias_dph"))]
+    checks.append(SanityCheck("bias finite", not bad_bias,
+                              "every bias is a finite number" if not bad_bias else "; ".join(bad_bias)))
+    return checks
+
+
+def verdict(checks: list[SanityCheck], acceptance: list[dict[str, Any]]) -> dict[str, Any]:
+    """INVALID before FAIL before PASS; with the failed checks named."""
+    failed = [c for c in checks if not c.ok]
+    if failed:
+        overall = "INVALID"
+    elif any(not a.get("pass") for a in acceptance):
+        overall = "FAIL"
+    else:
+        overall = "PASS"
+    return {"overall": overall, "invalid_because": [f"{c.name}: {c.detail}" for c in failed],
+            "sanity": [asdict(c) for c in checks]}
