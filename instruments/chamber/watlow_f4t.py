@@ -15,7 +15,12 @@ number at 16, 15 registers) for the loop addresses and the alarm state.
   which is how the Espec driver reads it (28 "error" is in its value table;
   the codes 7 "alarm high" and 8 "alarm low" used by the simulator are this
   project's assumption, and any non-quiet code is reported as an alarm anyway);
-- device status 90: 138 "OK", 32 "Fail".
+- device status 90: 138 "OK", 32 "Fail";
+- display units 1328 (same guide, p. 225, "Display Units": F (30), C (15), default F (30),
+  unsigned 16-bit RW). Temperatures and set points on Modbus are in the display units, so
+  a factory-default controller speaks °F: the driver reads 1328 at connect and converts
+  every temperature to and from °C; a value other than 30 or 15 is a fault naming the
+  register.
 
 ``address`` is ``host:port`` or ``host`` (port 502). One driver instance per
 thread (see :mod:`modbus_link`).
@@ -39,11 +44,14 @@ F4T_REGISTERS: dict[str, Register] = register_table(
     Register("serial_number", 12, Encoding.INT32_LWF, False, "serial number"),
     Register("part_number", 16, Encoding.TEXT, False, "F4T part number", text_count=15),
     Register("device_status", 90, Encoding.UINT16, False, "device status"),
+    Register("display_units", 1328, Encoding.UINT16, True, "display units"),
     Register("alarm1_state", 1356, Encoding.UINT16, False, "alarm 1 state"),
     Register("setpoint", 2782, Encoding.FLOAT32_LWF, True, "control loop 1 set point"),
     Register("process_value", 2820, Encoding.FLOAT32_LWF, False, "control loop 1 process value"),
 )
 
+DISPLAY_UNITS_F = 30          # factory default (F4T guide, chapter 6, Display Units)
+DISPLAY_UNITS_C = 15
 DEVICE_STATUS_OK = 138
 DEVICE_STATUS_FAIL = 32
 ALARM_STATE_NONE = 61
@@ -96,6 +104,7 @@ class WatlowF4T:
             )
 
         self._link = ModbusLink(name, make_client, unit_id, timeout_s, retry or RetryPolicy(), on_retry)
+        self._fahrenheit: bool | None = None     # read from register 1328 at the first use
 
     @property
     def name(self) -> str:
@@ -105,17 +114,38 @@ class WatlowF4T:
         part = self._link.read(F4T_REGISTERS["part_number"])
         serial = self._link.read(F4T_REGISTERS["serial_number"])
         release = self._link.read(F4T_REGISTERS["software_release"])
-        description = f"Watlow F4T part {part or '?'}, serial {serial}, software release {release}"
+        units = "°F (converted to °C)" if self.fahrenheit else "°C"
+        description = (f"Watlow F4T part {part or '?'}, serial {serial}, software release {release}, "
+                       f"display units {units} (register 1328)")
         return Identity(role="chamber", driver=self.DRIVER, address=self.address, description=description)
 
+    @property
+    def fahrenheit(self) -> bool:
+        """Does the controller speak °F on Modbus (display units, register 1328)?"""
+        if self._fahrenheit is None:
+            code = int(self._link.read(F4T_REGISTERS["display_units"]))
+            if code not in (DISPLAY_UNITS_F, DISPLAY_UNITS_C):
+                raise InstrumentError(
+                    self.name, "read display units", f"holding register 1328 (display units) "
+                    f"reads {code}, neither F (30) nor C (15); set Display Units on the "
+                    "controller's front panel (Settings > Global)", reply=str(code))
+            self._fahrenheit = code == DISPLAY_UNITS_F
+        return self._fahrenheit
+
+    def _read_c(self, name: str) -> float:
+        fahrenheit = self.fahrenheit          # the units first: 1328 is read once, before any value
+        value = float(self._link.read(F4T_REGISTERS[name]))
+        return (value - 32.0) / 1.8 if fahrenheit else value
+
     def read_temperature_c(self) -> float:
-        return float(self._link.read(F4T_REGISTERS["process_value"]))
+        return self._read_c("process_value")
 
     def read_setpoint_c(self) -> float:
-        return float(self._link.read(F4T_REGISTERS["setpoint"]))
+        return self._read_c("setpoint")
 
     def set_setpoint_c(self, setpoint_c: float) -> None:
-        self._link.write(F4T_REGISTERS["setpoint"], setpoint_c)
+        value = setpoint_c * 1.8 + 32.0 if self.fahrenheit else setpoint_c
+        self._link.write(F4T_REGISTERS["setpoint"], value)
 
     def read_status(self) -> ChamberStatus:
         alarm_state = int(self._link.read(F4T_REGISTERS["alarm1_state"]))

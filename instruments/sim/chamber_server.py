@@ -50,6 +50,8 @@ from gyrocal.instruments.chamber.watlow_f4t import (
     ALARM_STATE_LOW,
     ALARM_STATE_NONE,
     DEVICE_STATUS_OK,
+    DISPLAY_UNITS_C,
+    DISPLAY_UNITS_F,
     F4T_REGISTERS,
 )
 from gyrocal.instruments.sim.faults import FaultInjector
@@ -331,6 +333,23 @@ class SimulatedWatlowF4T(_SimulatedModbusChamber):
     PART_NUMBER = "F4T1L0AA1A1AAA1"
     SERIAL_NUMBER = 1234567
     SOFTWARE_RELEASE = 7
+    #: as shipped: Display Units F (30) — the guide's factory default — so temperatures and
+    #: set points on Modbus are °F until someone changes it on the front panel
+    display_units = DISPLAY_UNITS_F
+
+    def _in_units(self, celsius: float) -> float:
+        return celsius * 1.8 + 32.0 if self.display_units == DISPLAY_UNITS_F else celsius
+
+    def _apply_write(self, register: Register, value: Any) -> None:
+        """Set point in the display units; the display units themselves (F 30 / C 15)."""
+        if register.name == "display_units":
+            if int(value) not in (DISPLAY_UNITS_F, DISPLAY_UNITS_C):
+                raise ValueError(f"display units {value!r}: F (30) or C (15)")
+            self.display_units = int(value)
+            return
+        if register.name == "setpoint" and self.display_units == DISPLAY_UNITS_F:
+            value = (float(value) - 32.0) / 1.8
+        super()._apply_write(register, value)
 
     @property
     def address(self) -> str:
@@ -346,10 +365,12 @@ class SimulatedWatlowF4T(_SimulatedModbusChamber):
             return self.PART_NUMBER
         if name == "device_status":
             return DEVICE_STATUS_OK
+        if name == "display_units":
+            return self.display_units
         if name == "process_value":
-            return self.physics.temperature_c()
+            return self._in_units(self.physics.temperature_c())
         if name == "setpoint":
-            return self.physics.setpoint_c
+            return self._in_units(self.physics.setpoint_c)
         if name == "alarm1_state":
             forced = self.faults.params("alarm")
             if forced is not None:
@@ -359,3 +380,4 @@ class SimulatedWatlowF4T(_SimulatedModbusChamber):
                 return ALARM_STATE_HIGH if above else ALARM_STATE_LOW
             return ALARM_STATE_NONE
         raise KeyError(name)
+

@@ -71,6 +71,7 @@ def test_no_reply_once_is_retried_after_a_reconnect(rig):
 
 def test_persistent_no_reply_ends_in_a_timeout_naming_instrument_and_command(rig):
     sim, driver, retries = rig
+    driver.identify()            # connected: an F4T has read its display units (1328) by now
     sim.faults.arm("no_reply", count=None)
     with pytest.raises(InstrumentTimeout) as info:
         driver.read_temperature_c()

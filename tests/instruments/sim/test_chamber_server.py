@@ -113,6 +113,11 @@ def test_f4_undeclared_register_is_an_illegal_address(f4):
 def test_f4t_serves_documented_registers_low_word_first(f4t, clock, physics):
     client = ModbusTcpClient("127.0.0.1", port=f4t.bound_port, timeout=2, retries=0)
     try:
+        # as shipped, Display Units (1328) is F (30) and temperatures are °F (F4T guide p. 225)
+        assert client.read_holding_registers(1328, count=1, device_id=1).registers == [30]
+        pv = client.read_holding_registers(2820, count=2, device_id=1)
+        assert f4t_float(pv.registers) == pytest.approx(22.0 * 1.8 + 32.0)   # 71.6 °F
+        assert not client.write_register(1328, 15, device_id=1).isError()  # front panel: C
         pv = client.read_holding_registers(2820, count=2, device_id=1)
         assert f4t_float(pv.registers) == pytest.approx(22.0)
         low, high = struct.unpack("<HH", struct.pack("<f", 45.5))
