@@ -68,7 +68,8 @@ def open_instruments(station, clock: Clock, addresses=None,
         if c.driver == "watlow_f4":
             baud = _SOCKET_BAUD if chamber_addr.startswith("socket://") else 9600
             chamber = WatlowF4(chamber_addr, unit_id=c.unit_id, timeout_s=c.timeout_s,
-                               retry=chamber_retry, baudrate=baud, on_retry=hook("chamber"))
+                               retry=chamber_retry, baudrate=baud, limit_input=c.limit_input,
+                               on_retry=hook("chamber"))
         elif c.driver == "watlow_f4t":
             chamber = WatlowF4T(chamber_addr, unit_id=c.unit_id, timeout_s=c.timeout_s,
                                 retry=chamber_retry, on_retry=hook("chamber"))

@@ -28,6 +28,8 @@ class ChamberStatus:
     setpoint_c: float
     alarm: bool
     detail: str = ""
+    profile_running: bool = False   # the controller runs (or holds) its own profile
+    run_state: str = ""
 
 
 @dataclass(frozen=True)

@@ -274,6 +274,10 @@ class RunEngine:
         status = self.inst.chamber.read_status()
         if status.alarm:
             raise RunFaultError(f"chamber: preflight: alarm active ({status.detail or 'no detail'})")
+        if status.profile_running:
+            raise RunFaultError(f"chamber: preflight: the controller is running its own profile "
+                                f"({status.run_state}); stop the profile on its front panel, "
+                                "then start (or resume) the run")
         table = self.inst.table
         if not table.interlock_closed():
             table.close_interlock()

@@ -106,6 +106,8 @@ class ChamberConfig:
     safe_state: ChamberSafeState
     timeout_s: float
     retries: int
+    #: Watlow F4: the digital input its limit controller is wired to (alarm source)
+    limit_input: int | None = None
 
 
 @dataclass(frozen=True)
@@ -286,6 +288,9 @@ def _chamber(ctx: Context, parent: Fields) -> ChamberConfig:
     driver = fields.take("driver", choice(CHAMBER_DRIVERS))
     address = fields.take("address", _address(driver))
     unit_id = fields.take("unit_id", integer(1, 247), required=False, default=1)
+    limit_input = fields.take("limit_input", integer(1, 4), required=False, default=None)
+    if limit_input is not None and driver not in (None, "watlow_f4"):
+        ctx.report(fields.child("limit_input"), "applies to driver watlow_f4 only")
     identity = _identity(ctx, fields)
 
     lim = _section(ctx, fields, "limits")
@@ -315,7 +320,7 @@ def _chamber(ctx: Context, parent: Fields) -> ChamberConfig:
     timeout_s, retries = _common_link(fields)
     fields.finish()
     return ChamberConfig(driver, address, unit_id, identity, limits,
-                         ChamberSafeState(action, setpoint_c), timeout_s, retries)
+                         ChamberSafeState(action, setpoint_c), timeout_s, retries, limit_input)
 
 
 def _table(ctx: Context, parent: Fields) -> TableConfig:

@@ -5,9 +5,17 @@ Sources for the register map (holding registers, 0-based protocol addresses):
 - 100 input 1 process value, 300 set point 1: the project brief, matching
   the open-source F4 drivers examined (e.g. Pascal Stang's ``watlowf4.py``,
   which reads 100/300 with FC 03, signed deci-degrees).
-- 200 alarm status: the project brief. The bit assignment (bit 0 = alarm 1,
-  bit 1 = alarm 2) is this project's assumption, not yet checked against the
-  F4 communications manual; the simulator serves the same layout.
+- 200 is NOT an alarm register (an earlier version read it as one): it is the
+  controller's run state — 0/1 constant set point, 2 profile running, 3 profile
+  paused — in Espec North America's open-source F4 driver (ChamberConnectLibrary
+  ``watlowf4.py``, ``get_status``/``get_loop_sp``). Preflight refuses to start
+  while the controller runs its own profile.
+- Alarms: no F4 register for "alarm active" was found in any source here. The
+  same Espec driver reads a tripped limit controller from the digital input it
+  is wired to: input N's state (201 + 12·(N−1)) differs from its configured
+  level (1061 + 2·(N−1)). The station's ``chamber.limit_input: N`` names that
+  input; without it the driver reports no alarm and says so in its identity
+  (unconfirmed against a Watlow manual).
 - 0 model number (5270 for a Series F4; the decimal digits "52","70" are the
   ASCII codes of "4" and "F"), 1-2 serial number: from an open-source F4
   chamber driver that reads them for identification; not seen in a Watlow
@@ -45,12 +53,24 @@ F4_REGISTERS: dict[str, Register] = register_table(
     Register("serial_high", 1, Encoding.UINT16, False, "serial number, first part"),
     Register("serial_low", 2, Encoding.UINT16, False, "serial number, second part"),
     Register("process_value", 100, Encoding.INT16_DECIMALS, False, "input 1 process value"),
-    Register("alarm_status", 200, Encoding.UINT16, False, "alarm status"),
+    Register("profile_state", 200, Encoding.UINT16, False, "run state (profile)"),
     Register("setpoint", 300, Encoding.INT16_DECIMALS, True, "set point 1"),
 )
 
-#: Bits of the alarm status register 200 (project assumption, see module docstring).
-F4_ALARM_BITS: dict[int, str] = {0x0001: "alarm 1 active", 0x0002: "alarm 2 active"}
+#: Register 200 (Espec watlowf4.py): 0, 1 constant set point; 2 profile running; 3 paused.
+PROFILE_RUNNING, PROFILE_PAUSED = 2, 3
+PROFILE_STATE_TEXT = {0: "constant", 1: "constant", PROFILE_RUNNING: "profile running",
+                      PROFILE_PAUSED: "profile paused"}
+
+
+def digital_input_registers(number: int) -> tuple[Register, Register]:
+    """(state, configured level) of digital input ``number`` (1-4), Espec watlowf4.py."""
+    if not 1 <= number <= 4:
+        raise ValueError(f"digital input must be 1..4, got {number!r}")
+    return (Register(f"di{number}_state", 201 + 12 * (number - 1), Encoding.UINT16, False,
+                     f"digital input {number} state"),
+            Register(f"di{number}_level", 1061 + 2 * (number - 1), Encoding.UINT16, False,
+                     f"digital input {number} function level"))
 
 
 def f4_model_text(model_register: int) -> str:
@@ -78,6 +98,7 @@ class WatlowF4:
         baudrate: int = 9600,
         name: str = "chamber (Watlow F4)",
         check_model: bool = True,
+        limit_input: int | None = None,
         on_retry: Callable[[int, InstrumentError], None] | None = None,
     ) -> None:
         if not 0 <= decimals <= 3:
@@ -87,6 +108,8 @@ class WatlowF4:
         self.address = address
         self.decimals = decimals
         self.check_model = check_model
+        self.limit_input = limit_input
+        self._limit_registers = None if limit_input is None else digital_input_registers(limit_input)
 
         def make_client(trace: Callable[[bool, bytes], bytes]) -> ModbusSerialClient | ModbusTcpClient:
             if address.startswith("socket://"):
@@ -119,7 +142,10 @@ class WatlowF4:
                 f"model register reads {words[0]} ({model!r}); a Series F4 reports {F4_MODEL_NUMBER} ('F4')",
                 reply=str(words),
             )
-        description = f"Watlow {model} (model register {words[0]}), serial {words[1]}-{words[2]}"
+        alarms = (f"limit controller on digital input {self.limit_input}" if self.limit_input
+                  else "alarms NOT monitored (no chamber.limit_input in the station)")
+        description = (f"Watlow {model} (model register {words[0]}), serial {words[1]}-{words[2]}, "
+                       f"{alarms}")
         return Identity(role="chamber", driver=self.DRIVER, address=self.address, description=description)
 
     def read_temperature_c(self) -> float:
@@ -132,16 +158,22 @@ class WatlowF4:
         self._link.write(F4_REGISTERS["setpoint"], setpoint_c, self.decimals)
 
     def read_status(self) -> ChamberStatus:
-        alarm_bits = int(self._link.read(F4_REGISTERS["alarm_status"]))
-        active = [text for bit, text in F4_ALARM_BITS.items() if alarm_bits & bit]
-        unknown = alarm_bits & ~sum(F4_ALARM_BITS)
-        if unknown:
-            active.append(f"unknown alarm bits 0x{unknown:04X}")
+        state = int(self._link.read(F4_REGISTERS["profile_state"]))
+        problems = []
+        tripped = False
+        if self._limit_registers is not None:
+            level_now = int(self._link.read(self._limit_registers[0]))
+            level_ok = int(self._link.read(self._limit_registers[1]))
+            tripped = level_now != level_ok
+            if tripped:
+                problems.append(f"alarm: limit controller tripped (digital input {self.limit_input})")
         return ChamberStatus(
             temperature_c=self.read_temperature_c(),
             setpoint_c=self.read_setpoint_c(),
-            alarm=bool(alarm_bits),
-            detail="; ".join(active),
+            alarm=tripped,
+            detail="; ".join(problems),
+            profile_running=state in (PROFILE_RUNNING, PROFILE_PAUSED),
+            run_state=PROFILE_STATE_TEXT.get(state, f"state {state}"),
         )
 
     def close(self) -> None:

@@ -24,7 +24,10 @@ Faults (armed on :attr:`faults`, a :class:`FaultInjector` over :data:`FAULTS`):
 - ``never_reaches_setpoint`` (param ``capacity``): persistent; sets
   ``physics.stuck`` so the PV stalls short of the setpoint.
 - ``alarm`` (param ``state`` for the F4T, default 7 "alarm high"): persistent;
-  the status register reports an alarm regardless of the physics.
+  the status register (F4T) or the limit controller's digital input (F4)
+  reports an alarm regardless of the physics.
+- ``profile_running`` (F4): persistent; register 200 reads 2, the controller
+  running its own profile.
 
 Per-request faults (the first four) consume one firing per request; the two
 persistent ones are read, not consumed, and take effect at the next request
@@ -44,7 +47,11 @@ from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from gyrocal.instruments.chamber.register_map import Register
-from gyrocal.instruments.chamber.watlow_f4 import F4_MODEL_NUMBER, F4_REGISTERS
+from gyrocal.instruments.chamber.watlow_f4 import (
+    F4_MODEL_NUMBER,
+    F4_REGISTERS,
+    digital_input_registers,
+)
 from gyrocal.instruments.chamber.watlow_f4t import (
     ALARM_STATE_HIGH,
     ALARM_STATE_LOW,
@@ -66,6 +73,7 @@ FAULTS: tuple[str, ...] = (
     "drop_connection",
     "never_reaches_setpoint",
     "alarm",
+    "profile_running",
 )
 
 _WRITE_FUNCTION_CODES = frozenset({6, 16, 22, 23})
@@ -285,7 +293,10 @@ class SimulatedWatlowF4(_SimulatedModbusChamber):
 
     MODEL = "Watlow F4"
     FRAMER = FramerType.RTU
-    REGISTERS = F4_REGISTERS
+    #: the registers of the driver's map, plus digital input 1 where the simulated limit
+    #: controller is wired (station sim.yaml: chamber.limit_input: 1)
+    REGISTERS = {**F4_REGISTERS, **{r.name: r for r in digital_input_registers(1)}}
+    LIMIT_INPUT_LEVEL = 1
     SERIAL_NUMBER = (12, 3456)
 
     def __init__(
@@ -319,8 +330,13 @@ class SimulatedWatlowF4(_SimulatedModbusChamber):
             return self.physics.temperature_c()
         if name == "setpoint":
             return self.physics.setpoint_c
-        if name == "alarm_status":
-            return 0x0001 if (self._alarm_forced() or self.physics.alarm_state().active) else 0
+        if name == "profile_state":
+            return 2 if self.faults.params("profile_running") is not None else 0
+        if name == "di1_state":       # the limit controller's contact: at its level unless tripped
+            tripped = self._alarm_forced() or self.physics.alarm_state().active
+            return 0 if tripped else self.LIMIT_INPUT_LEVEL
+        if name == "di1_level":
+            return self.LIMIT_INPUT_LEVEL
         raise KeyError(name)
 
 

@@ -40,9 +40,11 @@ def rig(request, physics):
     sim_cls, driver_cls = MODELS[request.param]
     retries = []
     with sim_cls(physics) as sim:
+        # an F4's alarm is the limit controller's digital input, declared per station
+        extra = {"limit_input": 1} if request.param == "f4" else {}
         driver = driver_cls(
             sim.address, timeout_s=TIMEOUT_S, retry=FAST_RETRY,
-            on_retry=lambda attempt, exc: retries.append(exc),
+            on_retry=lambda attempt, exc: retries.append(exc), **extra,
         )
         try:
             yield sim, driver, retries

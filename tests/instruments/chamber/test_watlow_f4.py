@@ -36,16 +36,37 @@ def test_write_negative_setpoint_bytes(scripted_peer):
 
 
 def test_read_status_bytes(scripted_peer):
+    """Register 200 is the run state (1: constant), not an alarm (Espec ChamberConnectLibrary
+    watlowf4.py); the alarm is the limit controller's digital input 1 (state 201 = 0 differs
+    from its level 1061 = 1: tripped)."""
     peer = scripted_peer([
-        ("01 03 00 C8 00 01 05 F4", "01 03 02 00 01 79 84"),         # register 200: alarm 1 bit
+        ("01 03 00 C8 00 01 05 F4", "01 03 02 00 01 79 84"),         # register 200: 1 constant
+        ("01 03 00 C9 00 01 54 34", "01 03 02 00 00 B8 44"),         # register 201: DI 1 state 0
+        ("01 03 04 25 00 01 94 F1", "01 03 02 00 01 79 84"),         # register 1061: DI 1 level 1
         ("01 03 00 64 00 01 C5 D5", "01 03 02 00 E7 F8 0E"),
         ("01 03 01 2C 00 01 44 3F", "01 03 02 02 58 B8 DE"),         # register 300: 600 -> 60.0 °C
     ])
-    with f4_on(peer) as f4:
+    with f4_on(peer, limit_input=1) as f4:
         status = f4.read_status()
     assert peer.error is None
     assert (status.temperature_c, status.setpoint_c, status.alarm) == (pytest.approx(23.1), 60.0, True)
-    assert status.detail == "alarm 1 active"
+    assert status.detail == "alarm: limit controller tripped (digital input 1)"
+    assert status.profile_running is False and status.run_state == "constant"
+
+
+def test_register_200_is_the_run_state_never_an_alarm(scripted_peer):
+    """The value 1 that the old driver read as "alarm 1 active" is a constant set point;
+    2 is the controller running its own profile (preflight refuses to start)."""
+    peer = scripted_peer([
+        ("01 03 00 C8 00 01 05 F4", "01 03 02 00 02 39 85"),         # register 200: 2 running
+        ("01 03 00 64 00 01 C5 D5", "01 03 02 00 E7 F8 0E"),
+        ("01 03 01 2C 00 01 44 3F", "01 03 02 02 58 B8 DE"),
+    ])
+    with f4_on(peer) as f4:                                         # no limit input declared
+        status = f4.read_status()
+    assert peer.error is None
+    assert status.alarm is False and status.profile_running is True
+    assert status.run_state == "profile running"
 
 
 def test_identify_bytes(scripted_peer):
@@ -53,7 +74,8 @@ def test_identify_bytes(scripted_peer):
     with f4_on(peer) as f4:
         identity = f4.identify()
     assert identity.driver == "watlow_f4"
-    assert identity.description == "Watlow F4 (model register 5270), serial 12-3456"
+    assert identity.description == ("Watlow F4 (model register 5270), serial 12-3456, alarms NOT "
+                                    "monitored (no chamber.limit_input in the station)")
 
 
 def test_modbus_exception_bytes_are_shown_in_the_error(scripted_peer):

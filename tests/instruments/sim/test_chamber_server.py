@@ -93,14 +93,21 @@ def test_f4_setpoint_write_to_register_300_reaches_the_physics(f4, physics):
     assert physics.setpoint_c == 60.0
 
 
-def test_f4_identity_and_alarm_registers(f4):
+def test_f4_identity_run_state_and_limit_input_registers(f4):
+    """200: run state (0 constant, 2 profile running; Espec watlowf4.py), never an alarm;
+    the alarm is digital input 1 (state 201) leaving its level (1061)."""
     with rtu_socket(f4) as sock:
         reply = exchange(sock, "01 03 00 00 00 03 05 CB", 11)
         assert crc_ok(reply) and struct.unpack(">3H", reply[3:9])[0] == 5270
         assert exchange(sock, "01 03 00 C8 00 01 05 F4", 7) == bytes.fromhex("01 03 02 00 00 B8 44")
+        assert exchange(sock, "01 03 00 C9 00 01 54 34", 7) == bytes.fromhex("01 03 02 00 01 79 84")
+        assert exchange(sock, "01 03 04 25 00 01 94 F1", 7) == bytes.fromhex("01 03 02 00 01 79 84")
         f4.faults.arm("alarm", count=None)
+        assert exchange(sock, "01 03 00 C8 00 01 05 F4", 7) == bytes.fromhex("01 03 02 00 00 B8 44")
+        assert exchange(sock, "01 03 00 C9 00 01 54 34", 7) == bytes.fromhex("01 03 02 00 00 B8 44")
+        f4.faults.arm("profile_running", count=None)
         reply = exchange(sock, "01 03 00 C8 00 01 05 F4", 7)
-    assert reply[3:5] == b"\x00\x01" and crc_ok(reply)
+    assert reply == bytes.fromhex("01 03 02 00 02 39 85")
 
 
 def test_f4_undeclared_register_is_an_illegal_address(f4):
@@ -181,6 +188,7 @@ def test_modbus_exception_fault_uses_the_requested_code(f4t):
 def test_fault_names_are_declared_and_typos_are_refused(physics):
     assert set(FAULTS) == {
         "no_reply", "late_reply", "modbus_exception", "drop_connection", "never_reaches_setpoint", "alarm",
+        "profile_running",
     }
     sim = SimulatedWatlowF4(physics)
     with pytest.raises(ValueError, match="unknown fault"):
