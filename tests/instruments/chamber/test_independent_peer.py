@@ -1,0 +1,148 @@
+"""The chamber drivers against a Modbus server that is not ours.
+
+pymodbus's stock server with a plain datastore (no project code behind it)
+holds the registers as the manuals and public drivers lay them out, written
+here by hand: the F4T's Display Units (1328 = 30, °F, the factory default,
+F4T guide p. 225) with loop 1 set point / process value (2782 / 2820, float32
+low word first), alarm 1 state 1356 and device status 90; the F4's process
+value / set point (100 / 300, tenths), run state 200 and its limit
+controller's digital input 1 (201 state, 1061 level; Espec
+ChamberConnectLibrary). The drivers must read temperatures, units and
+alarms correctly and write set points in the controller's units.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import struct
+import threading
+from collections.abc import Iterator
+
+import pytest
+from pymodbus.client import ModbusTcpClient
+from pymodbus.datastore import ModbusDeviceContext, ModbusSequentialDataBlock, ModbusServerContext
+from pymodbus.framer import FramerType
+from pymodbus.server import ModbusTcpServer
+
+from gyrocal.instruments.chamber.watlow_f4 import WatlowF4
+from gyrocal.instruments.chamber.watlow_f4t import WatlowF4T
+from gyrocal.instruments.retry import RetryPolicy
+
+pytestmark = pytest.mark.timeout(30)
+
+
+def float_lwf(value: float) -> list[int]:
+    """IEEE-754 single, low word first (struct, not the project's codec)."""
+    high, low = struct.unpack(">HH", struct.pack(">f", value))
+    return [low, high]
+
+
+def from_float_lwf(words: list[int]) -> float:
+    return struct.unpack(">f", struct.pack(">HH", words[1], words[0]))[0]
+
+
+class StockServer:
+    """pymodbus's own TCP server over a sequential holding-register block, in a thread."""
+
+    def __init__(self, registers: dict[int, int], framer: FramerType) -> None:
+        # pymodbus 3.16's sequential block: block address 1 is protocol address 0
+        self.values = [0] * 5000
+        for address, value in registers.items():
+            self.values[address] = value
+        self.block = ModbusSequentialDataBlock(1, self.values)
+        self.context = ModbusServerContext(devices=ModbusDeviceContext(hr=self.block), single=True)
+        self.framer = framer
+        self.port = 0
+        self._loop = asyncio.new_event_loop()
+        self._ready = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self) -> None:
+        asyncio.set_event_loop(self._loop)
+
+        async def start() -> None:
+            self.server = ModbusTcpServer(self.context, framer=self.framer,
+                                          address=("127.0.0.1", 0))
+            await self.server.serve_forever(background=True)
+            self.port = self.server.transport.sockets[0].getsockname()[1]
+            self._ready.set()
+        self._loop.run_until_complete(start())
+        self._loop.run_forever()
+
+    def __enter__(self) -> StockServer:
+        self._thread.start()
+        assert self._ready.wait(10)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        asyncio.run_coroutine_threadsafe(self.server.shutdown(), self._loop).result(10)
+        self._loop.call_soon_threadsafe(self._loop.stop)
+        self._thread.join(10)
+
+    # The server keeps its own copy of the block once started: look and change through
+    # pymodbus's own client (framed like the server), never through the driver under test.
+    def _client(self) -> ModbusTcpClient:
+        return ModbusTcpClient("127.0.0.1", port=self.port, framer=self.framer, timeout=2,
+                               retries=0)
+
+    def hr(self, address: int, count: int = 1) -> list[int]:
+        client = self._client()
+        try:
+            return list(client.read_holding_registers(address, count=count, device_id=1).registers)
+        finally:
+            client.close()
+
+    def set(self, address: int, values: list[int]) -> None:
+        client = self._client()
+        try:
+            assert not client.write_registers(address, values, device_id=1).isError()
+        finally:
+            client.close()
+
+
+@pytest.fixture
+def f4t_peer() -> Iterator[StockServer]:
+    registers = {1328: 30, 90: 138, 1356: 61, 4: 7, 5: 0, 12: 4242, 13: 0}
+    registers.update(dict(zip((2782, 2783), float_lwf(77.0), strict=True)))     # 25 °C in °F
+    registers.update(dict(zip((2820, 2821), float_lwf(71.6), strict=True)))     # 22 °C in °F
+    registers.update({16 + i: ord(c) for i, c in enumerate("F4T1L0AA1A1AAA1")})
+    with StockServer(registers, FramerType.SOCKET) as server:
+        yield server
+
+
+def test_f4t_driver_reads_units_temperatures_alarms_and_writes_in_fahrenheit(f4t_peer) -> None:
+    with WatlowF4T(f"127.0.0.1:{f4t_peer.port}", timeout_s=1.0, retry=RetryPolicy(attempts=1)) as f4t:
+        identity = f4t.identify()
+        assert "part F4T1L0AA1A1AAA1" in identity.description and "°F" in identity.description
+        assert f4t.read_temperature_c() == pytest.approx(22.0, abs=1e-4)
+        assert f4t.read_setpoint_c() == pytest.approx(25.0, abs=1e-4)
+        f4t.set_setpoint_c(-40.0)                                       # −40 °C = −40 °F
+        assert from_float_lwf(f4t_peer.hr(2782, 2)) == pytest.approx(-40.0, abs=1e-4)
+        f4t.set_setpoint_c(100.0)
+        assert from_float_lwf(f4t_peer.hr(2782, 2)) == pytest.approx(212.0, abs=1e-3)
+        assert f4t.read_status().alarm is False
+        f4t_peer.set(1356, [7])
+        status = f4t.read_status()
+        assert status.alarm is True and "alarm 1" in status.detail
+
+
+@pytest.fixture
+def f4_peer() -> Iterator[StockServer]:
+    registers = {0: 5270, 1: 12, 2: 3456, 100: 231, 300: 600, 200: 1, 201: 1, 1061: 1}
+    with StockServer(registers, FramerType.RTU) as server:
+        yield server
+
+
+def test_f4_driver_reads_run_state_and_limit_input_not_register_200_as_alarm(f4_peer) -> None:
+    with WatlowF4(f"socket://127.0.0.1:{f4_peer.port}", timeout_s=1.0,
+                  retry=RetryPolicy(attempts=1), limit_input=1) as f4:
+        assert "serial 12-3456" in f4.identify().description
+        status = f4.read_status()
+        assert status.temperature_c == pytest.approx(23.1) and status.setpoint_c == 60.0
+        assert status.alarm is False and status.profile_running is False   # 200 = 1: constant
+        f4.set_setpoint_c(-12.5)
+        assert f4_peer.hr(300) == [(-125) & 0xFFFF]
+        f4_peer.set(201, [0])                                               # limit tripped
+        assert f4.read_status().alarm is True
+        f4_peer.set(200, [3])                                               # profile paused
+        assert f4.read_status().profile_running is True
