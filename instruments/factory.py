@@ -66,13 +66,15 @@ def open_instruments(station, clock: Clock, addresses=None,
     try:
         chamber_retry = RetryPolicy(attempts=c.retries)
         if c.driver == "watlow_f4":
-            baud = _SOCKET_BAUD if chamber_addr.startswith("socket://") else 9600
+            baud = _SOCKET_BAUD if chamber_addr.startswith("socket://") else c.baudrate
             chamber = WatlowF4(chamber_addr, unit_id=c.unit_id, timeout_s=c.timeout_s,
-                               retry=chamber_retry, baudrate=baud, limit_input=c.limit_input,
+                               retry=chamber_retry, baudrate=baud, parity=c.parity,
+                               stop_bits=c.stop_bits, limit_input=c.limit_input,
                                on_retry=hook("chamber"))
         elif c.driver == "watlow_f4t":
             chamber = WatlowF4T(chamber_addr, unit_id=c.unit_id, timeout_s=c.timeout_s,
-                                retry=chamber_retry, on_retry=hook("chamber"))
+                                retry=chamber_retry, word_order=c.word_order,
+                                on_retry=hook("chamber"))
         else:  # the station loader already refuses unknown drivers
             raise ValueError(f"unknown chamber driver {c.driver!r}")
         opened.append(chamber)

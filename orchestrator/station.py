@@ -108,6 +108,12 @@ class ChamberConfig:
     retries: int
     #: Watlow F4: the digital input its limit controller is wired to (alarm source)
     limit_input: int | None = None
+    #: Watlow F4 serial line (the F4's defaults: 9600 baud, no parity, 1 stop bit)
+    baudrate: int = 9600
+    parity: str = "N"
+    stop_bits: int = 1
+    #: Watlow F4T float word order (manual: low word first)
+    word_order: str = "low_first"
 
 
 @dataclass(frozen=True)
@@ -289,8 +295,16 @@ def _chamber(ctx: Context, parent: Fields) -> ChamberConfig:
     address = fields.take("address", _address(driver))
     unit_id = fields.take("unit_id", integer(1, 247), required=False, default=1)
     limit_input = fields.take("limit_input", integer(1, 4), required=False, default=None)
-    if limit_input is not None and driver not in (None, "watlow_f4"):
-        ctx.report(fields.child("limit_input"), "applies to driver watlow_f4 only")
+    baudrate = fields.take("baudrate", integer(1200, 115_200), required=False, default=9600)
+    parity = fields.take("parity", choice(("N", "E", "O")), required=False, default="N")
+    stop_bits = fields.take("stop_bits", integer(1, 2), required=False, default=1)
+    word_order = fields.take("word_order", choice(("low_first", "high_first")), required=False,
+                             default="low_first")
+    for key in ("limit_input", "baudrate", "parity", "stop_bits"):
+        if fields.has(key) and driver not in (None, "watlow_f4"):
+            ctx.report(fields.child(key), "applies to driver watlow_f4 only")
+    if fields.has("word_order") and driver not in (None, "watlow_f4t"):
+        ctx.report(fields.child("word_order"), "applies to driver watlow_f4t only")
     identity = _identity(ctx, fields)
 
     lim = _section(ctx, fields, "limits")
@@ -320,7 +334,8 @@ def _chamber(ctx: Context, parent: Fields) -> ChamberConfig:
     timeout_s, retries = _common_link(fields)
     fields.finish()
     return ChamberConfig(driver, address, unit_id, identity, limits,
-                         ChamberSafeState(action, setpoint_c), timeout_s, retries, limit_input)
+                         ChamberSafeState(action, setpoint_c), timeout_s, retries, limit_input,
+                         baudrate, parity, stop_bits, word_order)
 
 
 def _table(ctx: Context, parent: Fields) -> TableConfig:

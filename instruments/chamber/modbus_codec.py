@@ -55,6 +55,17 @@ def decode_float32_low_word_first(registers: Sequence[int]) -> float:
     return struct.unpack(">f", struct.pack(">HH", high, low))[0]
 
 
+def encode_float32_high_word_first(value: float) -> list[int]:
+    """float32 -> [high word, low word] (plain big-endian; a word-order setting some gateways use)."""
+    high, low = struct.unpack(">HH", struct.pack(">f", value))
+    return [high, low]
+
+
+def decode_float32_high_word_first(registers: Sequence[int]) -> float:
+    high, low = _two_registers(registers)
+    return struct.unpack(">f", struct.pack(">HH", high, low))[0]
+
+
 def encode_int32_low_word_first(value: int) -> list[int]:
     high, low = struct.unpack(">HH", struct.pack(">i", int(value)))
     return [low, high]

@@ -20,6 +20,7 @@ class Encoding(Enum):
     UINT16 = "uint16"
     INT16_DECIMALS = "int16 with implied decimals"
     FLOAT32_LWF = "float32, low word first"
+    FLOAT32_HWF = "float32, high word first"
     INT32_LWF = "int32, low word first"
     TEXT = "text, one character per register"
 
@@ -28,6 +29,7 @@ _FIXED_COUNTS = {
     Encoding.UINT16: 1,
     Encoding.INT16_DECIMALS: 1,
     Encoding.FLOAT32_LWF: 2,
+    Encoding.FLOAT32_HWF: 2,
     Encoding.INT32_LWF: 2,
 }
 
@@ -63,6 +65,8 @@ class Register:
             return codec.decode_int16_decimals(registers[0], decimals)
         if self.encoding is Encoding.FLOAT32_LWF:
             return codec.decode_float32_low_word_first(registers)
+        if self.encoding is Encoding.FLOAT32_HWF:
+            return codec.decode_float32_high_word_first(registers)
         if self.encoding is Encoding.INT32_LWF:
             return codec.decode_int32_low_word_first(registers)
         return codec.decode_text_one_char_per_register(registers)
@@ -76,6 +80,8 @@ class Register:
             return [codec.encode_int16_decimals(float(value), decimals)]
         if self.encoding is Encoding.FLOAT32_LWF:
             return codec.encode_float32_low_word_first(float(value))
+        if self.encoding is Encoding.FLOAT32_HWF:
+            return codec.encode_float32_high_word_first(float(value))
         if self.encoding is Encoding.INT32_LWF:
             return codec.encode_int32_low_word_first(int(value))
         return codec.encode_text_one_char_per_register(str(value), self.count)

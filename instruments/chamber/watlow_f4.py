@@ -96,11 +96,16 @@ class WatlowF4:
         timeout_s: float = 1.0,
         retry: RetryPolicy | None = None,
         baudrate: int = 9600,
+        parity: str = "N",
+        stop_bits: int = 1,
         name: str = "chamber (Watlow F4)",
         check_model: bool = True,
         limit_input: int | None = None,
         on_retry: Callable[[int, InstrumentError], None] | None = None,
     ) -> None:
+        if parity not in ("N", "E", "O") or stop_bits not in (1, 2):
+            raise ValueError(f"serial settings: parity N/E/O and stop bits 1/2, got "
+                             f"{parity!r}/{stop_bits!r}")
         if not 0 <= decimals <= 3:
             raise ValueError(f"decimals must be 0..3, got {decimals!r}")
         if not timeout_s > 0:
@@ -123,8 +128,8 @@ class WatlowF4:
                     retries=0, trace_packet=trace,
                 )
             return ModbusSerialClient(
-                address, framer=FramerType.RTU, baudrate=baudrate, timeout=timeout_s,
-                retries=0, trace_packet=trace,
+                address, framer=FramerType.RTU, baudrate=baudrate, parity=parity,
+                stopbits=stop_bits, timeout=timeout_s, retries=0, trace_packet=trace,
             )
 
         self._link = ModbusLink(name, make_client, unit_id, timeout_s, retry or RetryPolicy(), on_retry)

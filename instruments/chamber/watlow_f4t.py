@@ -50,6 +50,22 @@ F4T_REGISTERS: dict[str, Register] = register_table(
     Register("process_value", 2820, Encoding.FLOAT32_LWF, False, "control loop 1 process value"),
 )
 
+#: float word order: the guide's and Espec's low word first; "high_first" for a controller
+#: or gateway set to swap them (a station-file setting, chamber.word_order)
+WORD_ORDERS = ("low_first", "high_first")
+
+
+def f4t_registers(word_order: str = "low_first") -> dict[str, Register]:
+    """The register map with its float encoding in ``word_order``."""
+    if word_order not in WORD_ORDERS:
+        raise ValueError(f"word_order must be one of {WORD_ORDERS}, got {word_order!r}")
+    if word_order == "low_first":
+        return F4T_REGISTERS
+    return {name: (Register(r.name, r.address, Encoding.FLOAT32_HWF, r.writable, r.description)
+                   if r.encoding is Encoding.FLOAT32_LWF else r)
+            for name, r in F4T_REGISTERS.items()}
+
+
 DISPLAY_UNITS_F = 30          # factory default (F4T guide, chapter 6, Display Units)
 DISPLAY_UNITS_C = 15
 DEVICE_STATUS_OK = 138
@@ -90,11 +106,13 @@ class WatlowF4T:
         timeout_s: float = 1.0,
         retry: RetryPolicy | None = None,
         name: str = "chamber (Watlow F4T)",
+        word_order: str = "low_first",
         on_retry: Callable[[int, InstrumentError], None] | None = None,
     ) -> None:
         if not timeout_s > 0:
             raise ValueError(f"timeout_s must be > 0, got {timeout_s!r}")
         self.address = address
+        self.registers = f4t_registers(word_order)
         host, port = parse_tcp_address(address)
 
         def make_client(trace: Callable[[bool, bytes], bytes]) -> ModbusTcpClient:
@@ -111,9 +129,9 @@ class WatlowF4T:
         return self._link.instrument
 
     def identify(self) -> Identity:
-        part = self._link.read(F4T_REGISTERS["part_number"])
-        serial = self._link.read(F4T_REGISTERS["serial_number"])
-        release = self._link.read(F4T_REGISTERS["software_release"])
+        part = self._link.read(self.registers["part_number"])
+        serial = self._link.read(self.registers["serial_number"])
+        release = self._link.read(self.registers["software_release"])
         units = "°F (converted to °C)" if self.fahrenheit else "°C"
         description = (f"Watlow F4T part {part or '?'}, serial {serial}, software release {release}, "
                        f"display units {units} (register 1328)")
@@ -123,7 +141,7 @@ class WatlowF4T:
     def fahrenheit(self) -> bool:
         """Does the controller speak °F on Modbus (display units, register 1328)?"""
         if self._fahrenheit is None:
-            code = int(self._link.read(F4T_REGISTERS["display_units"]))
+            code = int(self._link.read(self.registers["display_units"]))
             if code not in (DISPLAY_UNITS_F, DISPLAY_UNITS_C):
                 raise InstrumentError(
                     self.name, "read display units", f"holding register 1328 (display units) "
@@ -134,7 +152,7 @@ class WatlowF4T:
 
     def _read_c(self, name: str) -> float:
         fahrenheit = self.fahrenheit          # the units first: 1328 is read once, before any value
-        value = float(self._link.read(F4T_REGISTERS[name]))
+        value = float(self._link.read(self.registers[name]))
         return (value - 32.0) / 1.8 if fahrenheit else value
 
     def read_temperature_c(self) -> float:
@@ -145,11 +163,11 @@ class WatlowF4T:
 
     def set_setpoint_c(self, setpoint_c: float) -> None:
         value = setpoint_c * 1.8 + 32.0 if self.fahrenheit else setpoint_c
-        self._link.write(F4T_REGISTERS["setpoint"], value)
+        self._link.write(self.registers["setpoint"], value)
 
     def read_status(self) -> ChamberStatus:
-        alarm_state = int(self._link.read(F4T_REGISTERS["alarm1_state"]))
-        device_status = int(self._link.read(F4T_REGISTERS["device_status"]))
+        alarm_state = int(self._link.read(self.registers["alarm1_state"]))
+        device_status = int(self._link.read(self.registers["device_status"]))
         problems = []
         if alarm_state not in ALARM_QUIET_STATES:
             problems.append(f"alarm 1 {ALARM_STATE_TEXT.get(alarm_state, f'state {alarm_state}')}")

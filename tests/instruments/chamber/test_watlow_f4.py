@@ -116,3 +116,11 @@ def test_setpoint_with_more_decimals_than_the_controller_is_rounded(clock, physi
         f4.set_setpoint_c(23.14)
         assert f4.read_setpoint_c() == 23.1
         assert physics.setpoint_c == pytest.approx(23.1)
+
+
+def test_serial_settings_are_checked():
+    """Parity and stop bits come from the station (some public F4 scripts use 2 stop bits)."""
+    with pytest.raises(ValueError, match="parity N/E/O and stop bits 1/2"):
+        WatlowF4("/dev/ttyUSB0", parity="X")
+    with pytest.raises(ValueError, match="parity N/E/O and stop bits 1/2"):
+        WatlowF4("/dev/ttyUSB0", stop_bits=3)

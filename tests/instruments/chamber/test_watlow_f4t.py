@@ -100,3 +100,15 @@ def test_address_forms(text, expected):
 def test_bad_addresses_are_refused_clearly(bad):
     with pytest.raises(ValueError, match="host:port"):
         WatlowF4T(bad)
+
+
+def test_word_order_high_first_is_a_station_setting(scripted_peer):
+    """chamber.word_order: high_first swaps the words: 25.0 = 0x41C80000 -> ``41 C8 00 00``."""
+    peer = scripted_peer([UNITS_C, (
+        "00 02 00 00 00 0B 01 10 0A DE 00 02 04 41 C8 00 00",
+        "00 02 00 00 00 06 01 10 0A DE 00 02",
+    )])
+    with WatlowF4T(f"127.0.0.1:{peer.port}", timeout_s=0.5, retry=NO_RETRY,
+                   word_order="high_first") as f4t:
+        f4t.set_setpoint_c(25.0)
+    assert peer.error is None
