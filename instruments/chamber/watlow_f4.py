@@ -16,6 +16,11 @@ Sources for the register map (holding registers, 0-based protocol addresses):
   level (1061 + 2·(N−1)). The station's ``chamber.limit_input: N`` names that
   input; without it the driver reports no alarm and says so in its identity
   (unconfirmed against a Watlow manual).
+- 901 temperature units (nonzero °C, 0 °F) and 606 input 1 decimal places: read
+  by the same Espec driver (``get_loop_units``, ``__get_scalar``). Read at
+  connect (``identify``): °F is converted to and from °C, and the decimals the
+  controller reports replace the configured ones (0..3; anything else is a
+  fault naming the register).
 - 0 model number (5270 for a Series F4; the decimal digits "52","70" are the
   ASCII codes of "4" and "F"), 1-2 serial number: from an open-source F4
   chamber driver that reads them for identification; not seen in a Watlow
@@ -55,6 +60,8 @@ F4_REGISTERS: dict[str, Register] = register_table(
     Register("process_value", 100, Encoding.INT16_DECIMALS, False, "input 1 process value"),
     Register("profile_state", 200, Encoding.UINT16, False, "run state (profile)"),
     Register("setpoint", 300, Encoding.INT16_DECIMALS, True, "set point 1"),
+    Register("input1_decimals", 606, Encoding.UINT16, False, "input 1 decimal places"),
+    Register("temperature_units", 901, Encoding.UINT16, False, "temperature units"),
 )
 
 #: Register 200 (Espec watlowf4.py): 0, 1 constant set point; 2 profile running; 3 paused.
@@ -112,6 +119,7 @@ class WatlowF4:
             raise ValueError(f"timeout_s must be > 0, got {timeout_s!r}")
         self.address = address
         self.decimals = decimals
+        self.fahrenheit = False        # read from register 901 at connect (identify)
         self.check_model = check_model
         self.limit_input = limit_input
         self._limit_registers = None if limit_input is None else digital_input_registers(limit_input)
@@ -149,18 +157,35 @@ class WatlowF4:
             )
         alarms = (f"limit controller on digital input {self.limit_input}" if self.limit_input
                   else "alarms NOT monitored (no chamber.limit_input in the station)")
+        self._read_units()
+        units = "°F (converted to °C)" if self.fahrenheit else "°C"
         description = (f"Watlow {model} (model register {words[0]}), serial {words[1]}-{words[2]}, "
+                       f"units {units} (register 901), {self.decimals} decimal(s) (register 606), "
                        f"{alarms}")
         return Identity(role="chamber", driver=self.DRIVER, address=self.address, description=description)
 
+    def _read_units(self) -> None:
+        """Units (901) and input 1 decimals (606), as the controller is set up."""
+        decimals = int(self._link.read(F4_REGISTERS["input1_decimals"]))
+        if not 0 <= decimals <= 3:
+            raise InstrumentProtocolError(
+                self.name, "read holding register 606 (input 1 decimal places)",
+                f"reads {decimals}; expected 0..3", reply=str(decimals))
+        self.decimals = decimals
+        self.fahrenheit = int(self._link.read(F4_REGISTERS["temperature_units"])) == 0
+
+    def _to_c(self, value: float) -> float:
+        return (value - 32.0) / 1.8 if self.fahrenheit else value
+
     def read_temperature_c(self) -> float:
-        return float(self._link.read(F4_REGISTERS["process_value"], self.decimals))
+        return self._to_c(float(self._link.read(F4_REGISTERS["process_value"], self.decimals)))
 
     def read_setpoint_c(self) -> float:
-        return float(self._link.read(F4_REGISTERS["setpoint"], self.decimals))
+        return self._to_c(float(self._link.read(F4_REGISTERS["setpoint"], self.decimals)))
 
     def set_setpoint_c(self, setpoint_c: float) -> None:
-        self._link.write(F4_REGISTERS["setpoint"], setpoint_c, self.decimals)
+        value = setpoint_c * 1.8 + 32.0 if self.fahrenheit else setpoint_c
+        self._link.write(F4_REGISTERS["setpoint"], value, self.decimals)
 
     def read_status(self) -> ChamberStatus:
         state = int(self._link.read(F4_REGISTERS["profile_state"]))

@@ -330,6 +330,10 @@ class SimulatedWatlowF4(_SimulatedModbusChamber):
             return self.physics.temperature_c()
         if name == "setpoint":
             return self.physics.setpoint_c
+        if name == "input1_decimals":
+            return self.decimals
+        if name == "temperature_units":
+            return 1                  # °C (nonzero); the F4's factory default is not documented here
         if name == "profile_state":
             return 2 if self.faults.params("profile_running") is not None else 0
         if name == "di1_state":       # the limit controller's contact: at its level unless tripped

@@ -128,7 +128,8 @@ def test_f4t_driver_reads_units_temperatures_alarms_and_writes_in_fahrenheit(f4t
 
 @pytest.fixture
 def f4_peer() -> Iterator[StockServer]:
-    registers = {0: 5270, 1: 12, 2: 3456, 100: 231, 300: 600, 200: 1, 201: 1, 1061: 1}
+    registers = {0: 5270, 1: 12, 2: 3456, 100: 231, 300: 600, 200: 1, 201: 1, 1061: 1,
+                 606: 1, 901: 1}                                    # tenths, °C
     with StockServer(registers, FramerType.RTU) as server:
         yield server
 

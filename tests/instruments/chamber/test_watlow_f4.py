@@ -70,12 +70,31 @@ def test_register_200_is_the_run_state_never_an_alarm(scripted_peer):
 
 
 def test_identify_bytes(scripted_peer):
-    peer = scripted_peer([("01 03 00 00 00 03 05 CB", "01 03 06 14 96 00 0C 0D 80 AF 4F")])
+    """Connect reads the model/serial (0-2), then input 1 decimals (606 = 1) and the
+    temperature units (901 = 1, °C), as Espec's watlowf4.py reads them."""
+    peer = scripted_peer([("01 03 00 00 00 03 05 CB", "01 03 06 14 96 00 0C 0D 80 AF 4F"),
+                          ("01 03 02 5E 00 01 E4 60", "01 03 02 00 01 79 84"),
+                          ("01 03 03 85 00 01 95 A7", "01 03 02 00 01 79 84")])
     with f4_on(peer) as f4:
         identity = f4.identify()
     assert identity.driver == "watlow_f4"
-    assert identity.description == ("Watlow F4 (model register 5270), serial 12-3456, alarms NOT "
-                                    "monitored (no chamber.limit_input in the station)")
+    assert identity.description == (
+        "Watlow F4 (model register 5270), serial 12-3456, units °C (register 901), 1 decimal(s) "
+        "(register 606), alarms NOT monitored (no chamber.limit_input in the station)")
+
+
+def test_a_fahrenheit_f4_with_whole_degrees_is_converted(scripted_peer):
+    """901 = 0 (°F) and 606 = 0 decimals: register 100 = 77 reads as 25 °C; 25 °C goes out as 77."""
+    peer = scripted_peer([("01 03 00 00 00 03 05 CB", "01 03 06 14 96 00 0C 0D 80 AF 4F"),
+                          ("01 03 02 5E 00 01 E4 60", "01 03 02 00 00 B8 44"),
+                          ("01 03 03 85 00 01 95 A7", "01 03 02 00 00 B8 44"),
+                          ("01 03 00 64 00 01 C5 D5", "01 03 02 00 4D 78 71"),
+                          ("01 06 01 2C 00 4D 89 CA", "01 06 01 2C 00 4D 89 CA")])
+    with f4_on(peer) as f4:
+        assert "°F" in f4.identify().description
+        assert f4.read_temperature_c() == pytest.approx(25.0)
+        f4.set_setpoint_c(25.0)
+    assert peer.error is None and len(peer.received) == 5
 
 
 def test_modbus_exception_bytes_are_shown_in_the_error(scripted_peer):
