@@ -79,7 +79,8 @@ def open_instruments(station, clock: Clock, addresses=None,
             raise ValueError(f"unknown chamber driver {c.driver!r}")
         opened.append(chamber)
         table = Acutrol3000Table(table_addr, axis=t.axis, timeout_s=t.timeout_s,
-                                 retry=RetryPolicy(attempts=t.retries), on_retry=hook("table"))
+                                 retry=RetryPolicy(attempts=t.retries), on_retry=hook("table"),
+                                 dialect=t.dialect)
         opened.append(table)
         fs_hz = float(sample_rate_hz or g.sample_rate_hz)
         gyro = Stim300Gyro(gyro_port, baudrate=g.baudrate, sample_rate_hz=fs_hz,

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gyrocal.inputs import load_yaml
+from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
 from gyrocal.orchestrator.notify import NotifyTarget, parse_notify
 from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
 from gyrocal.orchestrator.schema import (
@@ -131,6 +132,8 @@ class TableConfig:
     limits: TableLimits
     timeout_s: float
     retries: int
+    #: how the controller answers (instruments/table/acutrol_protocol.py DIALECTS)
+    dialect: str = DEFAULT_DIALECT
 
 
 @dataclass(frozen=True)
@@ -343,6 +346,8 @@ def _table(ctx: Context, parent: Fields) -> TableConfig:
     driver = fields.take("driver", choice(TABLE_DRIVERS))
     address = fields.take("address", _address(driver))
     axis = fields.take("axis", integer(1, 8), required=False, default=1)
+    dialect = fields.take("dialect", choice(tuple(DIALECTS)), required=False,
+                          default=DEFAULT_DIALECT)
     identity = _identity(ctx, fields)
     lim = _section(ctx, fields, "limits")
     limits = TableLimits(
@@ -352,7 +357,7 @@ def _table(ctx: Context, parent: Fields) -> TableConfig:
     lim.finish()
     timeout_s, retries = _common_link(fields)
     fields.finish()
-    return TableConfig(driver, address, axis, identity, limits, timeout_s, retries)
+    return TableConfig(driver, address, axis, identity, limits, timeout_s, retries, dialect)
 
 
 def _gyro(ctx: Context, parent: Fields) -> GyroConfig:

@@ -127,7 +127,8 @@ class SimulatedStation:
         chamber_cls = SimulatedWatlowF4T if station.chamber.driver == "watlow_f4t" else SimulatedWatlowF4
         self.chamber_server = chamber_cls(self.chamber_physics, self.chamber_faults,
                                           unit_id=station.chamber.unit_id)
-        self.table_server = SimulatedAcutrol(self.table_physics, self.table_faults)
+        self.table_server = SimulatedAcutrol(self.table_physics, self.table_faults,
+                                             dialect=station.table.dialect)
         self.source: GyroPhysicsSource | ImuPhysicsSource
         if isinstance(self.model, ImuModel):
             self.fixture = SimulatedFixture(self.fixture_faults)

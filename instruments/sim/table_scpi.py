@@ -23,6 +23,15 @@ single-letter ACUTROL form, e.g. ``:DEMAND:RATE``, ``:DEM:RAT``, ``:D:R``)::
     :LIMIT:ACC RATE, <axis>, <deg/s^2>   acceleration limit of rate mode
     :LIMIT:ACC? RATE, <axis>
     :SYSTEM:ERROR?                 oldest queued error: <code>,"<message>" (0,"No error")
+    :INTERLOCK:RESET <axis>        clear latched interlock faults
+    :UTILITY:LOCKOUT ON|OFF        remote lockout of the front panel
+
+Two reply dialects (``acutrol_protocol.Dialect``): SCPI error queue (above:
+settings silent, queries joined with ``;``) and the acknowledged one of the
+public script for a real ACUTROL (every line answered: ``OK``, the value, or
+``ERROR <code>,"<message>"``, after an 8-character prefix) — see
+:meth:`AcutrolInterpreter.execute_acknowledged`. An unknown command is never
+met with silence in the acknowledged dialect.
 
 Several commands may share one line separated by ``;``; the replies of the
 queries among them are joined with ``;`` in order. A query that fails queues
@@ -72,6 +81,7 @@ _ROOT_NODES = {
     "INTERLOCK": ("I", "INT", "INTERLOCK"),
     "LIMIT": ("L", "LIM", "LIMIT"),
     "SYSTEM": ("SYST", "SYSTEM"),
+    "UTILITY": ("U", "UTIL", "UTILITY"),
 }
 _LEAF_NODES = {
     "RATE": ("R", "RAT", "RATE"),
@@ -81,6 +91,8 @@ _LEAF_NODES = {
     "OPEN": ("OPEN",),
     "ACCELERATION": ("A", "ACC", "ACCELERATION"),
     "ERROR": ("ERR", "ERROR"),
+    "RESET": ("RES", "RESET"),
+    "LOCKOUT": ("LOCK", "LOCKOUT"),
 }
 _ROOT_ALIASES = {alias: name for name, aliases in _ROOT_NODES.items() for alias in aliases}
 _LEAF_ALIASES = {alias: name for name, aliases in _LEAF_NODES.items() for alias in aliases}
@@ -170,7 +182,10 @@ class AcutrolInterpreter:
             (("LIMIT", "ACCELERATION"), False): self._limit_acc,
             (("LIMIT", "ACCELERATION"), True): self._limit_acc_query,
             (("SYSTEM", "ERROR"), True): self._pop_error,
+            (("INTERLOCK", "RESET"), False): self._interlock_reset,
+            (("UTILITY", "LOCKOUT"), False): self._lockout,
         }
+        self.remote_lockout = False
 
     # ----- error queue --------------------------------------------------------------------
 
@@ -198,6 +213,17 @@ class AcutrolInterpreter:
         except CommandFailed as exc:
             self.push_error(exc.error, exc.detail)
             return None
+
+    def execute_acknowledged(self, command: ScpiCommand) -> str:
+        """The acknowledged dialect: every command answered — OK, its value, or ERROR."""
+        handler = self._handlers.get((command.path, command.query)) if command.path else None
+        if handler is None:
+            return f"ERROR {format_error(ERR_UNDEFINED_HEADER, command.text)}"
+        try:
+            reply = handler(command)
+        except CommandFailed as exc:
+            return f"ERROR {format_error(exc.error, exc.detail)}"
+        return "OK" if reply is None else reply
 
     def execute_line(self, commands: list[ScpiCommand]) -> str | None:
         """Run the commands of one line; the joined query replies, or None if there are none."""
@@ -301,6 +327,15 @@ class AcutrolInterpreter:
     def _interlock_open(self, command: ScpiCommand) -> None:
         self._axis(*self._arity(command, 1), command)
         self.physics.open_interlock()
+
+    def _interlock_reset(self, command: ScpiCommand) -> None:
+        self._axis(*self._arity(command, 1), command)   # clears latched faults: nothing latched here
+
+    def _lockout(self, command: ScpiCommand) -> None:
+        (state,) = self._arity(command, 1)
+        if state.upper() not in ("ON", "OFF"):
+            raise CommandFailed(ERR_ILLEGAL_VALUE, f"lockout {state!r}")
+        self.remote_lockout = state.upper() == "ON"
 
     def _limit_mode(self, text: str) -> None:
         if text.upper() not in ("RATE", "RAT", "R"):

@@ -33,9 +33,12 @@ import threading
 from gyrocal.instruments.sim.faults import FaultInjector
 from gyrocal.instruments.sim.table_scpi import (
     ERR_EXECUTION,
+    ERR_PARAM_NOT_ALLOWED,
     AcutrolInterpreter,
+    format_error,
     parse_line,
 )
+from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
 from gyrocal.models.table import TablePhysics
 
 FAULTS = (
@@ -105,7 +108,10 @@ class SimulatedAcutrol:
         host: str = "127.0.0.1",
         port: int = 0,
         idn: str = DEFAULT_IDN,
+        dialect: str = DEFAULT_DIALECT,
     ) -> None:
+        self.dialect = DIALECTS[dialect]
+        self._replies = 0
         self.physics = physics
         self.faults = faults if faults is not None else FaultInjector(FAULTS, owner="simulated table")
         unknown = set(self.faults.known) - set(FAULTS)
@@ -202,6 +208,9 @@ class SimulatedAcutrol:
             if self.faults.take("drop_connection") is not None:
                 _reset(sock)
                 return False
+            if self.dialect.acknowledged:
+                reply = self._acknowledged(line)
+                return self._send(sock, reply)
             commands = parse_line(line)
             if any(c.is_setting for c in commands):
                 refusal = self.faults.take("error_reply")
@@ -214,6 +223,25 @@ class SimulatedAcutrol:
             reply = self.interpreter.execute_line(commands)
         if reply is None:
             return True
+        return self._send(sock, reply)
+
+    def _acknowledged(self, line: str) -> str:
+        """One reply for one line: the prefix, then OK / the value / ERROR (faults applied)."""
+        commands = parse_line(line)
+        if len(commands) != 1:
+            reply = f"ERROR {format_error(ERR_PARAM_NOT_ALLOWED, 'one command per line')}"
+        elif commands[0].is_setting and (refusal := self.faults.take("error_reply")) is not None:
+            code = int(refusal.get("code", ERR_EXECUTION[0]))
+            message = str(refusal.get("message", ERR_EXECUTION[1]))
+            reply = f"ERROR {format_error((code, message), 'simulated fault')}"
+        else:
+            reply = self.interpreter.execute_acknowledged(commands[0])
+        self._replies += 1
+        # Only the prefix's length is known (the public script drops 8 characters);
+        # a reply counter fills it here.
+        return f"{self._replies % 10**7:07d} {reply}"
+
+    def _send(self, sock: socket.socket, reply: str) -> bool:
         if self.faults.take("no_reply") is not None:
             return True
         late = self.faults.take("late_reply")
@@ -222,7 +250,7 @@ class SimulatedAcutrol:
         if self.faults.take("garbled_reply") is not None:
             reply = garble(reply)
         try:
-            sock.sendall((reply + "\n").encode("latin-1"))
+            sock.sendall((reply + self.dialect.terminator).encode("latin-1"))
         except OSError:
             return False
         return True

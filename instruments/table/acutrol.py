@@ -3,8 +3,13 @@
 The orchestrator leaves a table spinning unattended overnight, so the driver
 must never be left in doubt about what the table did:
 
-- every setting goes out on the same line as ``:syst:err?`` and the answer is
-  checked, so a refused demand is an error at once, at one round trip;
+- the reply dialect is declared (``acutrol_protocol.Dialect``): by default the
+  one of the public script that drives a real ACUTROL (every line answered,
+  ``OK`` for a setting, an 8-character prefix before each reply, CR LF, remote
+  lockout and an interlock open/reset/close at session start); the SCPI
+  error-queue form (settings silent, ``:syst:err?`` on the same line) is the
+  named alternative ``scpi-error-queue``. Either way a refused setting is an
+  error at once, at one round trip;
 - after any transport fault (timeout, reset, garbled reply) the session is
   discarded and the next attempt opens a fresh one, because a reply arriving
   late on the old socket would otherwise be read as the answer to the *next*
@@ -44,7 +49,6 @@ from gyrocal.instruments.table import acutrol_protocol as proto
 T = TypeVar("T")
 
 DRIVER_NAME = "acutrol3000"
-TERMINATION = "\n"
 
 
 class Acutrol3000Table:
@@ -58,7 +62,11 @@ class Acutrol3000Table:
         retry: RetryPolicy | None = None,
         name: str = "table",
         on_retry: Callable[[int, InstrumentError], None] | None = None,
+        dialect: str = proto.DEFAULT_DIALECT,
     ) -> None:
+        if dialect not in proto.DIALECTS:
+            raise ValueError(f"{name}: dialect must be one of {sorted(proto.DIALECTS)}, got {dialect!r}")
+        self.dialect = proto.DIALECTS[dialect]
         if not (math.isfinite(timeout_s) and timeout_s > 0):
             raise ValueError(f"{name}: timeout_s must be a finite number > 0, got {timeout_s!r}")
         if int(axis) != axis or axis < 1:
@@ -71,6 +79,7 @@ class Acutrol3000Table:
         self.name = name
         self.on_retry = on_retry
         self._session: Any = None
+        self._started = False          # the dialect's start-up list has run once
         self._lock = threading.RLock()
         self._closed = False
 
@@ -99,12 +108,15 @@ class Acutrol3000Table:
         self._setting(proto.DEMAND_RATE, rate_dps=self._finite(rate_dps, "rate"))
 
     def read_rate_dps(self) -> float:
-        return self._query(proto.READ_RATE)
+        return self._query(self.dialect.read_rate)
 
     def read_position_deg(self) -> float:
-        return self._query(proto.READ_POSITION)
+        return self._query(self.dialect.read_position)
 
     def read_status(self) -> TableStatus:
+        if self.dialect.acknowledged:        # one reply per line: three questions
+            return TableStatus(rate_dps=self.read_rate_dps(), position_deg=self.read_position_deg(),
+                               interlock_closed=self.interlock_closed())
         rate_dps, position_deg, closed = self._query(proto.STATUS_QUERY)
         return TableStatus(rate_dps=rate_dps, position_deg=position_deg, interlock_closed=closed)
 
@@ -137,12 +149,36 @@ class Acutrol3000Table:
     def _query(self, command: proto.Command) -> Any:
         text = command.text(axis=self.axis)
         return self._with_retry(
-            text, lambda: self._parse(command.parse, text, self._exchange(text))
+            text, lambda: self._parse(command.parse, text, self._answer(text))
         )
 
+    def _answer(self, text: str) -> str:
+        """The reply's value: the dialect's prefix removed; an ERROR reply refused."""
+        reply = self._exchange(text)
+        if not self.dialect.acknowledged:
+            return reply
+        value = self._parse(lambda r: proto.strip_prefix(r, self.dialect), text, reply)
+        if value.upper().startswith("ERROR"):
+            self._refused(text, value)
+        return value
+
+    def _refused(self, text: str, reply: str, also: str = "") -> None:
+        if "interlock" in reply.lower() or " 201" in f" {reply}":
+            raise InstrumentSafetyError(self.name, text, f"refused: interlock open{also}", reply=reply)
+        raise InstrumentProtocolError(self.name, text, f"refused by the table{also}", reply=reply)
+
     def _setting(self, command: proto.Command, **fields: Any) -> None:
-        """Send a setting with ``:syst:err?`` on the same line; raise if the table refused it."""
+        """Send a setting and raise if the table refused it (its dialect says how we know)."""
         text = command.text(axis=self.axis, **fields)
+        if self.dialect.acknowledged:
+            value = self._with_retry(text, lambda: self._answer(text))
+            if value.upper() != "OK":
+                self._refused(text, value)
+            return
+        self._setting_error_queue(text)
+
+    def _setting_error_queue(self, text: str) -> None:
+        """Send a setting with ``:syst:err?`` on the same line; raise if the table refused it."""
         line = f"{text};{proto.ERROR_QUERY.text()}"
         with self._lock:
             code, message = self._with_retry(
@@ -214,8 +250,8 @@ class Acutrol3000Table:
             session = manager.open_resource(
                 self.resource,
                 open_timeout=timeout_ms,
-                read_termination=TERMINATION,
-                write_termination=TERMINATION,
+                read_termination=self.dialect.terminator,
+                write_termination=self.dialect.terminator,
                 timeout=timeout_ms,
                 encoding="latin-1",
             )
@@ -232,14 +268,38 @@ class Acutrol3000Table:
                 self.name, line, f"cannot open {self.resource}: {exc}"
             ) from None
         try:
-            session.write(proto.CLEAR_STATUS.text())  # a new session starts with an empty queue
+            if self.dialect.acknowledged:
+                self._start_session(session)
+            else:
+                session.write(proto.CLEAR_STATUS.text())  # a new session starts with an empty queue
         except (VisaIOError, OSError) as exc:
             _close_quietly(session)
+            if (isinstance(exc, VisaIOError)
+                    and exc.error_code == visa_constants.StatusCode.error_timeout):
+                raise InstrumentTimeout(
+                    self.name, "session start", f"no reply within {self.timeout_s:g} s"
+                ) from None
             raise InstrumentConnectionError(
-                self.name, proto.CLEAR_STATUS.text(), f"cannot talk to {self.resource}: {exc}"
+                self.name, "session start", f"cannot talk to {self.resource}: {exc}"
             ) from None
         self._session = session
         return session
+
+    def _start_session(self, session: Any) -> None:
+        """The dialect's start-up list (once; a reconnect runs the shorter list), each ``OK``."""
+        commands = self.dialect.reconnect if self._started else self.dialect.startup
+        for command in commands:
+            text = command.text(axis=self.axis)
+            reply = session.query(text)
+            value = reply[self.dialect.reply_prefix:].strip()
+            if not (reply.isascii() and reply.isprintable()):
+                _close_quietly(session)         # garbage: resynchronise on a new socket
+                raise InstrumentProtocolError(self.name, text, "unreadable reply at session start",
+                                              reply=reply, transient=True)
+            if value.upper() != "OK":
+                _close_quietly(session)
+                self._refused(text, reply, " at session start")
+        self._started = True
 
     def _drop_session(self) -> None:
         session, self._session = self._session, None

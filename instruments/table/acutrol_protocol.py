@@ -126,6 +126,74 @@ INTERLOCK_QUERY = Command(":interlock? {axis}", parse_interlock_closed)
 INTERLOCK_CLOSE = Command(":interlock:close {axis}")
 
 #: Rate, position and interlock in one round trip.
+# ----- dialects -------------------------------------------------------------------------------
+
+LOCKOUT_ON = Command(":utility:lockout on")
+INTERLOCK_OPEN = Command(":interlock:open {axis}")
+INTERLOCK_RESET = Command(":interlock:reset {axis}")
+READ_RATE_PLAIN = Command(":read:rate {axis}", parse_float)
+READ_POSITION_PLAIN = Command(":read:position {axis}", parse_float)
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """How a controller answers: a declared, tested property of the driver.
+
+    ``acknowledged``: every command line gets exactly one reply, ``OK`` for an
+    accepted setting; ``reply_prefix`` characters precede every reply's value;
+    ``startup`` runs when a session opens. Without acknowledgement (the SCPI
+    error-queue form) settings are silent and ``:syst:err?`` on the same line
+    says whether they were accepted.
+    """
+
+    name: str
+    acknowledged: bool
+    reply_prefix: int
+    terminator: str
+    startup: tuple[Command, ...]       # the first session of a driver
+    reconnect: tuple[Command, ...]     # a session reopened after a transport fault
+    read_rate: Command
+    read_position: Command
+    source: str
+
+
+#: The one public script that drives a real ACUTROL over raw TCP (a ROS node for an
+#: AC117 table, ``acutrol.py`` with ``ac117.json``): CR LF, every reply read as
+#: ``recv(1024)[8:]`` (an 8-character prefix), settings checked against their expected
+#: answer (``OK`` per issue 8), ``:read:rate 1`` / ``:read:position 1`` without ``?``,
+#: and a start-up list (remote lockout, interlock open/reset/close). The prefix's
+#: content is not known (only its length); the interlock open/reset spelling is
+#: unconfirmed.
+ACUTROL_TCP_SCRIPT = Dialect(
+    "acutrol-tcp-script", acknowledged=True, reply_prefix=8, terminator="\r\n",
+    startup=(LOCKOUT_ON, INTERLOCK_OPEN, INTERLOCK_RESET, INTERLOCK_CLOSE),
+    # never the interlock again after a reconnect: opening it would stop a table mid-dwell
+    reconnect=(LOCKOUT_ON,),
+    read_rate=READ_RATE_PLAIN, read_position=READ_POSITION_PLAIN,
+    source="public ROS script for an AC117 on an ACUTROL (raw TCP)")
+
+#: The SCPI-standard form the project used first: silent settings, ``:syst:err?``
+#: polling, ``?`` queries, LF. Kept as a named alternative for controllers set up
+#: for SCPI error-queue reporting (no ACUTROL document confirms it).
+SCPI_ERROR_QUEUE = Dialect(
+    "scpi-error-queue", acknowledged=False, reply_prefix=0, terminator="\n", startup=(),
+    reconnect=(),
+    read_rate=READ_RATE, read_position=READ_POSITION,
+    source="SCPI-1999 error queue (unconfirmed for ACUTROL)")
+
+DIALECTS = {d.name: d for d in (ACUTROL_TCP_SCRIPT, SCPI_ERROR_QUEUE)}
+DEFAULT_DIALECT = ACUTROL_TCP_SCRIPT.name
+
+
+def strip_prefix(reply: str, dialect: Dialect) -> str:
+    """The value after the prefix; a reply with non-printable bytes anywhere is corrupt."""
+    if not (reply.isascii() and reply.isprintable()):
+        raise ReplyFormatError("not printable ASCII")
+    if len(reply) < dialect.reply_prefix:
+        raise ReplyFormatError(f"shorter than the dialect's {dialect.reply_prefix}-character prefix")
+    return reply[dialect.reply_prefix:].strip()
+
+
 STATUS_QUERY = Command(
     ";".join((READ_RATE.template, READ_POSITION.template, INTERLOCK_QUERY.template)),
     parse_status,

@@ -60,7 +60,9 @@ def physics(clock):
 
 @pytest.fixture
 def sim(physics):
-    with SimulatedAcutrol(physics, idn="ACUTRONIC,ACUTROL3000-SIM,T42,2.1") as server:
+    # the SCPI error-queue dialect's wire behaviour; the acknowledged one is below
+    with SimulatedAcutrol(physics, idn="ACUTRONIC,ACUTROL3000-SIM,T42,2.1",
+                          dialect="scpi-error-queue") as server:
         yield server
 
 

@@ -39,7 +39,9 @@ def physics(clock):
 
 @pytest.fixture
 def sim(physics):
-    with SimulatedAcutrol(physics, idn=IDN) as server:
+    """The SCPI error-queue dialect (named alternative); the default dialect of the public
+    script is tested in test_acutrol_script_dialect.py."""
+    with SimulatedAcutrol(physics, idn=IDN, dialect="scpi-error-queue") as server:
         yield server
 
 
@@ -56,6 +58,7 @@ def table(sim, retries):
         timeout_s=0.3,
         retry=RetryPolicy(attempts=3, backoff_s=0.01),
         on_retry=lambda attempt, exc: retries.append(exc),
+        dialect=sim.dialect.name,
     )
     yield driver
     driver.close()
