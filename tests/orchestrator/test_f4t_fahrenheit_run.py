@@ -9,6 +9,7 @@ units at connect and converts. Before issue 8 the run would have commanded
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +22,6 @@ def test_a_run_on_a_fahrenheit_f4t_holds_its_celsius_setpoints(h: Any, tmp_path:
     station = tmp_path / "station.yaml"
     text = station.read_text()
     assert "driver: watlow_f4  " in text or "driver: watlow_f4\n" in text
-    import re
     text = re.sub(r"\n  limit_input: .*", "", text)           # an F4 setting: not for an F4T
     station.write_text(text.replace("driver: watlow_f4 ", "driver: watlow_f4t ", 1))
     out = tmp_path / "run"
