@@ -40,8 +40,9 @@ from gyrocal.models.rate_units import output_to_dph
 from gyrocal.orchestrator.record.atomic import write_bytes_atomic
 from gyrocal.orchestrator.record.journal import Journal, JournalEvent, sha256_bytes
 from gyrocal.orchestrator.record.logged_steps import HOLD_KINDS, completed_attempts, longest_hold
-from gyrocal.orchestrator.record.plan_record import PLAN_RECORD
+from gyrocal.orchestrator.record.plan_record import PLAN_RECORD, PlanRecord, RecordedStep
 from gyrocal.orchestrator.record.run_folder import RunFolder, RunFolderError
+from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.signing import Signer
 from gyrocal.reports import bias as bias_mod
 from gyrocal.reports import compensation as comp
@@ -65,7 +66,7 @@ _JOURNAL_SHOWN = ("retry", "fault", "step_bad", "interrupted", "safe_state", "re
 class StepSummary:
     """One logged step reduced: mean output over the samples used, measured temperatures."""
 
-    step: dict[str, Any]
+    step: RecordedStep
     output_mean: float
     output_std: float
     n_used: int
@@ -81,6 +82,7 @@ class RunData:
     manifest: dict[str, Any]
     plan: dict[str, Any]
     events: list[dict[str, Any]]
+    record: PlanRecord            # plan.json, typed (the steps, rate, mountings, site)
     steps: list[StepSummary] = field(default_factory=list)
     allan_step: StepSummary | None = None
     allan_output: np.ndarray | None = None
@@ -121,16 +123,15 @@ def _read_columns(folder: RunFolder, chunks: list[str]) -> dict[str, np.ndarray]
     return columns
 
 
-def _unit_under_test_mountings(plan: dict[str, Any]) -> set[str]:
+def _unit_under_test_mountings(record: PlanRecord) -> set[str]:
     """The mountings whose up axis is the station's unit-under-test axis, + sign.
 
     In a multi-axis IMU run the single-axis sections (scale factor, bias,
     Allan…) are those of that axis, from the mounting that puts it up; the
     three-axis matrix is the ``imu`` section.
     """
-    axis = "xyz".index(str(plan.get("unit_under_test_axis") or "x"))
-    return {m["name"] for m in plan.get("mountings") or []
-            if int(m["up_axis"]) == axis and float(m["sign"]) > 0}
+    axis = "xyz".index(record.unit_under_test_axis)
+    return {m.name for m in record.mountings if m.up_axis == axis and m.sign > 0}
 
 
 def _mean_or_none(values: np.ndarray) -> float | None:
@@ -140,8 +141,8 @@ def _mean_or_none(values: np.ndarray) -> float | None:
 
 def _whole_revolutions(step: dict[str, Any]) -> int | None:
     """Revolutions to keep when the procedure asked for whole turns (min_revolutions)."""
-    turns = step.get("revolutions")
-    if step.get("kind") != "dwell" or turns is None or not float(turns).is_integer():
+    turns = step.revolutions
+    if step.kind != StepKind.DWELL or turns is None or not float(turns).is_integer():
         return None
     return int(turns) if turns >= 1 else None
 
@@ -152,12 +153,12 @@ def _reduce_dwell(output: np.ndarray, step: dict[str, Any], fs_hz: float,
     if turns is not None:
         for wanted in (turns, "all"):
             try:
-                stats = dwell_mean(output, fs_hz, 0.0, step["rate_dps"], revolutions=wanted)
+                stats = dwell_mean(output, fs_hz, 0.0, step.rate_dps, revolutions=wanted)
             except ValueError:
                 continue
-            kept = stats.n_samples * abs(step["rate_dps"]) / fs_hz / 360.0
+            kept = stats.n_samples * abs(step.rate_dps) / fs_hz / 360.0
             return stats.mean, stats.std, stats.n_samples, round(kept, 6)
-        notes.append(f"step {step['step_id']}: fewer samples than one whole revolution; "
+        notes.append(f"step {step.step_id}: fewer samples than one whole revolution; "
                      "the mean uses every logged sample")
     stats = dwell_mean(output, fs_hz, 0.0)
     return stats.mean, stats.std, stats.n_samples, None
@@ -166,25 +167,30 @@ def _reduce_dwell(output: np.ndarray, step: dict[str, Any], fs_hz: float,
 def read_run(run_dir: Path, notes: list[str]) -> RunData:
     """Read and reduce every completed logged step; keep the longest hold's samples."""
     folder = RunFolder.open(Path(run_dir))
-    data = RunData(folder, folder.read_manifest(), _read_plan(folder), folder.journal_events())
-    fs_hz = float(data.plan["sample_rate_hz"])
-    plan_steps = {s["step_id"]: s for s in data.plan.get("steps", [])}
+    plan = _read_plan(folder)
+    try:
+        record = PlanRecord.of(plan)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise RunFolderError(f"{folder.path / PLAN_RECORD}: malformed plan record: {exc!r}") from None
+    data = RunData(folder, folder.read_manifest(), plan, folder.journal_events(), record)
+    fs_hz = data.record.sample_rate_hz
+    plan_steps = {s.step_id: s for s in data.record.steps}
     done = completed_attempts(data.events)
     hold = longest_hold(data.plan.get("steps", []), data.events)
     longest = None if hold is None else hold["step_id"]
-    own = _unit_under_test_mountings(data.plan)
+    own = _unit_under_test_mountings(data.record)
     for step_id, event in done.items():
         step = plan_steps.get(step_id)
         if step is None:
             notes.append(f"step {step_id}: logged but not in plan.json; ignored")
             continue
-        if step.get("mounting") is not None and step["mounting"] not in own:
+        if step.mounting is not None and step.mounting not in own:
             continue    # another IMU axis up: only the ``imu`` section uses it
         columns = _read_columns(folder, event["chunks"])
         output = columns["gyro"]
         if output.size == 0:
             continue
-        if step["kind"] == "dwell":
+        if step.kind == StepKind.DWELL:
             mean, std, used, turns = _reduce_dwell(output, step, fs_hz, notes)
         else:
             stats = dwell_mean(output, fs_hz, 0.0)
@@ -211,12 +217,12 @@ def _scale_factor(data: RunData, notes: list[str]) -> list[tuple[ScaleFactorResu
     """SF per setpoint temperature, each with its JSON entry (extra keys kept)."""
     groups: dict[float, list[StepSummary]] = defaultdict(list)
     for s in data.steps:
-        if s.step["kind"] == "dwell":
-            groups[float(s.step["setpoint_c"])].append(s)
+        if s.step.kind == StepKind.DWELL:
+            groups[s.step.setpoint_c].append(s)
     out = []
     for temp in sorted(groups):
         members = groups[temp]
-        dwells = [Dwell(temp, float(s.step["rate_dps"]), s.output_mean, s.output_std, s.n_used)
+        dwells = [Dwell(temp, s.step.rate_dps, s.output_mean, s.output_std, s.n_used)
                   for s in members]
         try:
             result = analyze_scale_factor(dwells)
@@ -257,8 +263,8 @@ def _bias(data: RunData, sf_results: list[ScaleFactorResult], nominal_sf: float,
     sf_at = {r.temp_c: r for r in sf_results}
     holds: dict[float, list[StepSummary]] = defaultdict(list)
     for s in data.steps:
-        if s.step["kind"] in HOLD_KINDS:
-            holds[float(s.step["setpoint_c"])].append(s)
+        if s.step.kind in HOLD_KINDS:
+            holds[s.step.setpoint_c].append(s)
     points = []
     for temp in sorted(set(holds) | set(sf_at)):
         sf_result = sf_at.get(temp)
@@ -303,20 +309,20 @@ def _allan(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any]
     if data.allan_step is None or data.allan_output is None:
         notes.append("allan: no static or allan hold was logged")
         return None
-    fs_hz = float(data.plan["sample_rate_hz"])
+    fs_hz = data.record.sample_rate_hz
     rate_dph = output_to_dph(data.allan_output, nominal_sf)
     step = data.allan_step.step
     try:
         curve = allan_curve(rate_dph, fs_hz)
         fit = fit_curve(curve)
     except ValueError as exc:
-        notes.append(f"allan: step {step['step_id']} ({rate_dph.size} samples) gives no usable "
+        notes.append(f"allan: step {step.step_id} ({rate_dph.size} samples) gives no usable "
                      f"curve/fit: {exc}")
         return None
     return curve_json(curve, fit) | {
         "fit_uncertainty": fit_uncertainty_json(fit),
         "model_adev_dph": fit.model_adev(curve.tau_s).tolist(),
-        "step_id": step["step_id"], "temp_c": float(step["setpoint_c"]),
+        "step_id": step.step_id, "temp_c": step.setpoint_c,
         "duration_s": rate_dph.size / fs_hz, "n_samples": int(rate_dph.size),
         "rate_hz": fs_hz, "method": curve.method,
     }
@@ -482,8 +488,8 @@ def _provenance(data: RunData, notes: list[str]) -> dict[str, Any]:
                           "sha256": e.get("sha256")}
                    for role, e in (manifest.get("inputs") or {}).items()},
         "journal": _journal_summary(data.events),
-        "steps": [{"step_id": s.step["step_id"], "kind": s.step["kind"],
-                   "setpoint_c": s.step["setpoint_c"], "rate_dps": s.step["rate_dps"],
+        "steps": [{"step_id": s.step.step_id, "kind": s.step.kind.value,
+                   "setpoint_c": s.step.setpoint_c, "rate_dps": s.step.rate_dps,
                    "output_mean": s.output_mean, "n_used": s.n_used, "n_logged": s.n_logged,
                    "revolutions_used": s.trimmed_to_revolutions,
                    "sensor_temp_c": s.sensor_temp_c} for s in data.steps],
