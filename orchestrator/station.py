@@ -69,6 +69,13 @@ _ADDRESS_FORMS = {
 class Site:
     name: str
     latitude_deg: float   # sets the Earth-rate component the analysis removes
+    address: str | None = None   # the lab's address, printed on the calibration certificate
+
+
+#: ``uncertainty`` section keys: ± half-widths (rectangular) of the reference accuracies the
+#: GUM budget uses as type B inputs (reports/uncertainty.py states its defaults as assumed).
+UNCERTAINTY_KEYS = ("table_rate_accuracy_ppm", "chamber_temp_accuracy_c",
+                    "latitude_accuracy_deg", "axis_tilt_deg")
 
 
 @dataclass(frozen=True)
@@ -190,6 +197,8 @@ class Station:
     signing_key: Path | None = None
     #: who is told when the run finishes, faults, pauses or needs a person (notify.py)
     notify: tuple[NotifyTarget, ...] = ()
+    #: declared type B accuracies (UNCERTAINTY_KEYS); only the keys the file gives
+    uncertainty: dict[str, float] | None = None
 
     @property
     def simulated(self) -> bool:
@@ -235,6 +244,7 @@ def parse_station(
     signing_key = (base_dir / key_text) if key_text else None
     present, raw = fields.raw("notify")
     notify = parse_notify(ctx.report, fields.child("notify"), raw) if present else ()
+    uncertainty = _uncertainty(ctx, fields)
     fields.finish()
     if simulation is None and SIM_ADDRESS in (
         getattr(chamber, "address", None), getattr(table, "address", None),
@@ -242,12 +252,24 @@ def parse_station(
     ):
         ctx.report(where, "an instrument address is 'sim' but there is no simulation section")
     return Station(version, name, site, chamber, table, gyro, simulation, file, path, signing_key,
-                   notify)
+                   notify, uncertainty)
+
+
+def _uncertainty(ctx: Context, parent: Fields) -> dict[str, float] | None:
+    present, raw = parent.raw("uncertainty")
+    if not present:
+        return None
+    fields = Fields(ctx, parent.child("uncertainty"), raw, "uncertainty")
+    declared = {key: fields.take(key, number(0.0, None), required=False)
+                for key in UNCERTAINTY_KEYS}
+    fields.finish()
+    return {k: v for k, v in declared.items() if v is not None}
 
 
 def _site(ctx: Context, parent: Fields) -> Site:
     fields = _section(ctx, parent, "site")
-    site = Site(fields.take("name", text), fields.take("latitude_deg", number(-90.0, 90.0)))
+    site = Site(fields.take("name", text), fields.take("latitude_deg", number(-90.0, 90.0)),
+                fields.take("address", text, required=False))
     fields.finish()
     return site
 

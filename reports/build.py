@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import datetime as dt
 import hashlib
+import math
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,10 +49,13 @@ from gyrocal.reports import bias as bias_mod
 from gyrocal.reports import compensation as comp
 from gyrocal.reports.allan_summary import allan_curve, curve_json, fit_curve, fit_uncertainty_json
 from gyrocal.reports.dwell import Dwell, dwell_mean
+from gyrocal.reports.gum import batch_mean_sem
 from gyrocal.reports.imu.section import imu_section
 from gyrocal.reports.results import evaluate_acceptance, finite_or_none, results_bytes
 from gyrocal.reports.sanity import check_physics, verdict
 from gyrocal.reports.scale_factor import ScaleFactorResult, analyze_scale_factor
+from gyrocal.reports.uncertainty import MeanU
+from gyrocal.reports.uncertainty_section import StepMean, add_uncertainties
 
 REFERENCE_TEMP_C = 25.0
 REPORT_DIR = "report"
@@ -74,6 +78,9 @@ class StepSummary:
     sensor_temp_c: float | None
     chamber_temp_c: float | None
     trimmed_to_revolutions: float | None = None
+    #: type A standard uncertainty of ``output_mean`` (batch means) and its dof
+    output_sem: float = math.nan
+    sem_dof: float = math.nan
 
 
 @dataclass
@@ -164,6 +171,18 @@ def _reduce_dwell(output: np.ndarray, step: dict[str, Any], fs_hz: float,
     return stats.mean, stats.std, stats.n_samples, None
 
 
+def _mean_sem(kept: np.ndarray, step_id: str, notes: list[str]) -> tuple[float, float]:
+    """Type A u of a step mean: batch means (correlated noise), σ/√n only for tiny steps."""
+    try:
+        return batch_mean_sem(kept)
+    except ValueError:
+        notes.append(f"step {step_id}: {kept.size} samples, too few for batch means; its mean's "
+                     "uncertainty is σ/√n (white noise assumed)")
+        if kept.size < 2:
+            return math.nan, math.nan
+        return float(kept.std(ddof=1) / math.sqrt(kept.size)), float(kept.size - 1)
+
+
 def read_run(run_dir: Path, notes: list[str]) -> RunData:
     """Read and reduce every completed logged step; keep the longest hold's samples."""
     folder = RunFolder.open(Path(run_dir))
@@ -195,9 +214,10 @@ def read_run(run_dir: Path, notes: list[str]) -> RunData:
         else:
             stats = dwell_mean(output, fs_hz, 0.0)
             mean, std, used, turns = stats.mean, stats.std, stats.n_samples, None
+        sem, sem_dof = _mean_sem(output[:used], step_id, notes)
         summary = StepSummary(step, mean, std, used, int(output.size),
                               _mean_or_none(columns["sensor_temp_c"]),
-                              _mean_or_none(columns["chamber_temp_c"]), turns)
+                              _mean_or_none(columns["chamber_temp_c"]), turns, sem, sem_dof)
         data.steps.append(summary)
         if step_id == longest:
             data.allan_step, data.allan_output = summary, output
@@ -406,11 +426,19 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
         **_provenance(data, notes),
         "definitions": DEFINITIONS,
     }
+    add_uncertainties(results, [_mean_u(s) for s in data.steps], data.plan, REFERENCE_TEMP_C,
+                      notes)
     results["acceptance"] = evaluate_acceptance(results, data.plan.get("acceptance") or [], notes)
     sf_tolerance = (data.plan.get("sanity") or {}).get("sf_tolerance_pct")
     results["verdict"] = verdict(check_physics(results, sf_tolerance), results["acceptance"])
     results["notes"] = notes
     return results
+
+
+def _mean_u(s: StepSummary) -> StepMean:
+    return StepMean(s.step["kind"], MeanU(float(s.step["setpoint_c"]), float(s.step["rate_dps"]),
+                                          s.output_mean, s.output_sem, s.sem_dof,
+                                          str(s.step["step_id"])))
 
 
 #: How the single numbers of results.json are chosen when several temperatures exist.

@@ -51,6 +51,7 @@ def plan_record(procedure, plan) -> dict[str, Any]:
             "name": station.name,
             "file": station.file,
             "site": _plain(station.site),
+            "uncertainty": station.uncertainty,
             "instruments": {
                 "chamber": {"driver": station.chamber.driver, "address": station.chamber.address,
                             "identity": _plain(station.chamber.identity)},

@@ -91,6 +91,28 @@ def test_bias_has_the_station_earth_rate_removed(results):
         assert point["source"] == "static"
 
 
+def test_every_calibrated_quantity_carries_its_gum_uncertainty(results):
+    """u, U, k and a budget beside each value; the simulated truth inside ±U (issue 11)."""
+    for entry in results["scale_factor"] + results["bias"] + [results["scale_factor_ls"],
+                                                              results["bias_temperature"]]:
+        assert _is_number(entry["u"]) and entry["u"] > 0
+        assert entry["U"] == pytest.approx(entry["k"] * entry["u"])
+        assert 1.9 < entry["k"] < 13.0
+        kinds = {line["type"] for line in entry["budget"]}
+        assert "A" in kinds, entry["budget"]
+    for path in ("scale_factor_ls.sf", "nonlinearity.rms_pct", "nonlinearity.max_ppm_fs",
+                 "asymmetry_ppm", "sf_temperature.sensitivity_ppm_per_c",
+                 "bias_temperature.sensitivity_dph_per_c"):
+        assert results["uncertainty"][path]["value"] == pytest.approx(lookup_metric(results, path))
+        assert results["uncertainty"][path]["U"] > 0
+    # the table's rate accuracy from stations/sim.yaml (10 ppm rectangular) is a type B line
+    sf_lines = {line["name"]: line for line in results["scale_factor"][0]["budget"]}
+    assert sf_lines["table rate scale error"]["type"] == "B"
+    assert sf_lines["table rate scale error"]["u_input"] == pytest.approx(10e-6 / math.sqrt(3))
+    for entry in results["scale_factor"]:
+        assert abs(entry["sf"] - _truth_sf(entry["sensor_temp_c"])) <= entry["U"]
+
+
 def test_allan_recovers_the_angle_random_walk(results):
     # N = 0.01 deg/√h; 60 000 samples resolve it to ~2 %.
     assert results["allan"]["fit"]["N_deg_per_rth"] == pytest.approx(0.01, rel=0.1)

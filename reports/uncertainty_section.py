@@ -1,0 +1,135 @@
+"""Puts u, U, k, dof_eff and budget beside each calibrated value of results.json.
+
+New keys only (interfaces.md: keys stay, new ones may be added): every
+``scale_factor`` and ``bias`` entry, ``scale_factor_ls`` and
+``bias_temperature`` get ``u``/``U``/``k``/``dof_eff``/``budget`` beside their
+value, and ``uncertainty`` maps each dotted metric path (the names acceptance
+limits use, e.g. ``asymmetry_ppm`` or ``nonlinearity.rms_pct``) to its budget,
+which is where the decision rule (decision.py) finds U.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from dataclasses import dataclass
+from typing import Any
+
+from gyrocal.reports.gum import Contribution, EvalType, Uncertainty, combine
+from gyrocal.reports.uncertainty import (
+    MeanU,
+    TypeB,
+    bias_uncertainty_static,
+    bias_uncertainty_sweep,
+    sf_temperature_uncertainty,
+    slope_uncertainty,
+    sweep_uncertainty,
+)
+
+_HOLD_KINDS = ("static", "allan")
+
+
+@dataclass(frozen=True)
+class StepMean:
+    """A logged step's kind and its mean with type A uncertainty."""
+
+    kind: str
+    mean: MeanU
+
+
+def _pooled_hold(holds: list[MeanU]) -> MeanU:
+    """Equal-weight mean of several holds at one temperature, u and ν by WS."""
+    n = len(holds)
+    value = sum(h.mean for h in holds) / n
+    parts = [Contribution(h.step_id, "hold", EvalType.A, "normal", h.u, 1.0 / n, h.u / n, h.dof)
+             for h in holds]
+    pooled = combine(value, parts)
+    return MeanU(holds[0].temp_c, 0.0, value, pooled.u, pooled.dof_eff,
+                 "+".join(h.step_id for h in holds))
+
+
+def add_uncertainties(results: dict[str, Any], steps: list[StepMean], plan: dict[str, Any],
+                      reference_temp_c: float, notes: list[str]) -> None:
+    """Adds the keys above to ``results`` in place (figures already computed by build.py)."""
+    station = plan.get("station") or {}
+    type_b = TypeB.from_station(station.get("uncertainty"))
+    if type_b.assumed:
+        notes.append("uncertainty: the station does not declare " + ", ".join(type_b.assumed)
+                     + "; the defaults of reports/uncertainty.py are assumed (see "
+                       "uncertainty_inputs)")
+    usable = [s for s in steps if math.isfinite(s.mean.u) and math.isfinite(s.mean.dof)]
+    sweeps: dict[float, list[MeanU]] = defaultdict(list)
+    holds: dict[float, list[MeanU]] = defaultdict(list)
+    for s in usable:
+        if s.kind == "dwell":
+            sweeps[s.mean.temp_c].append(s.mean)
+        elif s.kind in _HOLD_KINDS:
+            holds[s.mean.temp_c].append(s.mean)
+    paths: dict[str, Uncertainty] = {}
+    per_temp: dict[float, dict[str, Uncertainty]] = {}
+    for entry in results.get("scale_factor") or []:
+        temp = float(entry["temp_c"])
+        per_temp[temp] = sweep_uncertainty(sweeps[temp], type_b)
+        entry.update(per_temp[temp]["sf"].to_json())
+        entry["uncertainty"] = {k: v.to_json() for k, v in per_temp[temp].items() if k != "sf"}
+    _sweep_paths(results, per_temp, paths)
+    if len(per_temp) >= 2 and results.get("sf_temperature"):
+        all_dwells = [m for t in sorted(per_temp) for m in sweeps[t]]
+        for key, unc in sf_temperature_uncertainty(all_dwells, type_b, reference_temp_c).items():
+            paths[f"sf_temperature.{key}"] = unc
+    latitude = (station.get("site") or {}).get("latitude_deg")
+    bias_u = _bias_entries(results, per_temp, sweeps, holds, latitude, type_b, notes)
+    paths.update({f"bias@{t:g}": u for t, u in bias_u.items()})
+    if len(bias_u) >= 2 and results.get("bias_temperature"):
+        temps = sorted(bias_u)
+        slope = slope_uncertainty(temps, [bias_u[t] for t in temps], type_b, "bias")
+        paths["bias_temperature.sensitivity_dph_per_c"] = slope
+        results["bias_temperature"].update(slope.to_json())
+    results["uncertainty"] = {path: {"value": u.value} | u.to_json() for path, u in paths.items()}
+    results["uncertainty_inputs"] = type_b.to_json()
+    notes.append("uncertainty: compensation-table entries carry the u of the per-temperature SF "
+                 "and bias they are built from; the table fits themselves have no budget")
+
+
+def _sweep_paths(results: dict[str, Any], per_temp: dict[float, dict[str, Uncertainty]],
+                 paths: dict[str, Uncertainty]) -> None:
+    """The single-number sweep figures: budgets of the temperature each was taken from."""
+    if not per_temp:
+        return
+    ls = results.get("scale_factor_ls")
+    if ls:
+        ref = per_temp[float(ls["temp_c"])]
+        paths["scale_factor_ls.sf"], paths["scale_factor_ls.bias"] = ref["sf"], ref["bias"]
+        ls.update(ref["sf"].to_json())
+    entries = results.get("scale_factor") or []
+    for path, key in (("nonlinearity.rms_pct", "rms_pct"),
+                      ("nonlinearity.max_ppm_fs", "max_ppm_fs")):
+        worst = max(entries, key=lambda e, key=key: e["nonlinearity"][key])
+        paths[path] = per_temp[float(worst["temp_c"])][f"nonlinearity_{key}"]
+    chosen = max(entries, key=lambda e: abs(e["asymmetry_ppm"]))
+    paths["asymmetry_ppm"] = per_temp[float(chosen["temp_c"])]["asymmetry_ppm"]
+
+
+def _bias_entries(results: dict[str, Any], per_temp: dict[float, dict[str, Uncertainty]],
+                  sweeps: dict[float, list[MeanU]], holds: dict[float, list[MeanU]],
+                  latitude: float | None, type_b: TypeB, notes: list[str]
+                  ) -> dict[float, Uncertainty]:
+    out = {}
+    for point in results.get("bias") or []:
+        temp = float(point["temp_c"])
+        if point.get("source") == "static" and holds.get(temp):
+            sf = per_temp.get(temp, {}).get("sf")
+            if sf is None:
+                nominal = float((results.get("unit_under_test") or {}).get(
+                    "nominal_scale_factor") or 1.0)
+                sf = Uncertainty(nominal, 0.0, math.inf, 1.96, ())
+                notes.append(f"uncertainty of bias at {temp:g} °C: the nominal scale factor's "
+                             "uncertainty is not known and is taken as 0")
+            unc = bias_uncertainty_static(_pooled_hold(holds[temp]), sf, latitude, type_b)
+        elif sweeps.get(temp):
+            unc = bias_uncertainty_sweep(sweeps[temp], latitude, type_b)
+        else:
+            continue
+        point.update(unc.to_json())
+        out[temp] = unc
+    return out

@@ -1,0 +1,129 @@
+"""GUM budgets checked against what our code did not produce.
+
+* regression standard errors against scipy.optimize.curve_fit with known
+  σ (absolute_sigma=True): the textbook (XᵀWX)⁻¹ covariance;
+* coverage factors against the published Student t table (GUM Table G.2);
+* Welch–Satterthwaite against GUM G.4.1's formula on a worked case;
+* the propagation against a Monte Carlo (JCGM 101) for SF and its tempco;
+* batch-means SEM against the analytic variance of the mean of AR(1) noise.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import curve_fit
+
+from gyrocal.reports import bias as bias_mod
+from gyrocal.reports.gum import (
+    batch_mean_sem,
+    coverage_factor,
+    monte_carlo,
+    welch_satterthwaite,
+)
+from gyrocal.reports.scale_factor import analyze_scale_factor
+from gyrocal.reports.uncertainty import (
+    MeanU,
+    TypeB,
+    mean_inputs,
+    perturbed_dwells,
+    rate_input,
+    sf_temperature_uncertainty,
+    sweep_uncertainty,
+    temp_input,
+)
+
+NO_TYPE_B = TypeB(0.0, 0.0, 0.0, 0.0)
+RATES = (-100.0, -30.0, -10.0, 10.0, 30.0, 100.0)
+
+
+def _sweep(temp_c: float, sf: float, bias: float, u: float, seed: int) -> list[MeanU]:
+    rng = np.random.default_rng(seed)
+    return [MeanU(temp_c, r, sf * r + bias + u * rng.standard_normal(), u, 9.0)
+            for r in RATES]
+
+
+def test_sf_and_bias_u_match_scipy_curve_fit_with_known_sigma():
+    means = _sweep(25.0, 1.0005, 0.003, 2e-4, seed=1)
+    rate = np.array([m.rate_dps for m in means])
+    out = np.array([m.mean for m in means])
+    popt, pcov = curve_fit(lambda x, a, b: a * x + b, rate, out,
+                           sigma=np.full(rate.size, 2e-4), absolute_sigma=True,
+                           jac=lambda x, a, b: np.column_stack([x, np.ones_like(x)]))
+    budget = sweep_uncertainty(means, NO_TYPE_B)
+    assert budget["sf"].value == pytest.approx(popt[0], rel=1e-12)
+    assert budget["sf"].u == pytest.approx(math.sqrt(pcov[0, 0]), rel=1e-6)
+    assert budget["bias"].u == pytest.approx(math.sqrt(pcov[1, 1]), rel=1e-6)
+    # every dwell has ν = 9 and c_i ∝ r_i (OLS slope): ν_eff = 9·(Σr²)²/Σr⁴ (GUM G.4.1)
+    r = np.array(RATES)
+    assert budget["sf"].dof_eff == pytest.approx(9 * (r @ r) ** 2 / np.sum(r ** 4), rel=1e-6)
+
+
+def test_table_rate_accuracy_enters_sf_as_relative_rectangular():
+    means = _sweep(25.0, 1.0, 0.0, 1e-9, seed=2)
+    budget = sweep_uncertainty(means, TypeB(10.0, 0.0, 0.0, 0.0))
+    rate_line = next(c for c in budget["sf"].budget if c.name == "table rate scale error")
+    assert rate_line.u_contribution == pytest.approx(10e-6 / math.sqrt(3.0), rel=1e-6)
+    assert rate_line.kind.value == "B"
+
+
+@pytest.mark.parametrize(("dof", "k"), [(1, 12.71), (2, 4.30), (10, 2.23), (50, 2.01),
+                                        (math.inf, 1.96)])
+def test_coverage_factor_is_the_published_t_table(dof, k):
+    assert coverage_factor(dof) == pytest.approx(k, abs=0.005)   # GUM Table G.2, p = 95 %
+
+
+def test_welch_satterthwaite_worked_case():
+    # u1 = 1 (ν = 4), u2 = 1 (ν = ∞): ν_eff = (1+1)² / (1/4) = 16
+    assert welch_satterthwaite([1.0, 1.0], [4.0, math.inf]) == pytest.approx(16.0)
+    assert math.isinf(welch_satterthwaite([1.0], [math.inf]))
+
+
+def test_gum_matches_monte_carlo_for_sf_and_sf_tempco():
+    type_b = TypeB(10.0, 0.5, 0.0, 0.0)
+    sweep = _sweep(25.0, 1.0, 0.002, 3e-5, seed=3)
+    inputs = mean_inputs(sweep) + [rate_input(type_b)]
+    gum = sweep_uncertainty(sweep, type_b)["sf"]
+    _, mc_std, lo, hi = monte_carlo(lambda x: analyze_scale_factor(perturbed_dwells(sweep, x)).sf,
+                                    inputs, draws=4000, seed=1)
+    assert gum.u == pytest.approx(mc_std, rel=0.06)
+    # The table's rectangular rate accuracy dominates: the MC 95 % interval of a near-uniform
+    # output is ±1.65u, narrower than the GUM's k = 1.96 (JCGM 101 §9.2 shows the same case),
+    # so the GUM interval covers the MC one and is not grossly wider.
+    assert gum.value - gum.U <= lo < hi <= gum.value + gum.U
+    assert hi - lo > 0.75 * 2 * gum.U
+
+    temps = (-20.0, 25.0, 70.0)
+    means = [m for i, t in enumerate(temps)
+             for m in _sweep(t, 1.0 + 20e-6 * (t - 25.0), 0.0, 3e-5, seed=10 + i)]
+    gum_tc = sf_temperature_uncertainty(means, type_b, 25.0)["sensitivity_ppm_per_c"]
+    tc_inputs = (mean_inputs(means) + [rate_input(type_b)]
+                 + [temp_input(t, type_b) for t in temps])
+
+    def tempco(x):
+        dwells = perturbed_dwells(means, x)
+        groups = [analyze_scale_factor([d for m, d in zip(means, dwells, strict=True)
+                                        if m.temp_c == t]) for t in temps]
+        return bias_mod.sf_temperature(groups, 25.0).sensitivity_ppm_per_c
+
+    _, mc_tc, _, _ = monte_carlo(tempco, tc_inputs, draws=1500, seed=2)
+    assert gum_tc.u == pytest.approx(mc_tc, rel=0.1)
+
+
+def test_batch_means_sem_sees_correlated_noise():
+    phi, n = 0.99, 200_000
+    rng = np.random.default_rng(4)
+    e = rng.standard_normal(n)
+    x = np.empty(n)
+    x[0] = e[0] / math.sqrt(1 - phi ** 2)
+    for i in range(1, n):
+        x[i] = phi * x[i - 1] + e[i]
+    sem, dof = batch_mean_sem(x, 10)
+    white = x.std(ddof=1) / math.sqrt(n)
+    # AR(1): var(mean) ≈ σ²/n · (1+φ)/(1−φ), i.e. √199 ≈ 14× the white-noise SEM
+    true = white * math.sqrt((1 + phi) / (1 - phi))
+    assert dof == 9.0
+    assert sem > 5 * white
+    assert sem == pytest.approx(true, rel=0.6)
