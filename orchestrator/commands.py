@@ -383,16 +383,20 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
 def print_verdict(results: dict[str, Any]) -> int:
     """The acceptance lines and the overall verdict; exit 1 unless PASS."""
     for item in results.get("acceptance", []):
-        verdict = "PASS" if item["pass"] else "FAIL"
+        verdict = item.get("decision") or ("PASS" if item["pass"] else "FAIL")
         value = "not computed" if item["value"] is None else f"{item['value']:.6g}"
-        print(f"  {verdict}  {item['name']}: {value} ({item['kind']} {item['limit']:.6g})")
+        guard = (f", {item['decision_rule']} rule, U = {item['U']:.2g}"
+                 if item.get("decision_rule") == "guarded" and item.get("U") is not None else "")
+        print(f"  {verdict}  {item['name']}: {value} ({item['kind']} {item['limit']:.6g}{guard})")
     overall = (results.get("verdict") or {}).get("overall")
     if overall == "INVALID":
         print("  INVALID: the numbers are not physically possible, no limit was judged:")
         for reason in results["verdict"]["invalid_because"]:
             print(f"    {reason}")
+    for reason in (results.get("verdict") or {}).get("blocked_because", []):
+        print(f"  BLOCKED: {reason}")
     failed = any(not a.get("pass") for a in results.get("acceptance", []))
-    return EXIT_ACCEPTANCE_FAILED if failed or overall == "INVALID" else EXIT_OK
+    return EXIT_ACCEPTANCE_FAILED if failed or overall not in (None, "PASS") else EXIT_OK
 
 
 def _run_label(manifest: dict[str, Any], procedure: Procedure) -> str:

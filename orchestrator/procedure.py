@@ -218,6 +218,8 @@ class AcceptanceLimit:
     max: float | None
     min: float | None
     unit: str | None
+    #: how the value's expanded uncertainty enters the decision (reports/decision.py)
+    decision_rule: str = "simple"
 
     def passes(self, value: float) -> bool:
         if self.max is not None and not value <= self.max:
@@ -759,6 +761,7 @@ class _Parser:
             maximum = fields.take("max", number(), required=False)
             minimum = fields.take("min", number(), required=False)
             unit = fields.take("unit", text, required=False)
+            rule = fields.take("decision_rule", _decision_rule, required=False)
             fields.finish()
             if fields.has("max") == fields.has("min"):
                 self.ctx.report(path, "give exactly one of max or min")
@@ -776,8 +779,15 @@ class _Parser:
                 self.ctx.report(fields.child("metric"),
                                 f"{metric} cannot be computed: it needs "
                                 f"{NEEDS_TEXT[spec.needs]} in the sequence")
-            limits.append(AcceptanceLimit(name, metric, maximum, minimum, unit))
+            limits.append(AcceptanceLimit(name, metric, maximum, minimum, unit, rule or "simple"))
         return tuple(limits)
+
+
+def _decision_rule(value: object) -> str:
+    if value in ("simple", "guarded"):
+        return str(value)
+    raise UnitError(f"decision_rule must be simple (value vs limit) or guarded (value ± U "
+                    f"inside the limit, ILAC-G8), got {describe(value)}")
 
 
 def _metric(value: object) -> str:

@@ -86,6 +86,8 @@ class AssetIdentity:
     model: str
     serial: str
     calibration_due: dt.date | None
+    #: why an overdue calibration may still give a PASS (shown in the report); None: it may not
+    calibration_waiver: str | None = None
 
     def calibration_overdue(self, on: dt.date) -> bool:
         return self.calibration_due is not None and on > self.calibration_due
@@ -303,6 +305,7 @@ def _identity(ctx: Context, parent: Fields) -> AssetIdentity:
         fields.take("model", text),
         fields.take("serial", serial_number),
         fields.take("calibration_due", date, required=False),
+        fields.take("calibration_waiver", text, required=False),
     )
     fields.finish()
     return identity

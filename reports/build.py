@@ -48,11 +48,12 @@ from gyrocal.orchestrator.signing import Signer
 from gyrocal.reports import bias as bias_mod
 from gyrocal.reports import compensation as comp
 from gyrocal.reports.allan_summary import allan_curve, curve_json, fit_curve, fit_uncertainty_json
+from gyrocal.reports.decision import instrument_blockers, overall_verdict
 from gyrocal.reports.dwell import Dwell, dwell_mean
 from gyrocal.reports.gum import batch_mean_sem
 from gyrocal.reports.imu.section import imu_section
 from gyrocal.reports.results import evaluate_acceptance, finite_or_none, results_bytes
-from gyrocal.reports.sanity import check_physics, verdict
+from gyrocal.reports.sanity import check_physics
 from gyrocal.reports.scale_factor import ScaleFactorResult, analyze_scale_factor
 from gyrocal.reports.uncertainty import MeanU
 from gyrocal.reports.uncertainty_section import StepMean, add_uncertainties
@@ -392,6 +393,7 @@ def _instruments(data: RunData, notes: list[str]) -> dict[str, Any]:
             "make": identity.get("make"), "model": identity.get("model"),
             "serial": identity.get("serial"), "calibration_due": due,
             "calibration_overdue": overdue,
+            "calibration_waiver": identity.get("calibration_waiver"),
         }
     return out
 
@@ -430,7 +432,9 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
                       notes)
     results["acceptance"] = evaluate_acceptance(results, data.plan.get("acceptance") or [], notes)
     sf_tolerance = (data.plan.get("sanity") or {}).get("sf_tolerance_pct")
-    results["verdict"] = verdict(check_physics(results, sf_tolerance), results["acceptance"])
+    results["verdict"] = overall_verdict(check_physics(results, sf_tolerance),
+                                         results["acceptance"],
+                                         instrument_blockers(results["instruments"]))
     results["notes"] = notes
     return results
 

@@ -12,6 +12,8 @@ import json
 import math
 from typing import Any
 
+from gyrocal.reports.decision import DEFAULT_RULE, Decision, DecisionRule, decide
+
 #: The keys interfaces.md requires in report/results.json.
 REQUIRED_KEYS = ("unit_under_test", "scale_factor", "scale_factor_ls", "nonlinearity",
                  "asymmetry_ppm", "sf_temperature", "bias", "bias_temperature", "allan",
@@ -37,11 +39,14 @@ SIGNED_METRICS = frozenset({"asymmetry_ppm", "scale_factor_ls.bias",
 
 def evaluate_acceptance(results: dict[str, Any], limits: list[dict[str, Any]],
                         notes: list[str]) -> list[dict[str, Any]]:
-    """One verdict per limit: {name, metric, kind, limit, unit, value, pass}.
+    """One verdict per limit: {name, metric, kind, limit, unit, value, pass, decision, …}.
 
-    ``limits`` are plan.json's acceptance entries ({name, metric, max|min, unit}).
+    ``limits`` are plan.json's acceptance entries ({name, metric, max|min, unit,
+    decision_rule}); the rule (decision.py) uses the metric's expanded
+    uncertainty from results["uncertainty"]. ``pass`` is true only for PASS.
     A null or non-numeric value fails, and a note says which metric was missing.
     """
+    uncertainty = results.get("uncertainty") or {}
     verdicts = []
     for limit in limits:
         kind = "max" if limit.get("max") is not None else "min"
@@ -49,22 +54,27 @@ def evaluate_acceptance(results: dict[str, Any], limits: list[dict[str, Any]],
         value = lookup_metric(results, limit["metric"])
         number = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) \
             else None
+        rule = DecisionRule(limit.get("decision_rule") or DEFAULT_RULE.value)
+        expanded = (uncertainty.get(limit["metric"]) or {}).get("U")
+        guard = 0.0
         if number is None or not math.isfinite(number):
-            passed = False
+            decision = Decision.FAIL
             number = None
             notes.append(f"acceptance {limit['name']!r}: {limit['metric']} was not computed, "
                          "so the limit fails")
         elif kind == "max" and number < 0 and limit["metric"] not in SIGNED_METRICS:
-            passed = False
+            decision = Decision.FAIL
             notes.append(f"acceptance {limit['name']!r}: {limit['metric']} = {number:g} cannot "
                          "be negative, so the limit fails")
         elif kind == "max" and limit["metric"] in SIGNED_METRICS:
-            passed = abs(number) <= bound      # a signed figure's limit is on its size
+            # a signed figure's limit is on its size
+            decision, guard = decide(abs(number), expanded, bound, kind, rule)
         else:
-            passed = number <= bound if kind == "max" else number >= bound
+            decision, guard = decide(number, expanded, bound, kind, rule)
         verdicts.append({"name": limit["name"], "metric": limit["metric"], "kind": kind,
                          "limit": bound, "unit": limit.get("unit"), "value": number,
-                         "pass": bool(passed)})
+                         "pass": decision is Decision.PASS, "decision": decision.value,
+                         "decision_rule": rule.value, "U": expanded, "guard_band": guard})
     return verdicts
 
 

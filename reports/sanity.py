@@ -20,8 +20,10 @@ naming the check).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
+
+from gyrocal.reports.decision import overall_verdict
 
 DEFAULT_SF_TOLERANCE_PCT = 5.0
 SIGN_CHECK_MIN_RATE_DPS = 1.0
@@ -75,13 +77,5 @@ def check_physics(results: dict[str, Any], sf_tolerance_pct: float | None = None
 
 
 def verdict(checks: list[SanityCheck], acceptance: list[dict[str, Any]]) -> dict[str, Any]:
-    """INVALID before FAIL before PASS; with the failed checks named."""
-    failed = [c for c in checks if not c.ok]
-    if failed:
-        overall = "INVALID"
-    elif any(not a.get("pass") for a in acceptance):
-        overall = "FAIL"
-    else:
-        overall = "PASS"
-    return {"overall": overall, "invalid_because": [f"{c.name}: {c.detail}" for c in failed],
-            "sanity": [asdict(c) for c in checks]}
+    """INVALID before FAIL before PASS; with the failed checks named (decision.py decides)."""
+    return overall_verdict(checks, acceptance, [])

@@ -52,7 +52,7 @@ def test_page_is_self_contained_with_real_plots(evil_run):
 def test_page_carries_what_qa_signs(evil_run):
     html = (evil_run / "report" / "report.html").read_text()
     results = json.loads((evil_run / "report" / "results.json").read_text())
-    for text in ("F4-SIM-001", "2027-06-30", "ACT-SIM-001", "Sim lab", "PASS",
+    for text in ("12-3456", "2027-06-30", "SIM0001", "Sim lab", "PASS",
                  results["inputs"]["procedure"]["sha256"], results["run"]["plan_sha256"],
                  results["journal"]["samples_sha256"], results["run"]["run_id"]):
         assert text in html, text

@@ -1,0 +1,114 @@
+"""Decision rules (ILAC-G8 guarded acceptance vs simple) and what blocks a PASS.
+
+The guarded cases are ILAC-G8:09/2019 §4.2.2's picture typed in by hand:
+an upper limit L with guard band w = U: value ≤ L − U accepts, value > L + U
+rejects, anything between is "conformity indeterminate" (CONDITIONAL here).
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from gyrocal.reports.build import build_report
+from gyrocal.reports.decision import (
+    Decision,
+    DecisionRule,
+    decide,
+    instrument_blockers,
+    overall_verdict,
+)
+from gyrocal.reports.results import evaluate_acceptance
+from gyrocal.reports.sanity import SanityCheck
+
+OK = [SanityCheck("scale factor near nominal", True, "fine")]
+
+
+@pytest.mark.parametrize(("value", "expected"), [
+    (7.0, Decision.PASS),          # 7 + 2 ≤ 10
+    (8.0, Decision.PASS),          # exactly L − U: still accepted
+    (9.0, Decision.CONDITIONAL),   # inside L ± U, below L
+    (11.5, Decision.CONDITIONAL),  # inside L ± U, above L
+    (12.5, Decision.FAIL),         # beyond L + U
+])
+def test_guarded_upper_limit(value, expected):
+    decision, guard = decide(value, 2.0, 10.0, "max", DecisionRule.GUARDED)
+    assert decision is expected and guard == 2.0
+
+
+def test_guarded_lower_limit_and_simple_rule():
+    assert decide(11.0, 2.0, 10.0, "min", DecisionRule.GUARDED)[0] is Decision.CONDITIONAL
+    assert decide(12.0, 2.0, 10.0, "min", DecisionRule.GUARDED)[0] is Decision.PASS
+    assert decide(7.9, 2.0, 10.0, "min", DecisionRule.GUARDED)[0] is Decision.FAIL
+    # simple: the bare value against the limit, U ignored
+    assert decide(9.9, 2.0, 10.0, "max", DecisionRule.SIMPLE) == (Decision.PASS, 0.0)
+    assert decide(10.1, 2.0, 10.0, "max", DecisionRule.SIMPLE)[0] is Decision.FAIL
+    # guarded without an uncertainty cannot accept
+    assert decide(1.0, None, 10.0, "max", DecisionRule.GUARDED)[0] is Decision.CONDITIONAL
+
+
+def test_guarded_acceptance_entry_gives_conditional_within_u_of_its_limit():
+    results = {"asymmetry_ppm": -4.5,
+               "uncertainty": {"asymmetry_ppm": {"U": 1.0}, "nonlinearity.rms_pct": {"U": 0.1}},
+               "nonlinearity": {"rms_pct": 0.5}}
+    limits = [{"name": "asym", "metric": "asymmetry_ppm", "max": 5.0, "decision_rule": "guarded"},
+              {"name": "nl", "metric": "nonlinearity.rms_pct", "max": 1.0,
+               "decision_rule": "guarded"},
+              {"name": "nl simple", "metric": "nonlinearity.rms_pct", "max": 0.55}]
+    verdicts = evaluate_acceptance(results, limits, [])
+    asym, nl, simple = verdicts
+    assert asym["decision"] == "CONDITIONAL" and asym["pass"] is False   # |−4.5| + 1 > 5
+    assert asym["guard_band"] == 1.0 and asym["decision_rule"] == "guarded"
+    assert nl["decision"] == "PASS" and nl["pass"] is True
+    assert simple["decision"] == "PASS" and simple["decision_rule"] == "simple"
+    verdict = overall_verdict(OK, verdicts, [])
+    assert verdict["overall"] == "CONDITIONAL" and verdict["conditional"] == ["asym"]
+
+
+def _instruments(**table):
+    return {"table": {"serial": "SIM0001", "calibration_due": "2027-03-31",
+                      "calibration_overdue": False,
+                      "description": "ACUTRONIC,ACUTROL3000-SIM,SIM0001,1.0"} | table,
+            "chamber": {"serial": "12-3456", "calibration_overdue": False,
+                        "description": "Watlow F4 (model register 5270), serial 12-3456, x"}}
+
+
+def test_expired_reference_blocks_pass_unless_waived():
+    passing = [{"name": "a", "pass": True, "decision": "PASS"}]
+    assert overall_verdict(OK, passing, instrument_blockers(_instruments()))["overall"] == "PASS"
+    expired = _instruments(calibration_due="2001-01-01", calibration_overdue=True)
+    verdict = overall_verdict(OK, passing, instrument_blockers(expired))
+    assert verdict["overall"] == "BLOCKED"
+    assert "reference instrument out of calibration" in verdict["blocked_because"][0]
+    waived = _instruments(calibration_overdue=True, calibration_waiver="re-certified 2026-11-01")
+    assert overall_verdict(OK, passing, instrument_blockers(waived))["overall"] == "PASS"
+    assert "re-certified" in waived["table"]["waived"]
+    # INVALID and FAIL still take precedence
+    bad = [SanityCheck("bias finite", False, "nan")]
+    assert overall_verdict(bad, passing, instrument_blockers(expired))["overall"] == "INVALID"
+
+
+def test_reported_serial_differing_from_declared_is_flagged_and_blocks():
+    # IEEE 488.2 *IDN? reply: manufacturer,model,serial,firmware (field 3 is the serial)
+    swapped = _instruments(serial="ACT-0999")
+    blockers = instrument_blockers(swapped)
+    assert swapped["table"]["identity_mismatch"] is True
+    assert swapped["table"]["reported_serial"] == "SIM0001"
+    assert swapped["chamber"]["identity_mismatch"] is False
+    assert [b.role for b in blockers] == ["table"]
+    assert "'ACT-0999'" in blockers[0].reason
+
+
+def test_rebuilt_report_of_a_run_with_an_expired_table_is_not_pass(smoke_run, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(smoke_run, run)
+    plan_path = run / "plan.json"
+    plan = json.loads(plan_path.read_text())
+    plan["station"]["instruments"]["table"]["identity"]["calibration_due"] = "2001-01-01"
+    plan_path.write_text(json.dumps(plan))
+    results = build_report(run)
+    assert results["verdict"]["overall"] == "BLOCKED"
+    assert results["instruments"]["table"]["calibration_overdue"] is True
+    assert all(a["pass"] for a in results["acceptance"])       # the limits themselves pass
