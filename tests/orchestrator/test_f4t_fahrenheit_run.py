@@ -23,6 +23,7 @@ def test_a_run_on_a_fahrenheit_f4t_holds_its_celsius_setpoints(h: Any, tmp_path:
     text = station.read_text()
     assert "driver: watlow_f4  " in text or "driver: watlow_f4\n" in text
     text = re.sub(r"\n  limit_input: .*", "", text)           # an F4 setting: not for an F4T
+    text = text.replace("serial: 12-3456", "serial: '1234567'")  # the F4T's serial (issue 11 checks it)
     station.write_text(text.replace("driver: watlow_f4 ", "driver: watlow_f4t ", 1))
     out = tmp_path / "run"
     assert main(["run", str(procedure), "--sim", "--out", str(out)],
