@@ -21,12 +21,18 @@ PASS. Only PASS exits 0.
 from __future__ import annotations
 
 import re
-from dataclasses import asdict, dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass
 from enum import Enum
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
-if TYPE_CHECKING:   # sanity.py's checks are judged here; sanity imports this module
-    from gyrocal.reports.sanity import SanityCheck
+
+class Check(Protocol):
+    """A physics check's outcome (sanity.SanityCheck; sanity.py imports this module)."""
+
+    name: str
+    ok: bool
+    detail: str
 
 
 class DecisionRule(str, Enum):
@@ -112,7 +118,7 @@ def instrument_blockers(instruments: dict[str, Any]) -> list[Blocker]:
     return blockers
 
 
-def overall_verdict(checks: list[SanityCheck], acceptance: list[dict[str, Any]],
+def overall_verdict(checks: Sequence[Check], acceptance: list[dict[str, Any]],
                     blockers: list[Blocker]) -> dict[str, Any]:
     """INVALID > FAIL > BLOCKED > CONDITIONAL > PASS, with every reason named."""
     failed = [c for c in checks if not c.ok]
@@ -131,4 +137,4 @@ def overall_verdict(checks: list[SanityCheck], acceptance: list[dict[str, Any]],
             "blocked_because": [f"{b.role}: {b.reason}" for b in blockers],
             "conditional": sorted(a["name"] for a in acceptance
                                   if a.get("decision") == Decision.CONDITIONAL.value),
-            "sanity": [asdict(c) for c in checks]}
+            "sanity": [{"name": c.name, "ok": c.ok, "detail": c.detail} for c in checks]}
