@@ -440,9 +440,8 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
 
 
 def _mean_u(s: StepSummary) -> StepMean:
-    return StepMean(s.step["kind"], MeanU(float(s.step["setpoint_c"]), float(s.step["rate_dps"]),
-                                          s.output_mean, s.output_sem, s.sem_dof,
-                                          str(s.step["step_id"])))
+    return StepMean(s.step.kind.value, MeanU(s.step.setpoint_c, s.step.rate_dps, s.output_mean,
+                                             s.output_sem, s.sem_dof, s.step.step_id))
 
 
 #: How the single numbers of results.json are chosen when several temperatures exist.
