@@ -158,12 +158,14 @@ class Dialect:
 
 
 #: The one public script that drives a real ACUTROL over raw TCP (a ROS node for an
-#: AC117 table, ``acutrol.py`` with ``ac117.json``): CR LF, every reply read as
-#: ``recv(1024)[8:]`` (an 8-character prefix), settings checked against their expected
-#: answer (``OK`` per issue 8), ``:read:rate 1`` / ``:read:position 1`` without ``?``,
-#: and a start-up list (remote lockout, interlock open/reset/close). The prefix's
-#: content is not known (only its length); the interlock open/reset spelling is
-#: unconfirmed.
+#: AC117 table, AcutronicRobotics/acutrol: ``acutrol.py`` with ``ac117.json``): CR LF,
+#: every reply read as ``recv(1024)[8:]`` (an 8-character prefix), ``:read:rate 1`` /
+#: ``:read:position 1`` without ``?``. ``ac117.json`` spells the start-up list and its
+#: expected answers exactly: ``[":utility:lockout on", "OK"], [":interlock:open 1", "OK"],
+#: [":interlock:reset 1", "OK"], [":interlock:close 1", "OK"]`` (shutdown: ``:mode:off 1``,
+#: ``:interlock:open 1``). The prefix's content is not known (only its length); whether
+#: replies end in CR LF is unconfirmed (the script compares ``[8:]`` with ``"OK"``
+#: unstripped, which would hold only without a terminator, but never checks the result).
 ACUTROL_TCP_SCRIPT = Dialect(
     "acutrol-tcp-script", acknowledged=True, reply_prefix=8, terminator="\r\n",
     startup=(LOCKOUT_ON, INTERLOCK_OPEN, INTERLOCK_RESET, INTERLOCK_CLOSE),

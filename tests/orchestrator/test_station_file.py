@@ -124,3 +124,14 @@ def test_a_missing_gyro_model_file_is_caught_before_the_run(tmp_path):
     missing = (tmp_path / "gyro-models" / "nominal-fgo.yaml").resolve()
     assert problems == [f"{path}:{line_of(text, 'gyro_model')}: simulation.gyro_model: gyro model "
                         f"file not found: {missing} (the path is relative to the file that names it)"]
+
+
+def test_the_table_dialect_defaults_to_the_public_tcp_script_and_is_checked(tmp_path):
+    """Issue 8: the reply dialect is a declared station property, named on error with file:line."""
+    assert load_station(SIM).table.dialect == "acutrol-tcp-script"
+    assert load_station(REPO / "stations" / "lab-example.yaml").table.dialect == "acutrol-tcp-script"
+    text = SIM.read_text(encoding="utf-8").replace("  axis: 1\n", "  axis: 1\n  dialect: gpib\n")
+    problems, path = station_problems(tmp_path, text)
+    assert len(problems) == 1
+    assert problems[0].startswith(f"{path}:{line_of(text, 'dialect: gpib')}: table.dialect: ")
+    assert "acutrol-tcp-script" in problems[0] and "scpi-error-queue" in problems[0]

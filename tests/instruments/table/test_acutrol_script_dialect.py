@@ -3,8 +3,10 @@
 That script (a ROS node for an AC117 table: ``acutrol.py`` with
 ``ac117.json``) talks raw TCP with CR LF, reads every reply as
 ``recv(1024)[8:]`` (an 8-character prefix before the value), checks each
-start-up command against its expected answer (``OK`` for a setting, as
-issue 8 quotes it), spells the readbacks ``:read:rate 1`` and
+start-up command against its expected answer (AcutronicRobotics/acutrol
+``ac117.json``: ``{"startup": [[":utility:lockout on", "OK"],
+[":interlock:open 1", "OK"], [":interlock:reset 1", "OK"],
+[":interlock:close 1", "OK"]], ...}``), spells the readbacks ``:read:rate 1`` and
 ``:read:position 1`` (no ``?``) and starts a session with remote lockout and
 an interlock open/reset/close. The byte-level test below is written from
 those conventions by hand; the prefix's content is not known, so the peer
@@ -170,5 +172,33 @@ def test_driver_and_simulator_in_the_default_dialect(sim, clock, physics) -> Non
         sim.faults.clear("no_reply")
         table.stop()
         assert physics.demand_dps == 0.0
+    finally:
+        table.close()
+
+
+def test_a_dropped_link_mid_spin_reopens_without_opening_the_interlock(sim, clock, physics):
+    """The script's start-up opens the interlock; a reconnect mid-dwell must not (only lockout)."""
+    table = Acutrol3000Table(sim.resource, timeout_s=0.5, retry=RetryPolicy(attempts=3,
+                                                                              backoff_s=0.01))
+    try:
+        table.set_rate_mode()
+        table.set_rate_dps(30.0)
+        clock.advance_to(2.0)
+        sim.faults.arm("drop_connection")
+        assert table.read_rate_dps() == pytest.approx(30.0, abs=0.01)   # on a new session
+        assert physics.interlock_closed and physics.demand_dps == 30.0
+        assert sim.faults.history == ["drop_connection"]
+    finally:
+        table.close()
+
+
+def test_a_garbled_acknowledgement_repeats_the_idempotent_setting(sim, physics):
+    table = Acutrol3000Table(sim.resource, timeout_s=0.5, retry=RetryPolicy(attempts=3,
+                                                                              backoff_s=0.01))
+    try:
+        table.set_rate_mode()
+        sim.faults.arm("garbled_reply")
+        table.set_rate_dps(12.0)                    # the garbled OK is retried, not a refusal
+        assert physics.demand_dps == 12.0
     finally:
         table.close()
