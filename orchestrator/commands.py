@@ -96,6 +96,8 @@ def _policy(procedure: Procedure) -> EnginePolicy:
         max_repeats=quality.max_step_repeats,
         safe_setpoint_c=safe.setpoint_c if safe.action == "setpoint" else None,
         read_timeout_margin_s=procedure.station.gyro.timeout_s,
+        chamber_retries=procedure.station.chamber.retries,
+        table_retries=procedure.station.table.retries,
     )
 
 

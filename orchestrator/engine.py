@@ -13,12 +13,9 @@ The same code runs against hardware (``RealClock``) and against simulators
 
 from __future__ import annotations
 
-import signal
-import threading
 import time
-from collections.abc import Callable, Iterator, Mapping
-from contextlib import contextmanager
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +25,7 @@ from gyrocal.instruments.interfaces import Identity
 from gyrocal.models.imu_model import Mounting
 from gyrocal.orchestrator.acquisition import Acquisition, AcquisitionPolicy, StepResult
 from gyrocal.orchestrator.conditions import Conditions
+from gyrocal.orchestrator.interrupts import GatedChamber, GatedTable, InterruptGate
 from gyrocal.orchestrator.machine import RunStateMachine
 from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
@@ -36,6 +34,7 @@ from gyrocal.orchestrator.record.run_folder import RunFolder
 from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.remount import FixtureOperator, RemountExecutor
 from gyrocal.orchestrator.run_errors import RunFaultError, StepQualityError
+from gyrocal.orchestrator.safe_state import SafeOutcome, SafePolicy, make_safe
 
 #: An operator creates this file in the run folder to pause before the next step.
 PAUSE_FILE = "PAUSE"
@@ -54,6 +53,8 @@ class EnginePolicy:
     max_loss_fraction: float = 0.001    # lost + corrupt frames allowed per logged step
     max_repeats: int = 2                # bad logged step (frame loss, gyro read failure) repeated at most this many times
     safe_setpoint_c: float | None = 25.0  # None = chamber standby is not supported: hold setpoint
+    chamber_retries: int = 3            # attempts of each safe-state action (station chamber.retries)
+    table_retries: int = 3              # (station table.retries)
     pause_poll_s: float = 0.5           # wall seconds between looks at RUN_DIR/PAUSE while paused
 
 
@@ -70,59 +71,6 @@ def attempts_started(events: list[dict[str, Any]]) -> dict[str, int]:
             step_id = event["step_id"]
             last[step_id] = max(last.get(step_id, 0), int(event.get("attempt", 1)))
     return last
-
-
-class InterruptGate:
-    """Ctrl-C and SIGTERM become ``KeyboardInterrupt`` — but never inside a journal append.
-
-    SIGTERM (systemd stop, a killed terminal) gets the same safe handling as
-    Ctrl-C. A ``KeyboardInterrupt`` raised between the write of a journal line
-    and the writer's update of its chain hash would make the next line (the
-    ``interrupted`` event itself) chain to the wrong hash, so a signal that
-    arrives during an append is held and raised as soon as the append returns.
-    """
-
-    def __init__(self) -> None:
-        self._depth = 0
-        self._pending: int | None = None
-
-    def _handler(self, signum: int, frame: object) -> None:
-        if self._depth:
-            self._pending = signum
-            return
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    @contextmanager
-    def held(self) -> Iterator[None]:
-        self._depth += 1
-        try:
-            yield
-        finally:
-            self._depth -= 1
-            if not self._depth and self._pending is not None:
-                signum, self._pending = self._pending, None
-                raise KeyboardInterrupt(f"signal {signum}")
-
-    @contextmanager
-    def installed(self, journal: Any) -> Iterator[None]:
-        """Handle SIGINT/SIGTERM and hold them during ``journal.append`` (main thread only)."""
-        if threading.current_thread() is not threading.main_thread():
-            yield
-            return
-        append = journal.append
-
-        def held_append(name: str, /, **fields: Any) -> dict[str, Any]:
-            with self.held():
-                return append(name, **fields)
-
-        journal.append = held_append   # the commands' retry hook appends to this same journal
-        previous = {sig: signal.signal(sig, self._handler) for sig in (signal.SIGINT, signal.SIGTERM)}
-        try:
-            yield
-        finally:
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
-            del journal.append
 
 
 class RunEngine:
@@ -144,6 +92,10 @@ class RunEngine:
         self.operator = operator            # who turns the IMU fixture (remount steps)
         self.mountings = dict(mountings or {})
         self.steps = steps
+        # Every chamber and table call is one exchange a signal cannot cut in half (interrupts.py).
+        self._gate = InterruptGate()
+        instruments = replace(instruments, chamber=GatedChamber(instruments.chamber, self._gate),
+                              table=GatedTable(instruments.table, self._gate))
         self.inst = instruments
         self.clock = instruments.clock
         self.policy = policy
@@ -184,7 +136,7 @@ class RunEngine:
     # -- public ----------------------------------------------------------------------------
     def run(self) -> str:
         """Run to the end or to the safe state. Returns the final state ("done" or "faulted")."""
-        with InterruptGate().installed(self.journal):
+        with self._gate.installed(self.journal):
             try:
                 self._connect_and_preflight()
                 events = self.folder.journal_events()
@@ -216,12 +168,13 @@ class RunEngine:
                 self._finish()
                 return "done"
             except KeyboardInterrupt as exc:
-                self._go_safe(JournalEvent.INTERRUPTED, f"interrupted by the operator ({exc or 'Ctrl-C'})")
-                raise RunFaultError("run interrupted; instruments safe; continue with "
+                safe = self._go_safe(JournalEvent.INTERRUPTED,
+                                     f"interrupted by the operator ({exc or 'Ctrl-C'})")
+                raise RunFaultError(f"run interrupted; {safe.summary()}; continue with "
                                     f"`gyrocal resume {self.folder.path}`") from None
             except (InstrumentError, RunFaultError) as exc:
-                self._go_safe(JournalEvent.FAULT, str(exc), **_fault_fields(exc))
-                raise RunFaultError(f"{exc}; instruments safe; continue with "
+                safe = self._go_safe(JournalEvent.FAULT, str(exc), **_fault_fields(exc))
+                raise RunFaultError(f"{exc}; {safe.summary()}; continue with "
                                     f"`gyrocal resume {self.folder.path}`") from exc
             except BaseException as exc:
                 self._go_safe(JournalEvent.FAULT, f"internal error: {exc!r}")
@@ -399,33 +352,33 @@ class RunEngine:
         self.journal.append(JournalEvent.RUN_COMPLETED)
         self.folder.update_manifest(state="done", ended_at=_now_text())
 
-    def _go_safe(self, kind: str, message: str, **fields: Any) -> None:
-        """Safe state: table stopped, chamber to its safe setpoint. Every action is attempted.
+    def _go_safe(self, kind: str, message: str, **fields: Any) -> SafeOutcome:
+        """Safe state, verified (``safe_state.py``): table stopped, chamber at its safe setpoint.
 
-        The event records the state the run was in when the fault struck (not
-        ``safing``, which every fault passes through) and the step it struck in.
+        The instruments are made safe *before* anything is written, so a full
+        disk never stands between a fault and a stopped table, and with the
+        gate shielded a second Ctrl-C cannot cut the safing short. The fault
+        event records the state the run was in when the fault struck (not
+        ``safing``) and its step; ``safe_state`` records what the read-backs
+        confirmed, and the manifest whether everything was.
         """
         state_at_fault = self.machine.state
         if self.machine.can("fault"):
             self.machine.fault()
-        self.journal.append(kind, message=message, state=state_at_fault, step_id=self._step_id,
-                            **fields)
-        actions: dict[str, str] = {}
-        try:
-            self.inst.table.stop()
-            actions["table"] = "stopped"
-        except Exception as exc:  # noqa: BLE001 - try every safety action, report each
-            actions["table"] = f"stop FAILED: {exc}"
-        if self.policy.safe_setpoint_c is not None:
-            try:
-                self.inst.chamber.set_setpoint_c(self.policy.safe_setpoint_c)
-                actions["chamber"] = f"setpoint {self.policy.safe_setpoint_c:g} °C"
-            except Exception as exc:  # noqa: BLE001
-                actions["chamber"] = f"safe setpoint FAILED: {exc}"
-        self.journal.append(JournalEvent.SAFE_STATE, actions=actions)
-        if self.machine.state == "safing":
-            self.machine.safed()
-        self.folder.update_manifest(state="faulted", ended_at=_now_text(), last_fault=message)
+        self.progress.close()
+        policy = SafePolicy(self.policy.safe_setpoint_c, self.policy.chamber_retries,
+                            self.policy.table_retries)
+        with self._gate.shielded():
+            outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock)
+            outcome.print()
+            self.journal.append(kind, message=message, state=state_at_fault,
+                                step_id=self._step_id, **fields)
+            self.journal.append(JournalEvent.SAFE_STATE, **outcome.journal_fields())
+            if self.machine.state == "safing":
+                self.machine.safed()
+            self.folder.update_manifest(state="faulted", ended_at=_now_text(), last_fault=message,
+                                        safe_confirmed=outcome.confirmed)
+        return outcome
 
 
 def _bad_reason(result: StepResult, loss: float, limit: float, rate_dps: float,

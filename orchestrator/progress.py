@@ -46,6 +46,7 @@ class Progress:
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
         self.state = ProgressState()
         self._last_wall = 0.0
+        self._line_open = False   # a live line is on the terminal, not yet ended by a newline
         self._min_interval_s = min_interval_s
         self._console = None
         if self.enabled:
@@ -72,7 +73,10 @@ class Progress:
         self._last_wall = now
         assert self._console is not None
         self._console.print(self.line(), end="\r", highlight=False, soft_wrap=True)
+        self._line_open = True
 
     def close(self) -> None:
-        if self.enabled and self._console is not None:
+        """End the live line (once: the safe state closes it before printing, the run again)."""
+        if self.enabled and self._console is not None and self._line_open:
             self._console.print()
+        self._line_open = False

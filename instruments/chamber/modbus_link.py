@@ -141,6 +141,16 @@ class ModbusLink:
 
         self._with_retry(once)
 
+    def reset(self) -> None:
+        """Drop the connection (and any late reply sitting in it); the next request reconnects.
+
+        Called before the safe-state commands: an exchange cut short (a signal,
+        an error between request and reply) may have left a reply in the
+        socket that RTU framing cannot tell from the answer to the next request.
+        """
+        with self._lock:
+            self._client.close()
+
     def close(self) -> None:
         with self._lock:
             self._client.close()

@@ -206,6 +206,9 @@ class WatlowF4:
             run_state=PROFILE_STATE_TEXT.get(state, f"state {state}"),
         )
 
+    def reset_link(self) -> None:
+        self._link.reset()
+
     def close(self) -> None:
         self._link.close()
 

@@ -182,6 +182,9 @@ class WatlowF4T:
             detail="; ".join(problems),
         )
 
+    def reset_link(self) -> None:
+        self._link.reset()
+
     def close(self) -> None:
         self._link.close()
 

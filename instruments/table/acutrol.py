@@ -132,6 +132,11 @@ class Acutrol3000Table:
                 self._setting(proto.DEMAND_RATE, rate_dps=0.0)
             self._setting(proto.MODE_OFF)
 
+    def reset_link(self) -> None:
+        """Discard the session (and any late reply in it); the next command opens a fresh one."""
+        with self._lock:
+            self._drop_session()
+
     def close(self) -> None:
         """Close this table's session (never the shared pyvisa ResourceManager)."""
         with self._lock:

@@ -37,6 +37,7 @@ class FakeChamber:
     alarm: bool = False
     stuck: bool = False            # never reaches its setpoint
     setpoints: list[float] = field(default_factory=list)
+    links_reset: int = 0
 
     def identify(self) -> Identity:
         return Identity("chamber", "fake", "memory", "in-memory chamber")
@@ -57,6 +58,9 @@ class FakeChamber:
         return ChamberStatus(self.temperature_c, self.setpoint_c, self.alarm,
                              "high limit" if self.alarm else "")
 
+    def reset_link(self) -> None:
+        self.links_reset += 1
+
     def close(self) -> None:
         pass
 
@@ -67,6 +71,7 @@ class FakeTable:
     interlock: bool = True
     max_rate_dps: float | None = None      # a table that cannot reach more than this
     stops: int = 0
+    links_reset: int = 0
 
     def identify(self) -> Identity:
         return Identity("table", "fake", "memory", "in-memory table")
@@ -99,6 +104,9 @@ class FakeTable:
     def stop(self) -> None:
         self.stops += 1
         self.rate_dps = 0.0
+
+    def reset_link(self) -> None:
+        self.links_reset += 1
 
     def close(self) -> None:
         pass
@@ -232,7 +240,10 @@ def test_a_fault_at_each_step_kind_goes_safe_and_a_new_engine_resumes_there(
     fault = next(e for e in log if e["event"] == "fault")
     assert fault["step_id"] == failing
     assert log[-1]["event"] == "safe_state"
-    assert log[-1]["actions"]["table"] == "stopped"
+    # "stopped" is now what the read-back confirmed (issue 9), not what was sent
+    assert log[-1]["actions"]["table"] == "table stopped (read back 0.000 deg/s)"
+    assert log[-1]["confirmed"] == {"table": True, "chamber": True}
+    assert rig.table.links_reset == 1 and rig.chamber.links_reset == 1
     assert rig.table.rate_dps == 0.0 and rig.chamber.setpoint_c == 25.0
     assert completed(folder) == [s.step_id for s in PLAN[:index]]
 

@@ -77,7 +77,9 @@ def test_sigint_goes_safe_exits_3_and_resumes(h: Any, tmp_path: Path, capsys) ->
                                        "soaking")
     assert interrupted[0]["step_id"] is not None
     assert log[-1]["event"] == "safe_state"
-    assert log[-1]["actions"] == {"table": "stopped", "chamber": "setpoint 25 °C"}
+    assert log[-1]["actions"]["table"].startswith("table stopped (read back 0.0")
+    assert log[-1]["actions"]["chamber"] == "chamber setpoint 25.0 °C (read back)"
+    assert log[-1]["confirmed"] == {"table": True, "chamber": True}
     assert h.manifest(out)["state"] == "faulted"
     faulted = status_text(out, capsys)
     assert "state: faulted" in faulted and "interrupted by the operator" in faulted

@@ -1,0 +1,161 @@
+"""The safe state, verified: commanded, read back and retried until confirmed or out of attempts.
+
+"Instruments safe" used to mean "the safe commands were sent": a reply lost,
+a stale reply read as the answer, or nothing listening at all, and the
+console still said safe (issue 9). Here an action counts only when a
+read-back confirms it — the table's measured rate at rest, the chamber's
+setpoint register at the safe value — and what is printed and journaled is
+exactly what was read, or, in red, that it was not confirmed and a person
+must look.
+
+Before the first safe command each link is reset (closed; the next command
+opens a fresh connection), so a reply left in a socket by an exchange cut
+short can never be taken for the answer to a safe command. Each action is
+attempted the station's ``retries`` times (the driver's own retries of
+transient errors run inside each attempt), and a refusal — a Modbus
+exception, a table ``ERROR`` reply — is attempted again like any other failure.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+from dataclasses import dataclass
+from typing import Any, TextIO
+
+from gyrocal.instruments.interfaces import Chamber, RateTable
+from gyrocal.models.clock import Clock
+
+#: A stopped table reads back |rate| at most this (the simulated encoder noise is ~1e-3 deg/s).
+TABLE_STOPPED_DPS = 0.01
+#: The chamber setpoint register must read back within this of the safe setpoint
+#: (half a unit of the last decimal an F4 carries is 0.05).
+SETPOINT_MATCH_C = 0.05
+#: Clock seconds between rate read-backs of a decelerating table.
+POLL_S = 0.5
+#: A decelerating table is watched while its rate keeps falling, up to this long in all.
+STOP_MAX_S = 900.0
+#: ...and given up on when the rate has not fallen for this long.
+STOP_STALL_S = 10.0
+
+RED = "\033[31m"
+RESET = "\033[0m"
+
+
+@dataclass(frozen=True)
+class SafePolicy:
+    """What safe means for one station, and how hard to try."""
+
+    setpoint_c: float | None     # None: the chamber holds its setpoint (station safe_state: hold)
+    chamber_attempts: int = 3    # the station's chamber.retries
+    table_attempts: int = 3      # the station's table.retries
+
+
+@dataclass(frozen=True)
+class SafeAction:
+    """One instrument's safe action as it ended: confirmed by read-back, or not."""
+
+    instrument: str        # "table" | "chamber"
+    confirmed: bool
+    text: str              # what the console and the journal say
+    attempts: int          # how many attempts it took (or were spent)
+
+
+@dataclass(frozen=True)
+class SafeOutcome:
+    actions: tuple[SafeAction, ...]
+
+    @property
+    def confirmed(self) -> bool:
+        return all(action.confirmed for action in self.actions)
+
+    def journal_fields(self) -> dict[str, Any]:
+        return {"actions": {a.instrument: a.text for a in self.actions},
+                "confirmed": {a.instrument: a.confirmed for a in self.actions},
+                "attempts": {a.instrument: a.attempts for a in self.actions}}
+
+    def summary(self) -> str:
+        if self.confirmed:
+            return "instruments safe (confirmed by read-back)"
+        return "INSTRUMENTS NOT CONFIRMED SAFE — check them by hand"
+
+    def print(self, stream: TextIO | None = None) -> None:
+        stream = stream if stream is not None else sys.stderr
+        colour = stream.isatty()
+        for action in self.actions:
+            text = action.text if action.confirmed or not colour else f"{RED}{action.text}{RESET}"
+            print(f"gyrocal: safe state: {text}", file=stream, flush=True)
+
+
+def _not_confirmed(instrument: str, detail: str, attempts: int) -> SafeAction:
+    return SafeAction(instrument, False,
+                      f"{instrument.upper()} NOT CONFIRMED SAFE — check it by hand ({detail})",
+                      attempts)
+
+
+def _failure(exc: Exception) -> str:
+    return f"{type(exc).__name__}: {exc}"
+
+
+def stop_table(table: RateTable, clock: Clock, attempts: int) -> SafeAction:
+    """``stop``, then read the rate back until it is at rest (the axis decelerates at its limit)."""
+    last = "no answer"
+    attempts = max(1, attempts)
+    for attempt in range(1, attempts + 1):
+        try:
+            table.stop()
+            started_s = clock.now_s()
+            best_dps = float("inf")
+            best_s = started_s
+            while True:
+                rate_dps = float(table.read_rate_dps())
+                if abs(rate_dps) <= TABLE_STOPPED_DPS:
+                    return SafeAction("table", True,
+                                      f"table stopped (read back {abs(rate_dps):.3f} deg/s)", attempt)
+                last = f"rate reads back {rate_dps:.3f} deg/s after stop"
+                now_s = clock.now_s()
+                if abs(rate_dps) < best_dps:
+                    best_dps, best_s = abs(rate_dps), now_s
+                if now_s - best_s >= STOP_STALL_S or now_s - started_s >= STOP_MAX_S:
+                    break
+                clock.sleep(POLL_S)
+        except Exception as exc:  # noqa: BLE001 - every failure is attempted again, then reported
+            last = _failure(exc)
+    return _not_confirmed("table", last, attempts)
+
+
+def chamber_to_safe(chamber: Chamber, setpoint_c: float | None, clock: Clock,
+                    attempts: int) -> SafeAction:
+    """Write the safe setpoint and read the setpoint register back until it matches."""
+    last = "no answer"
+    attempts = max(1, attempts)
+    for attempt in range(1, attempts + 1):
+        try:
+            if setpoint_c is None:   # the station's safe state is "hold the setpoint"
+                held_c = float(chamber.read_setpoint_c())
+                return SafeAction("chamber", True,
+                                  f"chamber holding setpoint {held_c:.1f} °C (read back)", attempt)
+            chamber.set_setpoint_c(setpoint_c)
+            read_c = float(chamber.read_setpoint_c())
+            if abs(read_c - setpoint_c) <= SETPOINT_MATCH_C:
+                return SafeAction("chamber", True, f"chamber setpoint {read_c:.1f} °C (read back)",
+                                  attempt)
+            last = f"setpoint reads back {read_c:.2f} °C, not {setpoint_c:.2f} °C"
+        except Exception as exc:  # noqa: BLE001 - every failure is attempted again, then reported
+            last = _failure(exc)
+        clock.sleep(POLL_S)
+    return _not_confirmed("chamber", last, attempts)
+
+
+def _reset(link: Chamber | RateTable) -> None:
+    # A link that cannot even close is reported by the action that follows.
+    with contextlib.suppress(Exception):
+        link.reset_link()
+
+
+def make_safe(table: RateTable, chamber: Chamber, policy: SafePolicy, clock: Clock) -> SafeOutcome:
+    """Fresh links, then the table (it moves the unit), then the chamber; each whatever the other did."""
+    _reset(table)
+    _reset(chamber)
+    return SafeOutcome((stop_table(table, clock, policy.table_attempts),
+                        chamber_to_safe(chamber, policy.setpoint_c, clock, policy.chamber_attempts)))
