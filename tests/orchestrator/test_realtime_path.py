@@ -27,7 +27,7 @@ FS_HZ = 2000
 DWELL_S = 5
 
 
-def short_procedure(folder: Path, station: Path) -> Path:
+def short_procedure(folder: Path, station: Path, fs_hz: int = FS_HZ, repeats: int = 1) -> Path:
     """One temperature at the simulated ambient, one ±100 deg/s pair: 16 s of procedure time."""
     path = folder / "short.yaml"
     path.write_text(f"""
@@ -44,10 +44,10 @@ defaults:
   dwell: {DWELL_S} s
   settle: 1 s
   accel_dps2: 100.0
-  sample_rate_hz: {FS_HZ}
+  sample_rate_hz: {fs_hz}
 data_quality:
   max_lost_frame_fraction: 0.001
-  max_step_repeats: 1
+  max_step_repeats: {repeats}
 sequence:
   - setpoint_c: 22.0
     tests:
@@ -56,11 +56,18 @@ sequence:
     return path
 
 
-def check_run(out: Path, h: Any) -> None:
+def check_run(out: Path, h: Any, fs_hz: int = FS_HZ, lost_frames_allowed: bool = False) -> None:
     events = h.events(out)
-    assert not [e for e in events if e["event"] in ("gyro_implausible", "step_bad")]
+    assert not [e for e in events if e["event"] == "gyro_implausible"]   # nothing stale, ever
+    bad = [e for e in events if e["event"] == "step_bad"]
+    if lost_frames_allowed:
+        # 20x real time is 20x the frame rate through the pty: a host busy with other work may
+        # drop frames (counted, the step repeated), but never pass them off as data
+        assert all(e["lost_frames"] > 0 and "lost" in e["reason"] for e in bad), bad
+    else:
+        assert not bad
     done = [e for e in events if e["event"] == "step_completed" and ".sf." in e["step_id"]]
-    assert len(done) == 2 and all(e["samples"] == DWELL_S * FS_HZ for e in done)
+    assert len(done) == 2 and all(e["samples"] == DWELL_S * fs_hz for e in done)
     model = load_model(REPO / "gyro-models" / "nominal-fog.yaml")
     results = json.loads((out / "report" / "results.json").read_text())
     [entry] = results["scale_factor"]
@@ -98,7 +105,9 @@ def test_speed_1_against_sim_serve_through_a_live_station_file(h: Any, tmp_path:
 @pytest.mark.timeout(120)
 def test_speed_20_in_process(h: Any, tmp_path: Path) -> None:
     out = tmp_path / "run"
-    code = main(["run", str(short_procedure(tmp_path, REPO / "stations" / "sim.yaml")), "--sim",
-                 "--speed", "20", "--out", str(out)])
+    # 500 Hz at 20x is 10,000 frames a wall second (2 kHz would be 40,000: frames lost on a
+    # loaded CI machine); two repeats allowed for the frames such a machine may still lose
+    procedure = short_procedure(tmp_path, REPO / "stations" / "sim.yaml", fs_hz=500, repeats=2)
+    code = main(["run", str(procedure), "--sim", "--speed", "20", "--out", str(out)])
     assert code == EXIT_OK
-    check_run(out, h)
+    check_run(out, h, fs_hz=500, lost_frames_allowed=True)
