@@ -61,12 +61,21 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("validate", help="validate a procedure (and station) before anything moves")
     p.add_argument("procedure")
-    p.add_argument("--station")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--station")
+    group.add_argument("--sim", action="store_true",
+                       help="check as for `run --sim` (the simulated gyro takes the procedure's rate)")
+    p.add_argument("--allow-outside-paths", action="store_true",
+                   help="let the procedure/station name files outside their folder, project "
+                        "and the working folder")
     p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_validate"))
 
     p = sub.add_parser("plan", help="print the expanded steps, durations and ETA")
     p.add_argument("procedure")
     p.add_argument("--station")
+    p.add_argument("--allow-outside-paths", action="store_true",
+                   help="let the procedure/station name files outside their folder, project "
+                        "and the working folder")
     p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_plan"))
 
     p = sub.add_parser("run", help="run a procedure on a station or against simulated instruments")
@@ -86,6 +95,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--signing-key", default=None,
                    help="the station's private key (default: the station file's signing_key, "
                    "or $GYROCAL_SIGNING_KEY)")
+    p.add_argument("--allow-outside-paths", action="store_true",
+                   help="let the procedure/station name files outside their folder, project "
+                        "and the working folder")
     p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_run"))
 
     p = sub.add_parser("resume", help="continue a faulted or interrupted run")
@@ -223,7 +235,7 @@ def _terminate(signum: int, frame: object) -> None:
 
 #: Disk full or over quota: the run stopped (the engine put the rig in its safe state
 #: before re-raising); free space and resume.
-_DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+_DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)   # EFBIG: a file-size limit
 
 
 def main(argv: Sequence[str] | None = None, *,

@@ -52,6 +52,33 @@ MAX_DEPTH = 64
 TEXT_HEAD_BYTES = 64 * 1024
 
 
+#: A folder holding this is a gyrocal project (procedures/ and stations/ side by side).
+PROJECT_MARKER = "stations"
+ALLOW_OUTSIDE_FLAG = "--allow-outside-paths"
+
+
+def outside_reference(referring: Path, target: Path) -> str | None:
+    """Why ``target`` (named inside the file ``referring``) may not be read, or None if it may.
+
+    A file a procedure or station names must lie in the referring file's folder, in its
+    project (the nearest folder above it holding ``stations/``) or in the working folder;
+    anything else - ``station: /etc/shadow`` - needs :data:`ALLOW_OUTSIDE_FLAG`. The check
+    is on the resolved path (``..`` and symlinks followed) and happens before a byte is read,
+    so a refused file's contents can never reach a message.
+    """
+    resolved = target.resolve()
+    folder = referring.resolve().parent
+    roots = [folder, Path.cwd().resolve()]
+    project = next((p for p in (folder, *folder.parents) if (p / PROJECT_MARKER).is_dir()), None)
+    if project is not None:
+        roots.insert(1, project)
+    if any(resolved.is_relative_to(root) for root in roots):
+        return None
+    names = ", ".join(dict.fromkeys(str(root) for root in roots))
+    return (f"{resolved} is outside {names} (the referring file's folder, its project and the "
+            f"working folder); give {ALLOW_OUTSIDE_FLAG} to read it")
+
+
 def format_key_path(path: tuple) -> str:
     """``("effects", 1, "tau_s")`` -> ``effects[1].tau_s``: how every input error names a field."""
     text = ""

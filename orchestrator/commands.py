@@ -48,6 +48,7 @@ from gyrocal.orchestrator.signing import (
     signer_from,
 )
 from gyrocal.orchestrator.station import load_station
+from gyrocal.orchestrator.station_fit import check_runnable, is_simulated
 
 DEFAULT_SIM_STATION = Path("stations/sim.yaml")
 
@@ -68,15 +69,22 @@ def quiet_library_logs(debug: bool = False) -> None:
 # -- validate / plan -----------------------------------------------------------------------
 
 def cmd_validate(args: argparse.Namespace) -> int:
-    procedure = load_procedure(args.procedure, station_path=args.station)
+    """Everything ``run`` checks before anything moves, for the same station and ``--sim``."""
+    procedure = load_procedure(args.procedure, station_path=args.station,
+                               allow_outside=args.allow_outside_paths)
     plan = expand_plan(procedure)
-    print(f"{procedure.file}: OK — {procedure.name!r} on station {procedure.station.name!r}: "
+    # a station whose every address is `sim` can only run with --sim: judge it that way
+    sim = args.sim or is_simulated(procedure)
+    check_runnable(procedure, sim)
+    how = " for `gyrocal run --sim`" if sim else ""
+    print(f"{procedure.file}: OK{how} — {procedure.name!r} on station {procedure.station.name!r}: "
           f"{len(plan.steps)} steps, ETA {_hms(plan.total_s)} (worst case {_hms(plan.max_total_s)})")
     return EXIT_OK
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
-    procedure = load_procedure(args.procedure, station_path=args.station)
+    procedure = load_procedure(args.procedure, station_path=args.station,
+                               allow_outside=args.allow_outside_paths)
     print(format_plan(expand_plan(procedure)))
     return EXIT_OK
 
@@ -108,11 +116,7 @@ def station_instruments(procedure: Procedure, clock, sim: bool, seed: int | None
     """Instruments for the run: simulators on loopback (``sim``) or the station's addresses."""
     station = procedure.station
     fs_hz = procedure.defaults.sample_rate_hz
-    if not sim and abs(fs_hz - station.gyro.sample_rate_hz) > 1e-9:
-        raise BadInput(
-            f"{procedure.file}: defaults.sample_rate_hz: {fs_hz:g} Hz, but the gyro of station "
-            f"{station.name!r} is configured for {station.gyro.sample_rate_hz:g} Hz; a STIM300 "
-            "streams at its configured rate, so set the procedure to it or reconfigure the unit")
+    check_runnable(procedure, sim)
     simulated = None
     try:
         addresses = None
@@ -184,13 +188,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     station_path = args.station
     if args.sim and args.sim_station:
         station_path = args.sim_station
-    procedure = load_procedure(args.procedure, station_path=station_path)
+    procedure = load_procedure(args.procedure, station_path=station_path,
+                               allow_outside=args.allow_outside_paths)
     plan = expand_plan(procedure)
-    if not args.sim and any(
-        addr == "sim" for addr in (procedure.station.chamber.address,
-                                   procedure.station.table.address, procedure.station.gyro.port)):
-        raise BadInput(f"{procedure.station.file}: instrument address 'sim' needs --sim "
-                       "(or a station file with real addresses)")
+    check_runnable(procedure, args.sim)
     if not args.sim and args.speed not in (None, "1", "1.0"):
         # Real chambers and tables live in real time: a faster clock would cut soaks short.
         raise BadInput(f"--speed {args.speed}: only --sim runs can change the clock; "
@@ -296,7 +297,9 @@ def _resume_locked(args: argparse.Namespace, folder: RunFolder, held: contextlib
                            f"(SHA-256 differs from {folder.path / entry['copy']}); "
                            "resume needs the inputs the run started with")
     station = inputs.get("station", {}).get("source")
-    procedure = load_procedure(inputs["procedure"]["source"], station_path=station)
+    # the inputs were confined (or allowed) when the run started, and their SHA-256 is checked
+    procedure = load_procedure(inputs["procedure"]["source"], station_path=station,
+                               allow_outside=True)
     plan = expand_plan(procedure)
     if [s.step_id for s in plan.steps] != manifest.get("steps"):
         raise BadInput(f"{folder.path}: the expanded plan differs from the one the run started with")
@@ -501,7 +504,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     code = cmd_run(argparse.Namespace(
         procedure=str(procedure), station=None, sim=True, out=str(out / "smoke"), speed="max",
         seed=1, operator="demo", sim_station=None, debug=debug,
-        signing_key=str(keys.private), on_sim_started=None))
+        signing_key=str(keys.private), on_sim_started=None, allow_outside_paths=False))
     if code == EXIT_FAULT:
         return code
     audit = verify_run_folder(out / "smoke", public_key=keys.public)
@@ -514,7 +517,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     hidden_code = cmd_run(argparse.Namespace(
         procedure=str(procedure), station=None, sim=True, out=str(out / "hidden-effect"),
         speed="max", seed=2, operator="demo", sim_station=str(station), debug=debug,
-        signing_key=str(keys.private), on_sim_started=None))
+        signing_key=str(keys.private), on_sim_started=None, allow_outside_paths=False))
     if hidden_code == EXIT_FAULT:
         return hidden_code
     document = run_discrepancy(nominal, out / "hidden-effect", out / "discrepancy")

@@ -13,6 +13,8 @@ The same code runs against hardware (``RealClock``) and against simulators
 
 from __future__ import annotations
 
+import errno
+import sys
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
@@ -176,6 +178,15 @@ class RunEngine:
                 safe = self._go_safe(JournalEvent.FAULT, str(exc), **_fault_fields(exc))
                 raise RunFaultError(f"{exc}; {safe.summary()}; continue with "
                                     f"`gyrocal resume {self.folder.path}`") from exc
+            except OSError as exc:
+                if exc.errno not in NO_ROOM_ERRNOS:
+                    self._go_safe(JournalEvent.FAULT, f"internal error: {exc!r}")
+                    raise
+                what = f"no room to write ({exc.strerror}: {exc.filename or 'a run file'})"
+                safe = self._go_safe(JournalEvent.FAULT, what)
+                raise RunFaultError(f"{what}; {safe.summary()}; every line already in the journal "
+                                    "is kept; make room, then continue with "
+                                    f"`gyrocal resume {self.folder.path}`") from None
             except BaseException as exc:
                 self._go_safe(JournalEvent.FAULT, f"internal error: {exc!r}")
                 raise
@@ -371,14 +382,26 @@ class RunEngine:
         with self._gate.shielded():
             outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock)
             outcome.print()
-            self.journal.append(kind, message=message, state=state_at_fault,
-                                step_id=self._step_id, **fields)
-            self.journal.append(JournalEvent.SAFE_STATE, **outcome.journal_fields())
             if self.machine.state == "safing":
                 self.machine.safed()
-            self.folder.update_manifest(state="faulted", ended_at=_now_text(), last_fault=message,
-                                        safe_confirmed=outcome.confirmed)
+            try:
+                self.journal.append(kind, message=message, state=state_at_fault,
+                                    step_id=self._step_id, **fields)
+                self.journal.append(JournalEvent.SAFE_STATE, **outcome.journal_fields())
+                self.folder.update_manifest(state="faulted", ended_at=_now_text(),
+                                            last_fault=message, safe_confirmed=outcome.confirmed)
+            except OSError as exc:
+                # A full disk may refuse these lines too: the rig is safe already, and the
+                # console (above) is the record of it; the fault itself is still reported.
+                print(f"gyrocal: could not record the fault and the safe state in the run "
+                      f"folder ({exc.strerror}); the console lines above are the record",
+                      file=sys.stderr)
         return outcome
+
+
+#: No room to write: disk full, over quota, or a file-size limit (``ulimit -f``). The run stops
+#: as a fault (exit 3), safe and resumable, never as an internal error.
+NO_ROOM_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
 def _bad_reason(result: StepResult, loss: float, limit: float, rate_dps: float,

@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from gyrocal.errors import BadInput
 from gyrocal.orchestrator.procedure import (
     AllanTest,
     MountingSpec,
@@ -263,6 +264,7 @@ def expand_plan(procedure: Procedure, start_temp_c: float | None = None) -> Plan
     ids = [s.step_id for s in expander.steps]
     if len(set(ids)) != len(ids):   # cannot happen for a validated procedure; journals depend on it
         raise AssertionError(f"duplicate step ids in the plan of {procedure.file}")
+    _check_eta(procedure, expander.clock_s)
     return Plan(
         procedure_name=procedure.name,
         procedure_file=procedure.file,
@@ -273,6 +275,22 @@ def expand_plan(procedure: Procedure, start_temp_c: float | None = None) -> Plan
         max_total_s=expander.max_clock_s,
         finish_s=expander.finish(),
     )
+
+
+def _check_eta(procedure: Procedure, eta_s: float) -> None:
+    """Refuse a plan longer than the procedure allows: such ETAs come from typos (a ramp of
+    1e-9 °C/min gave 327 million hours), so validate, plan and run all say so before anything moves."""
+    if eta_s <= procedure.max_duration_s:
+        return
+    allowed = f"{procedure.max_duration_s / 86400:g} days"
+    if procedure.max_duration_declared:
+        why = f"longer than its declared max_duration: {allowed}"
+    else:
+        why = (f"longer than {allowed}, the most a procedure may take unless it declares "
+               "max_duration: (top level)")
+    raise BadInput(f"{procedure.file}: the plan's ETA is {eta_s / 86400:,.1f} days "
+                   f"({eta_s / 3600:,.0f} h), {why}; check the ramps, accelerations, rates and "
+                   "durations")
 
 
 def _clock(seconds: float) -> str:

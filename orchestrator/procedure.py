@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gyrocal.inputs import YamlDocument, load_yaml
+from gyrocal.inputs import YamlDocument, load_yaml, outside_reference
 from gyrocal.instruments.table.acutrol_protocol import RATE_DECIMALS, commanded_rate_dps
 from gyrocal.models.imu_model import Mounting
 from gyrocal.orchestrator.metrics import METRICS, NEEDS_TEXT, units_match
@@ -56,6 +56,15 @@ SPACINGS = ("linear", "log")
 TEST_KINDS = ("static", "sf_sweep", "allan")
 MAX_LIST = 1000           # rates per sweep, steps per sequence: beyond this it is a typo
 MAX_DURATION_S = 7 * 86400.0
+#: Floors below which a ramp or an acceleration is a typo, not a choice: 0.01 °C/min is 0.6 °C
+#: an hour (a 100 °C step would take a week) and 0.01 deg/s² takes 50 s to reach 0.5 deg/s.
+#: The adversarial pass validated a 1e-9 acceleration (an ETA of 327 million hours).
+MIN_RAMP_C_PER_MIN = 0.01
+MIN_ACCEL_DPS2 = 0.01
+#: The longest a procedure may take (its ETA) unless it declares ``max_duration:``: nobody
+#: plans two unattended weeks on a rate table by accident.
+DEFAULT_MAX_ETA_S = 14 * 86400.0
+MAX_DECLARED_DURATION_S = 90 * 86400.0
 
 
 # -- the typed result -------------------------------------------------------------------
@@ -244,20 +253,26 @@ class Procedure:
     files: tuple[Path, ...]    # the procedure, its includes and the station file (for the manifest)
     mountings: tuple[MountingSpec, ...] = ()   # a multi-axis IMU calibration; () for one axis
     mounting_order: str = "temperatures_inside"
+    #: the longest the plan's ETA may be: ``max_duration:`` when declared, else 14 days
+    max_duration_s: float = DEFAULT_MAX_ETA_S
+    max_duration_declared: bool = False
 
 
 # -- loading ----------------------------------------------------------------------------
 
 def load_procedure(
-    path: str | os.PathLike[str], station_path: str | os.PathLike[str] | None = None
+    path: str | os.PathLike[str], station_path: str | os.PathLike[str] | None = None, *,
+    allow_outside: bool = False,
 ) -> Procedure:
     """Read and validate a procedure; ``station_path`` overrides its ``station:`` key.
 
     Raises :class:`ProcedureError` with every problem found in the procedure,
-    its includes and its station.
+    its includes and its station. Files the procedure names (its station, the station's
+    gyro model) must lie near it unless ``allow_outside`` (see ``outside_reference``);
+    ``station_path`` is the user's own choice on the command line and is not confined.
     """
     document = load_yaml(path)
-    ctx = Context(document)
+    ctx = Context(document, allow_outside=allow_outside)
     procedure = _Parser(ctx, station_path).procedure(document.data)
     if ctx.problems:
         raise ProcedureError(sort_problems(ctx.problems))
@@ -337,12 +352,17 @@ class _Parser:
                             default="temperatures_inside")
         if fields.has("mounting_order") and not mountings:
             ctx.report(fields.child("mounting_order"), "only meaningful with a mountings: list")
+        max_duration = fields.take("max_duration", duration(), required=False)
+        if max_duration is not None and max_duration > MAX_DECLARED_DURATION_S:
+            ctx.report(fields.child("max_duration"), "longer than 90 days; a typo?")
         fields.raw("templates")   # free-form: a home for YAML anchors (&sweep) used elsewhere
         fields.finish()
         files = tuple(self.document.files) + tuple(self.station_files)
         return Procedure(version, name, description, uut, self.station, self.safety, defaults,
                          quality, sequence, acceptance, self.document.file, self.document.path,
-                         files, mountings, order)
+                         files, mountings, order,
+                         max_duration if max_duration is not None else DEFAULT_MAX_ETA_S,
+                         max_duration is not None)
 
     def mountings(self, parent: Fields) -> tuple[MountingSpec, ...]:
         present, raw = parent.raw("mountings")
@@ -400,7 +420,7 @@ class _Parser:
         present, raw = fields.raw("station")
         if self.station_path is not None:
             try:
-                station = load_station(self.station_path)
+                station = load_station(self.station_path, allow_outside=self.ctx.allow_outside)
             except ProcedureError as error:
                 self.ctx.problems.extend(error.problems)
                 return None
@@ -422,10 +442,15 @@ class _Parser:
                             f"this procedure) or a station mapping, got {describe(raw)}")
             return None
         target = self.document.path.parent / relative
+        refused = None if self.ctx.allow_outside else outside_reference(self.document.path, target)
+        if refused is not None:
+            self.ctx.report(("station",), refused)
+            return None
         display = os.path.normpath(os.path.join(os.path.dirname(self.document.file), relative))
         same_file = Path(display).resolve() == target.resolve()
         try:
-            station = load_station(display if same_file else target)
+            station = load_station(display if same_file else target,
+                                   allow_outside=self.ctx.allow_outside)
         except ProcedureError as error:
             self.ctx.problems.extend(error.problems)
             return None
@@ -523,7 +548,8 @@ class _Parser:
         )
 
     def check_ramp(self, path: KeyPath, value: float | None) -> None:
-        self.check_bounds(path, value, "°C/min", highs=self._limits(
+        self.check_bounds(path, value, "°C/min", lows=[_Limit(
+            MIN_RAMP_C_PER_MIN, "plausible minimum", "a slower ramp is a typo")], highs=self._limits(
             "chamber.max_ramp_c_per_min", "chamber.limits.max_ramp_c_per_min"))
 
     def check_rate(self, path: KeyPath, value: float | None) -> None:
@@ -531,7 +557,9 @@ class _Parser:
             "table.max_rate_dps", "table.limits.max_rate_dps"))
 
     def check_accel(self, path: KeyPath, value: float | None) -> None:
-        self.check_bounds(path, value, "deg/s²", highs=self._limits(
+        self.check_bounds(path, value, "deg/s²", lows=[_Limit(
+            MIN_ACCEL_DPS2, "plausible minimum", "a gentler acceleration is a typo")],
+            highs=self._limits(
             "table.max_accel_dps2", "table.limits.max_accel_dps2"))
 
     # -- defaults and quality ---------------------------------------------------------------

@@ -37,12 +37,24 @@ Converter = Callable[[object], Any]
 class Context:
     """The document being read and the problems found so far."""
 
-    def __init__(self, document: YamlDocument, problems: list[Problem] | None = None) -> None:
+    def __init__(self, document: YamlDocument, problems: list[Problem] | None = None, *,
+                 allow_outside: bool = False) -> None:
         self.document = document
         self.problems: list[Problem] = problems if problems is not None else []
+        #: files named in the document may lie outside its folder/project (--allow-outside-paths)
+        self.allow_outside = allow_outside
 
     def report(self, path: KeyPath, message: str) -> None:
         self.problems.append(self.document.problem(path, message))
+
+
+def _shape(value: object) -> str:
+    """What a document is, without a word of what it says."""
+    if isinstance(value, str):
+        return f"a plain text of {len(value)} characters (is this the file you meant?)"
+    if isinstance(value, list):
+        return f"a list of {len(value)} entries"
+    return "nothing (an empty file)" if value is None else f"a single {type(value).__name__}"
 
 
 class Fields:
@@ -55,7 +67,10 @@ class Fields:
         self.data: dict[str, Any] = value if isinstance(value, dict) else {}
         self.used: set[str] = set()
         if not self.valid:
-            ctx.report(path, f"{what} must be a mapping of keys, got {describe(value)}")
+            # A whole file that is not a mapping is most likely not the file the user meant
+            # (`station: /etc/passwd`): name its shape, never echo its contents.
+            got = describe(value) if path else _shape(value)
+            ctx.report(path, f"{what} must be a mapping of keys, got {got}")
 
     def has(self, key: str) -> bool:
         return key in self.data

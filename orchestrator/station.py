@@ -15,7 +15,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from gyrocal.inputs import load_yaml
+from gyrocal.inputs import load_yaml, outside_reference
 from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
 from gyrocal.orchestrator.notify import NotifyTarget, parse_notify
 from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
@@ -212,10 +212,10 @@ class Station:
         return f"{self.file} {key}"
 
 
-def load_station(path: str | os.PathLike[str]) -> Station:
+def load_station(path: str | os.PathLike[str], *, allow_outside: bool = False) -> Station:
     """Read and validate a station file; :class:`ProcedureError` lists every problem."""
     document = load_yaml(path)
-    ctx = Context(document)
+    ctx = Context(document, allow_outside=allow_outside)
     station = parse_station(ctx, (), document.data, base_dir=document.path.parent,
                             file=document.file, path=document.path)
     if ctx.problems:
@@ -407,7 +407,12 @@ def _simulation(ctx: Context, where: KeyPath, value: object, base_dir: Path) -> 
     fields = Fields(ctx, where, value, "simulation")
     model_text = fields.take("gyro_model", text)
     gyro_model = (base_dir / model_text).resolve() if model_text is not None else None
-    if gyro_model is not None and not gyro_model.is_file():
+    refused = None if gyro_model is None or ctx.allow_outside else outside_reference(
+        ctx.document.path, gyro_model)
+    if refused is not None:
+        ctx.report(fields.child("gyro_model"), refused)
+        gyro_model = None
+    elif gyro_model is not None and not gyro_model.is_file():
         ctx.report(fields.child("gyro_model"), f"gyro model file not found: {gyro_model} "
                    "(the path is relative to the file that names it)")
     seed = fields.take("seed", integer(0), required=False, default=1)

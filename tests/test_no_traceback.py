@@ -76,9 +76,63 @@ def test_nul_byte_is_bad_input_naming_the_line(tmp_path: Path, capsys) -> None:
 
 
 def test_station_dev_zero_is_refused_without_reading_it(tmp_path: Path, capsys) -> None:
-    code, text = run_cli(capsys, "validate", str(smoke_with_station(tmp_path, "/dev/zero")))
+    code, text = run_cli(capsys, "validate", str(smoke_with_station(tmp_path, "/dev/zero")),
+                         "--allow-outside-paths")
     assert code == EXIT_BAD_INPUT
     assert "/dev/zero: is a device; expected a regular file" in text
+
+
+# -- confinement: files named inside a procedure or station -----------------------------------
+
+@pytest.mark.parametrize("target", ["/etc/shadow", "/etc/passwd", "/dev/zero"])
+def test_a_station_outside_the_project_is_refused_before_it_is_read(
+        tmp_path: Path, capsys, target: str) -> None:
+    """Defect 4: `station: /etc/shadow` echoed the file's lines; now it is never opened."""
+    path = smoke_with_station(tmp_path, target)
+    code, text = run_cli(capsys, "validate", str(path))
+    assert code == EXIT_BAD_INPUT
+    assert f"{path}:16: station: {target} is outside {tmp_path}" in text
+    assert "give --allow-outside-paths to read it" in text
+    assert "root:" not in text and "daemon" not in text
+
+
+def test_allowed_outside_paths_still_never_echo_the_file(tmp_path: Path, capsys) -> None:
+    code, text = run_cli(capsys, "validate", str(smoke_with_station(tmp_path, "/etc/passwd")),
+                         "--allow-outside-paths")
+    assert code == EXIT_BAD_INPUT
+    assert "/etc/passwd" in text and "root:" not in text and "/bin/" not in text
+
+
+def test_run_sim_never_copies_a_file_from_outside_into_the_run_folder(
+        tmp_path: Path, capsys) -> None:
+    """Defect 4: `run --sim` copied /etc/passwd into the run folder after validate said OK."""
+    station = tmp_path / "station.yaml"
+    station.write_text((REPO / "stations" / "sim.yaml").read_text().replace(
+        "gyro_model: ../gyro-models/nominal-fog.yaml", "gyro_model: /etc/passwd"))
+    path = smoke_with_station(tmp_path, str(station))
+    out = tmp_path / "run"
+    code, text = run_cli(capsys, "run", str(path), "--sim", "--out", str(out))
+    assert code == EXIT_BAD_INPUT
+    assert f"simulation.gyro_model: /etc/passwd is outside {tmp_path}" in text
+    copied = [p for p in out.rglob("*") if p.is_file() and b"root:" in p.read_bytes()] \
+        if out.exists() else []
+    assert copied == []
+
+
+def test_files_beside_the_procedure_and_in_its_project_need_no_flag(
+        tmp_path: Path, capsys) -> None:
+    project = tmp_path / "lab"
+    (project / "stations").mkdir(parents=True)
+    (project / "procedures").mkdir()
+    (project / "stations" / "sim.yaml").write_text((REPO / "stations" / "sim.yaml").read_text()
+                                                   .replace("../gyro-models/nominal-fog.yaml",
+                                                            "nominal-fog.yaml"))
+    (project / "stations" / "nominal-fog.yaml").write_text(
+        (REPO / "gyro-models" / "nominal-fog.yaml").read_text())
+    path = project / "procedures" / "smoke.yaml"
+    path.write_text(SMOKE.read_text())             # station: ../stations/sim.yaml
+    code, text = run_cli(capsys, "validate", str(path))
+    assert code == 0, text
 
 
 @pytest.mark.timeout(30)

@@ -170,25 +170,32 @@ class Acutrol3000Table:
     def _refused(self, text: str, reply: str, also: str = "") -> None:
         if "interlock" in reply.lower() or " 201" in f" {reply}":
             raise InstrumentSafetyError(self.name, text, f"refused: interlock open{also}", reply=reply)
-        raise InstrumentProtocolError(self.name, text, f"refused by the table{also}", reply=reply)
+        code = proto.error_code_in(reply)
+        raise InstrumentProtocolError(self.name, text, f"refused by the table{also}", reply=reply,
+                                      transient=proto.refusal_may_pass(code))
 
     def _setting(self, command: proto.Command, **fields: Any) -> None:
-        """Send a setting and raise if the table refused it (its dialect says how we know)."""
+        """Send a setting and raise if the table refused it (its dialect says how we know).
+
+        A refusal is attempted again per the station's ``retries`` unless retrying cannot
+        help: an SCPI command error (-100…-199: the bytes themselves are wrong) or an open
+        interlock (a safety stop, never retried). The adversarial pass saw execution errors
+        (the table busy finishing a move) end runs that one more attempt would have saved.
+        """
         text = command.text(axis=self.axis, **fields)
-        if self.dialect.acknowledged:
-            value = self._with_retry(text, lambda: self._answer(text))
-            if value.upper() != "OK":
-                self._refused(text, value)
-            return
-        self._setting_error_queue(text)
+        once = self._setting_acknowledged if self.dialect.acknowledged else self._setting_error_queue
+        self._with_retry(text, lambda: once(text))
+
+    def _setting_acknowledged(self, text: str) -> None:
+        value = self._answer(text)
+        if value.upper() != "OK":
+            self._refused(text, value)
 
     def _setting_error_queue(self, text: str) -> None:
         """Send a setting with ``:syst:err?`` on the same line; raise if the table refused it."""
         line = f"{text};{proto.ERROR_QUERY.text()}"
         with self._lock:
-            code, message = self._with_retry(
-                text, lambda: self._parse(proto.parse_error, text, self._exchange(line))
-            )
+            code, message = self._parse(proto.parse_error, text, self._exchange(line))
             if code == 0:
                 return
             others = self._drain_errors()
@@ -196,7 +203,8 @@ class Acutrol3000Table:
         also = f" (also queued: {'; '.join(others)})" if others else ""
         if proto.is_interlock_error(code, message):
             raise InstrumentSafetyError(self.name, text, f"refused: interlock open{also}", reply=reply)
-        raise InstrumentProtocolError(self.name, text, f"refused by the table{also}", reply=reply)
+        raise InstrumentProtocolError(self.name, text, f"refused by the table{also}", reply=reply,
+                                      transient=proto.refusal_may_pass(code))
 
     def _drain_errors(self) -> list[str]:
         """Empty the error queue so one refusal is not blamed on the next command."""

@@ -89,6 +89,36 @@ def parse_error(reply: str) -> tuple[int, str]:
     return int(match.group(1)), match.group(2)
 
 
+_ERROR_CODE = re.compile(r"([+-]\d{3})\b")
+
+
+def error_code_in(reply: str) -> int | None:
+    """The SCPI error code a refusal carries (``ERROR -200,"Execution error"``), if any."""
+    match = _ERROR_CODE.search(reply)
+    return int(match.group(1)) if match else None
+
+
+#: SCPI parameter errors inside the execution class: the value itself is wrong
+#: (-220 parameter error, -222 data out of range, -223 too much data, -224 illegal
+#: parameter value, -225 out of memory, -226 lists not same length).
+PARAMETER_ERROR_CODES = frozenset({-220, -222, -223, -224, -225, -226})
+
+
+def refusal_may_pass(code: int | None) -> bool:
+    """Whether sending the same setting again may succeed.
+
+    SCPI-99 error/event classes: -100…-199 are command errors (syntax, bad header: the
+    same bytes fail again), and the parameter errors above say the value is wrong; the
+    other execution errors (-200 execution error, -221 settings conflict, -230/-240 data
+    or hardware trouble), device-specific (-3xx) and query (-4xx) errors depend on the
+    table's state and may pass on a later attempt. A refusal without a code is treated
+    as retryable: the station's ``retries`` bound it.
+    """
+    if code is None:
+        return True
+    return not (-199 <= code <= -100 or code in PARAMETER_ERROR_CODES)
+
+
 def parse_status(reply: str) -> tuple[float, float, bool]:
     fields = _printable(reply).split(";")
     if len(fields) != 3:

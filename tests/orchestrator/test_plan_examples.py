@@ -135,11 +135,13 @@ def test_smoke_is_a_few_minutes_and_its_eta_is_recomputed_by_hand():
     assert {s.setpoint_c for s in plan.steps} == {23.0, 27.0}
 
 
-def test_overnight_procedure_does_not_fit_the_lab_station():
-    """The lab's table stops at 400 deg/s: the 500 deg/s sweep must be refused up front."""
+def test_overnight_procedure_does_not_fit_a_400_dps_table(tmp_path):
+    """A table that stops at 400 deg/s: the 500 deg/s sweep must be refused up front."""
+    lab = tmp_path / "lab-400.yaml"
+    lab.write_text((REPO / "stations" / "lab-example.yaml").read_text().replace(
+        "max_rate_dps: 500.0", "max_rate_dps: 400.0"))
     with pytest.raises(ProcedureError) as error:
-        load_procedure(REPO / "procedures" / "fog-overnight-sf-temperature.yaml",
-                       REPO / "stations" / "lab-example.yaml")
+        load_procedure(REPO / "procedures" / "fog-overnight-sf-temperature.yaml", lab)
     text = str(error.value)
     assert "safety.table.max_rate_dps: 500 deg/s exceeds the station table limit 400 deg/s" in text
     assert "rates_dps[9]: 500 deg/s exceeds the table limit 400 deg/s (station " in text

@@ -190,7 +190,9 @@ def test_station_override_applies_its_limits(folder):
     path = folder / "procedures" / "p.yaml"
     path.write_text(text, encoding="utf-8")
     assert load_procedure(path).station.name == "Simulated calibration station"   # 450 <= 500
-    lab = REPO / "stations" / "lab-example.yaml"
+    lab = folder / "lab-400.yaml"
+    lab.write_text((REPO / "stations" / "lab-example.yaml").read_text().replace(
+        "max_rate_dps: 500.0", "max_rate_dps: 400.0"))
     problems, shown = problems_for(folder, text, station=lab)
     assert problems == [
         f"{shown}:{line_of(text, 'max_rate_dps: 450')}: safety.table.max_rate_dps: 450 deg/s exceeds "

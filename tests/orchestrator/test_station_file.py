@@ -115,7 +115,7 @@ def test_standby_safe_state_takes_no_setpoint(tmp_path):
 
 def test_a_station_that_is_not_a_mapping(tmp_path):
     problems, path = station_problems(tmp_path, textwrap.dedent("- a\n- b\n"))
-    assert problems == [f"{path}:1: a station must be a mapping of keys, got a list ['a', 'b']"]
+    assert problems == [f"{path}:1: a station must be a mapping of keys, got a list of 2 entries"]
 
 
 def test_a_missing_gyro_model_file_is_caught_before_the_run(tmp_path):

@@ -204,17 +204,36 @@ def test_a_table_that_keeps_dropping_the_line_is_a_connection_error(table, sim):
     assert caught.value.transient
 
 
-def test_an_error_reply_is_a_refusal_not_retried(table, sim, retries, physics):
+def test_an_execution_error_is_attempted_again_per_the_retries(table, sim, retries, physics):
+    """Issue 9: a -200 execution error (SCPI class -2xx: may pass) is retried, and journaled."""
     table.close_interlock()
     sim.faults.arm("error_reply")
+    table.set_rate_mode()
+    assert len(retries) == 1
+    assert retries[0].reply.startswith("-200,") and retries[0].command == ":mode:rate 1"
+    assert physics.mode == MODE_RATE
+
+
+def test_a_command_error_is_a_refusal_not_retried(table, sim, retries, physics):
+    """SCPI class -1xx (syntax/parameter): the same bytes would fail again."""
+    table.close_interlock()
+    sim.faults.arm("error_reply", code=-102, message="Syntax error")
     with pytest.raises(InstrumentProtocolError) as caught:
         table.set_rate_mode()
-    assert caught.value.reply.startswith("-200,")
+    assert caught.value.reply.startswith("-102,")
     assert caught.value.command == ":mode:rate 1"
     assert not caught.value.transient and retries == []
     assert physics.mode == MODE_OFF
-    table.set_rate_mode()
-    assert physics.mode == MODE_RATE
+
+
+def test_a_refusal_that_persists_ends_after_the_retries(table, sim, retries, physics):
+    table.close_interlock()
+    sim.faults.arm("error_reply", count=None)
+    with pytest.raises(InstrumentProtocolError) as caught:
+        table.set_rate_mode()
+    assert caught.value.transient and len(retries) == 2      # 3 attempts in all
+    assert physics.mode == MODE_OFF
+    sim.faults.clear("error_reply")
 
 
 def test_interlock_fault_stops_the_table_and_refuses_motion_until_cleared(table, sim, clock):

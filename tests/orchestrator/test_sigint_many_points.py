@@ -1,0 +1,207 @@
+"""Ctrl-C at many points of a real-time run, inside instrument exchanges too (issue 9).
+
+The setting is the lab's: ``gyrocal sim serve`` is a separate process holding
+the chamber (Modbus RTU over TCP) and the table (ACUTROL over TCP); the
+controller is a separate ``gyrocal run --station`` process reaching them
+through a byte-for-byte proxy (``tests/support/tcp_proxy.py``). For each trial
+the test waits until the run is in a given step (ramp, soak, spin-up, dwell),
+then lets the proxy deliver SIGINT to the controller *after a request has
+gone out and before its reply comes back* - the exchange the defect cut in
+half, whose late reply was then read as the answer to the safe-setpoint write.
+
+After each exit the simulator is asked directly - not through gyrocal and not
+through the proxy - what it is doing: the chamber's set point register
+(Watlow F4 register 300, set point 1, deci-degrees; F4 Series User's Manual,
+Modbus register list; Espec ChamberConnectLibrary reads the same register)
+and the table's measured rate (``:read:rate 1`` answered as the public
+ACUTROL TCP script reads it: CR LF line, 8-character prefix). Both must be at
+the safe values, and the console must say so in the words the issue asks for.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from pymodbus.client import ModbusTcpClient
+from pymodbus.framer import FramerType
+
+from gyrocal.cli import EXIT_FAULT
+from tests.support.tcp_proxy import ExchangeProxy
+
+REPO = Path(__file__).resolve().parents[2]
+SAFE_SETPOINT_C = 25.0
+
+pytestmark = pytest.mark.timeout(400)
+
+
+def write_procedure(folder: Path, station: Path, setpoint_c: float) -> Path:
+    """A ramp to ``setpoint_c``, a short soak, a static and a ±50 deg/s pair, in real time."""
+    path = folder / "interrupt-me.yaml"
+    path.write_text(f"""
+version: 1
+name: Interrupt me
+unit_under_test: {{model: Simulated FOG, serial: SIM-INT, output_units: deg/s, nominal_scale_factor: 1.0}}
+station: {station}
+safety:
+  chamber: {{min_temp_c: 15.0, max_temp_c: 35.0, max_ramp_c_per_min: 5.0}}
+  table: {{max_rate_dps: 200.0, max_accel_dps2: 100.0}}
+defaults:
+  ramp_c_per_min: 5.0
+  soak: {{tolerance_c: 2.0, hold: 3 s, max_wait: 2 min}}
+  dwell: 4 s
+  settle: 1 s
+  accel_dps2: 20.0
+  sample_rate_hz: 2000
+data_quality:
+  max_lost_frame_fraction: 0.001
+  max_step_repeats: 1
+sequence:
+  - setpoint_c: {setpoint_c:.1f}
+    tests:
+      - {{kind: static, duration: 3 s}}
+      - {{kind: sf_sweep, rates_dps: [50]}}
+""")
+    return path
+
+
+def tcp_target(address: str) -> tuple[str, int]:
+    """``socket://host:port`` or ``TCPIP0::host::port::SOCKET`` → (host, port)."""
+    m = re.fullmatch(r"socket://([^:]+):(\d+)", address) or \
+        re.fullmatch(r"TCPIP0::([^:]+)::(\d+)::SOCKET", address)
+    assert m, address
+    return m.group(1), int(m.group(2))
+
+
+def read_f4_register_c(chamber: tuple[str, int], register: int) -> float:
+    """A signed deci-degree F4 register (100 process value, 300 set point 1) read with pymodbus."""
+    client = ModbusTcpClient(chamber[0], port=chamber[1], framer=FramerType.RTU, timeout=2)
+    assert client.connect()
+    try:
+        reply = client.read_holding_registers(register, count=1, device_id=1)
+        assert not reply.isError(), reply
+        raw = reply.registers[0]
+        return (raw - 0x10000 if raw & 0x8000 else raw) / 10.0
+    finally:
+        client.close()
+
+
+def read_simulator(chamber: tuple[str, int], table: tuple[str, int]) -> tuple[float, float]:
+    """The simulator's chamber set point (°C) and table rate (deg/s), asked directly."""
+    setpoint_c = read_f4_register_c(chamber, 300)
+    with socket.create_connection(table, timeout=2) as sock:
+        sock.sendall(b":read:rate 1\r\n")
+        line = b""
+        while not line.endswith(b"\r\n"):
+            chunk = sock.recv(1024)
+            assert chunk, "table closed the connection"
+            line += chunk
+    rate_dps = float(line[8:].decode().strip())
+    return setpoint_c, rate_dps
+
+
+def wait_for_step(out: Path, step_id: str, proc: subprocess.Popen, timeout_s: float = 90) -> None:
+    deadline = time.monotonic() + timeout_s
+    journal = out / "journal.jsonl"
+    while time.monotonic() < deadline:
+        if journal.exists() and '"event":"step_started"' in (text := journal.read_text(
+                errors="replace")) and f'"step_id":"{step_id}"' in text:
+            return
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.01)
+    raise AssertionError(f"{step_id} never started")
+
+
+@pytest.fixture
+def served(tmp_path: Path):
+    """``gyrocal sim serve`` in its own process; yields its live station file's content."""
+    live = tmp_path / "live.yaml"
+    serve = subprocess.Popen(
+        [sys.executable, "-m", "gyrocal", "sim", "serve", "--station", "stations/sim.yaml",
+         "--write-station", str(live)],
+        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and \
+                "station file with these addresses" not in serve.stdout.readline():
+            pass
+        assert live.exists(), "sim serve did not start"
+        yield yaml.safe_load(live.read_text())
+    finally:
+        serve.send_signal(signal.SIGINT)
+        try:
+            serve.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            serve.kill()
+            serve.communicate()
+
+
+# (step the run is in, instrument whose exchange the signal lands in, requests after arming,
+#  set point above the chamber's present temperature: a 2 °C ramp lasts 24 s at 5 °C/min,
+#  0.1 °C makes the ramp short so that later steps are reached quickly)
+POINTS = [
+    ("T01.ramp", "chamber", 1, 2.0),
+    ("T01.ramp", "chamber", 3, 2.0),
+    ("T01.soak", "chamber", 2, 0.1),
+    ("T01.static", "table", 1, 0.1),
+    ("T01.sf.+50dps", "table", 1, 0.1),
+    ("T01.sf.+50dps", "table", 3, 0.1),
+    ("T01.sf.-50dps", "table", 2, 0.1),
+]
+
+
+def test_sigint_inside_exchanges_at_many_points_leaves_the_simulator_safe(
+        served: dict[str, Any], tmp_path: Path) -> None:
+    chamber = tcp_target(served["chamber"]["address"])
+    table = tcp_target(served["table"]["address"])
+    proxies = {"chamber": ExchangeProxy(chamber), "table": ExchangeProxy(table)}
+    station = dict(served)
+    station["chamber"] = {**served["chamber"],
+                          "address": f"socket://127.0.0.1:{proxies['chamber'].port}"}
+    station["table"] = {**served["table"],
+                        "address": f"TCPIP0::127.0.0.1::{proxies['table'].port}::SOCKET"}
+    station_path = tmp_path / "proxied-station.yaml"
+    station_path.write_text(yaml.safe_dump(station, sort_keys=False))
+    hit: list[str] = []
+    try:
+        for n, (step_id, instrument, after, above_c) in enumerate(POINTS):
+            present_c = read_f4_register_c(chamber, 100)
+            procedure = write_procedure(tmp_path, station_path, present_c + above_c)
+            out = tmp_path / f"run{n}"
+            proc = subprocess.Popen(
+                [sys.executable, "-m", "gyrocal", "run", str(procedure), "--station",
+                 str(station_path), "--out", str(out)],
+                cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            try:
+                wait_for_step(out, step_id, proc)
+                proxies[instrument].arm(after, lambda pid=proc.pid: os.kill(pid, signal.SIGINT))
+                _, err = proc.communicate(timeout=120)
+            finally:
+                if proc.poll() is None:
+                    proc.kill()
+                    proc.communicate()
+            where = f"point {n}: SIGINT in a {instrument} exchange during {step_id}"
+            assert proxies[instrument].fired_at_request == after, where   # it did land mid-exchange
+            assert proc.returncode == EXIT_FAULT, (where, err)
+            assert "Traceback" not in err, (where, err)
+            assert "interrupted" in err and f"gyrocal resume {out}" in err, (where, err)
+            assert re.search(r"table stopped \(read back -?0\.00\d deg/s\)", err), (where, err)
+            assert f"chamber setpoint {SAFE_SETPOINT_C:.1f} °C (read back)" in err, (where, err)
+            assert "NOT CONFIRMED" not in err, (where, err)
+            setpoint_c, rate_dps = read_simulator(chamber, table)
+            assert setpoint_c == SAFE_SETPOINT_C, (where, setpoint_c)
+            assert abs(rate_dps) <= 0.01, (where, rate_dps)
+            hit.append(where)
+    finally:
+        for proxy in proxies.values():
+            proxy.close()
+    assert len(hit) == len(POINTS)
