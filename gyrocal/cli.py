@@ -123,6 +123,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--signing-key", default=None, help="seal the rebuilt report (as for run)")
     p.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_report"))
 
+    p = sub.add_parser("certificate", help="RUN_DIR/report/certificate.pdf (ISO/IEC 17025 §7.8) "
+                                           "from its results.json")
+    p.add_argument("run_dir")
+    p.add_argument("--customer", default="(customer not stated)", help="who the calibration is for")
+    p.add_argument("--number", default=None, help="certificate number (default GC-<run id>)")
+    p.add_argument("--approved-by", default="(not yet approved)",
+                   help="name of the person authorising the certificate")
+    p.add_argument("--role", default="(role not stated)", help="their role, e.g. Quality manager")
+    p.add_argument("--out", default=None, help="PDF path (default RUN_DIR/report/certificate.pdf)")
+    p.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_certificate"))
+
     p = sub.add_parser("verify", help="audit: completeness, every hash, the numbers, the signature")
     p.add_argument("run_dir")
     p.add_argument("--key", default=None,

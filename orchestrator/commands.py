@@ -509,6 +509,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
         return code
     audit = verify_run_folder(out / "smoke", public_key=keys.public)
     print(f"report: {out / 'smoke' / 'report' / 'report.html'}")
+    if code != EXIT_FAULT:
+        from gyrocal.reports.commands import cmd_certificate
+
+        cmd_certificate(argparse.Namespace(
+            run_dir=str(out / "smoke"), customer="Demo customer", number=None,
+            approved_by="Demo approver", role="Quality manager", out=None))
 
     station = root / "stations" / "sim-hidden-effect.yaml"
     nominal = root / "gyro-models" / "nominal-fog.yaml"

@@ -1,0 +1,201 @@
+"""The calibration certificate (ISO/IEC 17025 §7.8) as a PDF, from a run's results.json.
+
+Rendered with reportlab (a PDF library of long standing, pure wheels from
+PyPI: no system packages, so `make` on a fresh machine needs nothing more).
+Content follows §7.8.2/7.8.4: title and unique number, lab name and address
+(station ``site``), customer, unit identity, dates of calibration and issue,
+method (procedure, its SHA-256, software), conditions (chamber setpoints and
+the temperatures measured), results with units, expanded uncertainty and k
+(values rounded to the digits their U supports: U to two significant digits,
+GUM 7.2.6), traceability (reference instruments, serials, calibration due),
+the decision rule and conformity statement per limit, and the approval (name,
+role, date) with the run's cryptographic signature where it was signed.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from reportlab.lib import colors
+from reportlab.lib.pagesizes import A4
+from reportlab.lib.styles import getSampleStyleSheet
+from reportlab.lib.units import mm
+from reportlab.platypus import Paragraph, SimpleDocTemplate, Spacer, Table, TableStyle
+
+CERTIFICATE_FILE = "report/certificate.pdf"
+
+
+@dataclass(frozen=True)
+class Approval:
+    """Who authorises the certificate (ISO/IEC 17025 §7.8.2.1 o)."""
+
+    name: str
+    role: str
+    date: dt.date
+
+
+def round_to_uncertainty(value: float, expanded: float | None) -> tuple[str, str]:
+    """(value, U) as text: U to two significant digits, the value to U's last digit (GUM 7.2.6)."""
+    if value is None or not math.isfinite(value):
+        return "—", "—"
+    if expanded is None or not math.isfinite(expanded) or expanded <= 0:
+        return f"{value:.6g}", "—"
+    exponent = math.floor(math.log10(expanded)) - 1     # the place of U's second digit
+    decimals = max(0, -exponent)
+    if decimals == 0:
+        step = 10 ** exponent
+        return f"{round(value / step) * step:.0f}", f"{round(expanded / step) * step:.0f}"
+    return f"{value:.{decimals}f}", f"{expanded:.{decimals}f}"
+
+
+#: (label, results.json path in the ``uncertainty`` map, unit) of the certified quantities
+_SINGLE = (("Scale factor, LS line at the reference temperature", "scale_factor_ls.sf",
+            "output/(deg/s)"),
+           ("Nonlinearity (RMS of SF over rates)", "nonlinearity.rms_pct", "%"),
+           ("Nonlinearity (max residual)", "nonlinearity.max_ppm_fs", "ppm of full scale"),
+           ("Scale-factor asymmetry", "asymmetry_ppm", "ppm"),
+           ("SF temperature sensitivity", "sf_temperature.sensitivity_ppm_per_c", "ppm/°C"),
+           ("SF temperature instability", "sf_temperature.instability_pct", "%"),
+           ("Bias temperature sensitivity", "bias_temperature.sensitivity_dph_per_c",
+            "deg/h per °C"))
+
+
+def result_rows(results: dict[str, Any]) -> list[list[str]]:
+    """Quantity, value, U, k, unit: one row per certified number."""
+    rows = [["Quantity", "Value", "U (95 %)", "k", "Unit"]]
+    for entry in results.get("scale_factor") or []:
+        value, big_u = round_to_uncertainty(entry["sf"], entry.get("U"))
+        rows.append([f"Scale factor at {entry['temp_c']:g} °C", value, big_u,
+                     _k(entry.get("k")), "output/(deg/s)"])
+    for entry in results.get("bias") or []:
+        value, big_u = round_to_uncertainty(entry["bias_dph"], entry.get("U"))
+        rows.append([f"Bias at {entry['temp_c']:g} °C (Earth rate removed)", value, big_u,
+                     _k(entry.get("k")), "deg/h"])
+    table = results.get("uncertainty") or {}
+    for label, path, unit in _SINGLE:
+        item = table.get(path)
+        if item is None:
+            continue
+        value, big_u = round_to_uncertainty(item["value"], item.get("U"))
+        rows.append([label, value, big_u, _k(item.get("k")), unit])
+    return rows
+
+
+def _k(k: float | None) -> str:
+    return "—" if k is None else f"{k:.2f}"
+
+
+def _kv(rows: list[tuple[str, str]], style) -> Table:
+    table = Table([[Paragraph(f"<b>{k}</b>", style), Paragraph(_esc(v), style)] for k, v in rows],
+                  colWidths=[45 * mm, 125 * mm])
+    table.setStyle(TableStyle([("VALIGN", (0, 0), (-1, -1), "TOP")]))
+    return table
+
+
+def _esc(text: Any) -> str:
+    return (str(text).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;"))
+
+
+def _grid(rows: list[list[str]], widths: list[float], style) -> Table:
+    table = Table([[Paragraph(_esc(c), style) for c in row] for row in rows],
+                  colWidths=[w * mm for w in widths], repeatRows=1)
+    table.setStyle(TableStyle([
+        ("GRID", (0, 0), (-1, -1), 0.4, colors.grey),
+        ("BACKGROUND", (0, 0), (-1, 0), colors.HexColor("#e8e8e8")),
+        ("VALIGN", (0, 0), (-1, -1), "TOP")]))
+    return table
+
+
+def write_certificate(results: dict[str, Any], path: Path, number: str, customer: str,
+                      approval: Approval) -> Path:
+    """Renders the certificate PDF to ``path``; returns it."""
+    styles = getSampleStyleSheet()
+    body = styles["BodyText"]
+    body.fontSize, body.leading = 8.5, 10.5
+    h2 = styles["Heading2"]
+    run = results.get("run") or {}
+    site = (results.get("station") or {}).get("site") or {}
+    uut = results.get("unit_under_test") or {}
+    procedure = results.get("procedure") or {}
+    verdict = results.get("verdict") or {}
+    inputs = results.get("inputs") or {}
+    story: list[Any] = [
+        Paragraph("Calibration Certificate", styles["Title"]),
+        Paragraph(f"Certificate number <b>{_esc(number)}</b> — page 1 of the certificate; "
+                  "this certificate may not be reproduced other than in full.", body),
+        Spacer(1, 4 * mm),
+        _kv([("Laboratory", f"{site.get('name') or '—'}, {site.get('address') or 'address not declared'}"),
+             ("Customer", customer),
+             ("Item calibrated", f"{uut.get('model')} serial {uut.get('serial')} "
+                                 f"(output units {uut.get('output_units')})"),
+             ("Date of calibration", f"{run.get('started_at')} to {run.get('ended_at') or '—'}"),
+             ("Date of issue", approval.date.isoformat()),
+             ("Method", f"gyrocal procedure {procedure.get('name')!s} "
+                        f"(file {procedure.get('file')}, SHA-256 "
+                        f"{(inputs.get('procedure') or {}).get('sha256', '—')}); software "
+                        f"{_software(run.get('software'))}; run {run.get('run_id')}"),
+             ], body),
+        Paragraph("Conditions during the calibration", h2),
+        _grid([["Setpoint (°C)", "Chamber measured (°C)", "Sensor measured (°C)"]] +
+              [[f"{e['temp_c']:g}", _num(e.get("chamber_temp_c"), 2),
+                _num(e.get("sensor_temp_c"), 2)] for e in results.get("scale_factor") or []],
+              [40, 50, 50], body),
+        Paragraph("Results", h2),
+        _grid(result_rows(results), [70, 30, 25, 12, 33], body),
+        Paragraph("The expanded uncertainty U = k·u is stated at a coverage probability of about "
+                  "95 %; k is the t-factor for the effective degrees of freedom (Welch–"
+                  "Satterthwaite), per JCGM 100 (GUM). The budgets are in results.json.", body),
+        Paragraph("Traceability", h2),
+        _grid([["Role", "Instrument", "Serial (declared / reported)", "Calibration due"]] +
+              [[role, f"{i.get('make')} {i.get('model')}",
+                f"{i.get('serial')} / {i.get('reported_serial') or '—'}",
+                f"{i.get('calibration_due') or '—'}"
+                + (" OVERDUE" if i.get("calibration_overdue") else "")]
+               for role, i in sorted((results.get("instruments") or {}).items())
+               if role != "gyro"], [25, 55, 55, 35], body),
+        Paragraph("Decision rule and conformity", h2),
+        _grid([["Limit", "Value", "Limit", "Rule", "Guard band", "Decision"]] +
+              [[a["name"], _num(a.get("value"), 6), f"{a['kind']} {a['limit']:g}",
+                a.get("decision_rule", "simple"), _num(a.get("guard_band"), 3),
+                a.get("decision") or ("PASS" if a.get("pass") else "FAIL")]
+               for a in results.get("acceptance") or []], [45, 25, 25, 20, 25, 30], body),
+        Paragraph(f"Overall statement of conformity: <b>{_esc(verdict.get('overall'))}</b>. "
+                  "simple rule: the value alone is compared with the limit; guarded rule "
+                  "(ILAC-G8): conformity is stated only when value ± U lies within the limit. "
+                  + _esc(" ".join(verdict.get("blocked_because") or [])), body),
+        Paragraph("Approval", h2),
+        _kv([("Authorised by", f"{approval.name}, {approval.role}"),
+             ("Date", approval.date.isoformat()),
+             ("Run signature", _signature(results)),
+             ("Signature", "\n\n______________________________")], body),
+    ]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    doc = SimpleDocTemplate(str(path), pagesize=A4, title=f"Calibration certificate {number}",
+                            leftMargin=18 * mm, rightMargin=18 * mm, topMargin=15 * mm,
+                            bottomMargin=15 * mm)
+    doc.build(story)
+    return path
+
+
+def _num(value: float | None, digits: int) -> str:
+    if value is None or not math.isfinite(value):
+        return "—"
+    text = f"{value:.{digits}g}" if digits > 3 else f"{value:.{digits}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0 else text
+
+
+def _software(software: Any) -> str:
+    if isinstance(software, dict):
+        return " ".join(str(v) for v in software.values())
+    return str(software)
+
+
+def _signature(results: dict[str, Any]) -> str:
+    sig = results.get("signature") or {}
+    if not sig.get("signed"):
+        return "the run was not signed (no station signing key)"
+    return f"Ed25519, key {sig.get('key_fingerprint')}: {str(sig.get('signature'))[:48]}…"

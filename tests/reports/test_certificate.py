@@ -1,0 +1,54 @@
+"""The calibration certificate PDF, read back with an independent reader (pypdf)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import stat
+
+import pytest
+from pypdf import PdfReader
+
+from gyrocal.cli import main
+from gyrocal.reports.certificate import round_to_uncertainty
+
+
+@pytest.mark.parametrize(("value", "expanded", "expected"), [
+    (100.02147, 0.00035, ("100.02147", "0.00035")),    # GUM 7.2.6's example (u_c = 0.35 mg)
+    (1.2345678, 0.0123, ("1.235", "0.012")),
+    (0.99875, 1.1301e-05, ("0.998750", "0.000011")),
+    (12345.6, 230.0, ("12350", "230")),
+])
+def test_values_get_the_digits_their_uncertainty_supports(value, expanded, expected):
+    assert round_to_uncertainty(value, expanded) == expected
+
+
+def test_certificate_pdf_carries_number_customer_values_and_u(smoke_run, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(smoke_run, run)
+    code = main(["certificate", str(run), "--customer", "ACME Navigation GmbH",
+                 "--number", "GC-2026-0042", "--approved-by", "A. Auditor",
+                 "--role", "Quality manager"])
+    assert code == 0
+    pdf = run / "report" / "certificate.pdf"
+    assert pdf.read_bytes()[:5] == b"%PDF-"
+    assert stat.S_IMODE(pdf.stat().st_mode) & stat.S_IRGRP       # readable by the group
+    text = " ".join(page.extract_text() for page in PdfReader(pdf).pages)
+    text = " ".join(text.split())
+    results = json.loads((run / "report" / "results.json").read_text())
+    for expected in ("GC-2026-0042", "ACME Navigation GmbH", "A. Auditor", "Quality manager",
+                     "SIM-0001", "Sim lab", "SIM0001", "2027-03-31", "guarded" if any(
+                         a.get("decision_rule") == "guarded" for a in results["acceptance"])
+                     else "simple", results["verdict"]["overall"]):
+        assert expected in text, expected
+    for entry in results["scale_factor"]:
+        value, expanded = round_to_uncertainty(entry["sf"], entry["U"])
+        assert f"{value} {expanded} {entry['k']:.2f}" in text
+        # the printed value is the measured one to within the printed resolution
+        assert float(value) == pytest.approx(entry["sf"], abs=float(expanded))
+
+
+def test_certificate_without_a_report_is_bad_input(tmp_path, capsys):
+    (tmp_path / "manifest.json").write_text("{}")
+    assert main(["certificate", str(tmp_path)]) == 2
+    assert "results.json" in capsys.readouterr().err
