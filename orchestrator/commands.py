@@ -510,11 +510,14 @@ def cmd_demo(args: argparse.Namespace) -> int:
     audit = verify_run_folder(out / "smoke", public_key=keys.public)
     print(f"report: {out / 'smoke' / 'report' / 'report.html'}")
     if code != EXIT_FAULT:
-        from gyrocal.reports.commands import cmd_certificate
+        import datetime as dt
 
-        cmd_certificate(argparse.Namespace(
-            run_dir=str(out / "smoke"), customer="Demo customer", number=None,
-            approved_by="Demo approver", role="Quality manager", out=None))
+        from gyrocal.reports.certificate import Approval, certify_run
+
+        certificate, number, _ = certify_run(
+            out / "smoke", customer="Demo customer",
+            approval=Approval("Demo approver", "Quality manager", dt.date.today()))
+        print(f"certificate {number}: {certificate}")
 
     station = root / "stations" / "sim-hidden-effect.yaml"
     nominal = root / "gyro-models" / "nominal-fog.yaml"

@@ -199,3 +199,30 @@ def _signature(results: dict[str, Any]) -> str:
     if not sig.get("signed"):
         return "the run was not signed (no station signing key)"
     return f"Ed25519, key {sig.get('key_fingerprint')}: {str(sig.get('signature'))[:48]}…"
+
+
+def certify_run(run_dir: Path, *, customer: str, approval: Approval, number: str | None = None,
+                out: Path | None = None) -> tuple[Path, str, str | None]:
+    """Write the certificate of the run in ``run_dir`` from its report/results.json.
+
+    Returns (PDF path, certificate number, overall verdict). The number defaults to
+    ``GC-<run id>``; the PDF is readable by the group (a QA office reads it).
+    """
+    import json
+
+    from gyrocal.orchestrator.record.run_folder import RunFolderError
+    from gyrocal.reports.build import RESULTS_FILE
+
+    source = run_dir / RESULTS_FILE
+    if not source.is_file():
+        raise RunFolderError(f"{source}: missing; run `gyrocal report {run_dir}` first")
+    try:
+        results = json.loads(source.read_text())
+    except json.JSONDecodeError as exc:
+        raise RunFolderError(f"{source}: not valid JSON: {exc}") from None
+    run_id = (results.get("run") or {}).get("run_id") or run_dir.name
+    number = number or f"GC-{run_id}"
+    path = out if out is not None else run_dir / CERTIFICATE_FILE
+    write_certificate(results, path, number, customer, approval)
+    path.chmod(0o644)
+    return path, number, (results.get("verdict") or {}).get("overall")

@@ -41,26 +41,13 @@ def cmd_certificate(args: argparse.Namespace) -> int:
     """``gyrocal certificate RUN_DIR``: report/certificate.pdf from report/results.json."""
     import datetime as dt
 
-    from gyrocal.orchestrator.record.run_folder import RunFolderError
-    from gyrocal.reports.build import RESULTS_FILE
-    from gyrocal.reports.certificate import CERTIFICATE_FILE, Approval, write_certificate
+    from gyrocal.reports.certificate import Approval, certify_run
 
-    run_dir = Path(args.run_dir)
-    source = run_dir / RESULTS_FILE
-    if not source.is_file():
-        raise RunFolderError(f"{source}: missing; run `gyrocal report {run_dir}` first")
-    try:
-        results = json.loads(source.read_text())
-    except json.JSONDecodeError as exc:
-        raise RunFolderError(f"{source}: not valid JSON: {exc}") from None
-    run_id = (results.get("run") or {}).get("run_id") or run_dir.name
-    number = args.number or f"GC-{run_id}"
     approval = Approval(args.approved_by, args.role, dt.date.today())
-    out = Path(args.out) if args.out else run_dir / CERTIFICATE_FILE
-    write_certificate(results, out, number, args.customer, approval)
-    out.chmod(0o644)
-    print(f"certificate {number}: {out}")
-    overall = (results.get("verdict") or {}).get("overall")
+    path, number, overall = certify_run(
+        Path(args.run_dir), customer=args.customer, approval=approval, number=args.number,
+        out=Path(args.out) if args.out else None)
+    print(f"certificate {number}: {path}")
     print(f"  statement of conformity: {overall}")
     return EXIT_OK
 

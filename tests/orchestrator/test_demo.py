@@ -24,6 +24,9 @@ def test_demo_runs_the_smoke_procedure_and_names_the_hidden_effect(tmp_path, cap
     assert all("authentic: 1 seal(s) verified" in line for line in (tail[1], tail[3]))
     results = json.loads((tmp_path / "smoke" / "report" / "results.json").read_text())
     assert all(item["pass"] for item in results["acceptance"])
+    certificate = tmp_path / "smoke" / "report" / "certificate.pdf"     # issue 11
+    assert certificate.read_bytes()[:5] == b"%PDF-"
+    assert f"certificate GC-{results['run']['run_id']}: {certificate}" in out
 
     # Act 2: the station's gyro carries sf_asymmetry (40 ppm); the nominal model lacks it.
     truth = load_model(REPO / "gyro-models" / "fog-hidden-asymmetry.yaml").effect("sf_asymmetry")["ppm"]
