@@ -89,6 +89,8 @@ def one_run(seed: int) -> dict[str, tuple[float, float, float]]:
                                       0.0)
             nl = budget["nonlinearity_max_ppm_fs"]
             out["nonlinearity max (ppm FS)"] = (nl.value, nl.U, 0.0)
+            rms = budget["nonlinearity_rms_pct"]
+            out["nonlinearity RMS (%)"] = (rms.value, rms.U, 0.0)
     tempco = sf_temperature_uncertainty(sweeps, TYPE_B, 25.0)["sensitivity_ppm_per_c"]
     out["SF tempco (ppm/°C)"] = (tempco.value, tempco.U, 20.0 / true_sf(25.0))
     slope = slope_uncertainty(list(TEMPS_C), [bias_u[t] for t in TEMPS_C], TYPE_B, "bias")

@@ -28,6 +28,7 @@ from __future__ import annotations
 import datetime as dt
 import hashlib
 import math
+import time
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -507,10 +508,18 @@ def _provenance(data: RunData, notes: list[str]) -> dict[str, Any]:
     """Who, what, where and with what: run, procedure, station, instruments, inputs, journal."""
     plan, manifest = data.plan, data.manifest
     station = plan.get("station") or {}
+    run = {key: manifest.get(key) for key in
+           ("run_id", "operator", "started_at", "ended_at", "mode", "seed", "speed",
+            "state", "software", "station_name", "plan_sha256")}
+    # The report of a run is built when its last step is done, before the run closes (the
+    # report's hash goes into the closing line), so ended_at is not known yet: the time the
+    # steps were done is, and it is what a certificate's "date of calibration" means.
+    done = [e for e in data.events if e.get("event") == "steps_done" and e.get("wall_time")]
+    run["steps_done_at"] = (time.strftime("%Y-%m-%dT%H:%M:%S+0000",
+                                          time.gmtime(float(done[-1]["wall_time"])))
+                            if done else None)
     return {
-        "run": {key: manifest.get(key) for key in
-                ("run_id", "operator", "started_at", "ended_at", "mode", "seed", "speed",
-                 "state", "software", "station_name", "plan_sha256")},
+        "run": run,
         "procedure": plan.get("procedure"),
         "station": {"name": station.get("name"), "file": station.get("file"),
                     "site": station.get("site")},

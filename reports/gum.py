@@ -109,8 +109,8 @@ def coverage_factor(dof_eff: float, p: float = COVERAGE_PROBABILITY) -> float:
 
 
 #: Draws of the JCGM 101 coverage factor; fixed seed, so a report (and `verify`, which
-#: recomputes it) gives the same k every time. 200,000 draws: k to about ±0.3 %.
-COVERAGE_DRAWS = 200_000
+#: recomputes it) gives the same k every time. 100,000 draws: k to about ±0.5 %.
+COVERAGE_DRAWS = 100_000
 COVERAGE_SEED = 20080917      # JCGM 101:2008's date: any fixed seed would do
 
 
@@ -219,3 +219,17 @@ def batch_mean_sem(samples: np.ndarray, n_batches: int = 10) -> tuple[float, flo
         raise ValueError(f"{data.size} samples cannot make {n_batches} batches")
     means = data[: size * n_batches].reshape(n_batches, size).mean(axis=1)
     return float(means.std(ddof=1) / math.sqrt(n_batches)), float(n_batches - 1)
+
+
+def round_to_uncertainty(value: float, expanded: float | None) -> tuple[str, str]:
+    """(value, U) as text: U to two significant digits, the value to U's last digit (GUM 7.2.6)."""
+    if value is None or not math.isfinite(value):
+        return "—", "—"
+    if expanded is None or not math.isfinite(expanded) or expanded <= 0:
+        return f"{value:.6g}", "—"
+    exponent = math.floor(math.log10(expanded)) - 1     # the place of U's second digit
+    decimals = max(0, -exponent)
+    if decimals == 0:
+        step = 10 ** exponent
+        return f"{round(value / step) * step:.0f}", f"{round(expanded / step) * step:.0f}"
+    return f"{value:.{decimals}f}", f"{expanded:.{decimals}f}"

@@ -12,6 +12,7 @@ from typing import Any
 import jinja2
 
 from gyrocal.models.noise_terms import NOISE_TERMS
+from gyrocal.reports.gum import round_to_uncertainty
 from gyrocal.reports.plots import all_plots
 from gyrocal.reports.report_template import REPORT_TEMPLATE
 
@@ -32,9 +33,20 @@ def _environment() -> jinja2.Environment:
                               trim_blocks=True, lstrip_blocks=True)
 
 
+def _value_and_u(value: Any, expanded: Any) -> str:
+    """``value ± U`` with the digits U supports (GUM 7.2.6), or the value alone."""
+    if not isinstance(value, (int, float)):
+        return "—"
+    if not isinstance(expanded, (int, float)):
+        return _fmt(value)
+    shown, u_text = round_to_uncertainty(float(value), float(expanded))
+    return f"{shown} ± {u_text}"
+
+
 def render_html(results: dict[str, Any]) -> str:
     """The report page with its plots embedded as base64 PNG."""
     template = _environment().from_string(REPORT_TEMPLATE)
     acceptance = results.get("acceptance") or []
-    return template.render(r=results, plots=all_plots(results), fmt=_fmt, terms=_TERMS,
+    return template.render(r=results, plots=all_plots(results), fmt=_fmt, vu=_value_and_u,
+                           terms=_TERMS,
                            all_pass=all(a.get("pass") for a in acceptance))

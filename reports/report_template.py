@@ -28,7 +28,7 @@ th{background:#eee}.pass{color:#070;font-weight:bold}.fail{color:#b00;font-weigh
  latitude {{ r.station.site.latitude_deg if r.station.site else "unknown" }}°</td></tr>
 <tr><th>Run</th><td>{{ r.run.run_id }} — mode {{ r.run.mode }}, seed {{ r.run.seed }}, speed {{ r.run.speed }}</td></tr>
 <tr><th>Operator</th><td>{{ r.run.operator }}</td></tr>
-<tr><th>Started / ended</th><td>{{ r.run.started_at }} / {{ r.run.ended_at or "(report built before the run closed)" }}</td></tr>
+<tr><th>Started / ended</th><td>{{ r.run.started_at }} / {% if r.run.ended_at %}{{ r.run.ended_at }}{% elif r.run.steps_done_at %}{{ r.run.steps_done_at }} (last step done; the run closed after this report was written){% else %}(not finished){% endif %}</td></tr>
 <tr><th>Software</th><td>{{ r.run.software.name if r.run.software }} {{ r.run.software.version if r.run.software }}</td></tr>
 <tr><th>Report built</th><td>{{ r.report_built_at }}</td></tr>
 </table>
@@ -42,19 +42,21 @@ th{background:#eee}.pass{color:#070;font-weight:bold}.fail{color:#b00;font-weigh
 {% endfor %}</table>
 
 <h2>Acceptance</h2>
-<table><tr><th>Limit</th><th>Metric</th><th>Value</th><th>Limit</th><th>Verdict</th></tr>
+<table><tr><th>Limit</th><th>Metric</th><th>Value ± U (95 %)</th><th>Limit</th><th>Decision rule (guard band)</th><th>Decision</th></tr>
 {% for a in r.acceptance %}
 <tr><td>{{ a.name }}</td><td><code>{{ a.metric }}</code></td>
-<td>{{ fmt(a.value) }} {{ a.unit or "" }}</td><td>{{ a.kind }} {{ fmt(a.limit) }} {{ a.unit or "" }}</td>
-<td>{% if a["pass"] %}<span class="pass">PASS</span>{% else %}<span class="fail">FAIL</span>{% endif %}</td></tr>
-{% else %}<tr><td colspan="5">no acceptance limits in the procedure</td></tr>{% endfor %}
+<td>{{ vu(a.value, a.U) }} {{ a.unit or "" }}</td><td>{{ a.kind }} {{ fmt(a.limit) }} {{ a.unit or "" }}</td>
+<td>{{ a.decision_rule or "simple" }}{% if a.guard_band %} ({{ fmt(a.guard_band) }} {{ a.unit or "" }}){% endif %}</td>
+<td>{% set d = a.decision or ("PASS" if a["pass"] else "FAIL") %}<span class="{{ 'pass' if d == 'PASS' else 'fail' }}">{{ d }}</span></td></tr>
+{% else %}<tr><td colspan="6">no acceptance limits in the procedure</td></tr>{% endfor %}
 </table>
 
 <h2>Scale factor</h2>
-<table><tr><th>Temp (°C)</th><th>Sensor (°C)</th><th>SF (LS)</th><th>SF+</th><th>SF−</th><th>Asymmetry (ppm)</th><th>Nonlin. RMS (%)</th><th>Nonlin. max (ppm FS)</th></tr>
-{% for e in r.scale_factor %}
-<tr><td>{{ fmt(e.temp_c) }}</td><td>{{ fmt(e.sensor_temp_c) }}</td><td>{{ fmt(e.sf, 9) }}</td><td>{{ fmt(e.sf_plus, 9) }}</td><td>{{ fmt(e.sf_minus, 9) }}</td>
-<td>{{ fmt(e.asymmetry_ppm) }}</td><td>{{ fmt(e.nonlinearity.rms_pct) }}</td><td>{{ fmt(e.nonlinearity.max_ppm_fs) }}</td></tr>
+<p>Each value ± its expanded uncertainty U (≈ 95 %, coverage factor k; budgets in results.json), printed to the digits U supports.</p>
+<table><tr><th>Temp (°C)</th><th>Sensor (°C)</th><th>SF (LS) ± U ({{ r.unit_under_test.output_units }} per deg/s)</th><th>k</th><th>SF+</th><th>SF−</th><th>Asymmetry ± U (ppm)</th><th>Nonlin. RMS ± U (%)</th><th>Nonlin. max ± U (ppm FS)</th></tr>
+{% for e in r.scale_factor %}{% set un = e.uncertainty or {} %}
+<tr><td>{{ fmt(e.temp_c) }}</td><td>{{ fmt(e.sensor_temp_c) }}</td><td>{{ vu(e.sf, e.U) }}</td><td>{{ fmt(e.k, 3) }}</td><td>{{ vu(e.sf_plus, e.U) }}</td><td>{{ vu(e.sf_minus, e.U) }}</td>
+<td>{{ vu(e.asymmetry_ppm, un.asymmetry_ppm and un.asymmetry_ppm.U) }}</td><td>{{ vu(e.nonlinearity.rms_pct, un.nonlinearity_rms_pct and un.nonlinearity_rms_pct.U) }}</td><td>{{ vu(e.nonlinearity.max_ppm_fs, un.nonlinearity_max_ppm_fs and un.nonlinearity_max_ppm_fs.U) }}</td></tr>
 {% endfor %}</table>
 <p>LS line at the reference: {% if r.scale_factor_ls %}SF {{ fmt(r.scale_factor_ls.sf, 9) }}, bias {{ fmt(r.scale_factor_ls.bias) }} at {{ fmt(r.scale_factor_ls.temp_c) }} °C{% else %}not computed{% endif %}.
 Worst nonlinearity: {% if r.nonlinearity %}{{ fmt(r.nonlinearity.rms_pct) }} % RMS, {{ fmt(r.nonlinearity.max_ppm_fs) }} ppm FS{% else %}not computed{% endif %}.
@@ -64,8 +66,8 @@ SF over temperature: {% if r.sf_temperature %}instability {{ fmt(r.sf_temperatur
 
 <h2>Bias</h2>
 <p>Earth rate removed: {{ fmt(r.earth_rate_removed_dph) }} deg/h (vertical input axis at the station latitude).</p>
-<table><tr><th>Temp (°C)</th><th>Bias (deg/h)</th><th>From</th></tr>
-{% for b in r.bias %}<tr><td>{{ fmt(b.temp_c) }}</td><td>{{ fmt(b.bias_dph) }}</td><td>{{ b.source }}</td></tr>{% endfor %}</table>
+<table><tr><th>Temp (°C)</th><th>Bias ± U (deg/h)</th><th>k</th><th>From</th></tr>
+{% for b in r.bias %}<tr><td>{{ fmt(b.temp_c) }}</td><td>{{ vu(b.bias_dph, b.U) }}</td><td>{{ fmt(b.k, 3) }}</td><td>{{ b.source }}</td></tr>{% endfor %}</table>
 <p>Bias temperature sensitivity: {% if r.bias_temperature %}{{ fmt(r.bias_temperature.sensitivity_dph_per_c) }} deg/h/°C{% else %}not computed{% endif %}.</p>
 {% if plots.bias_vs_temp %}<img alt="bias vs temperature" src="data:image/png;base64,{{ plots.bias_vs_temp }}">{% endif %}
 

@@ -20,11 +20,17 @@ def fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
-def write_atomic(path: Path, writer: Callable[[Path], None]) -> None:
+#: Run files (manifest, chunks, plan, report) are records a QA group reads: readable by the
+#: group, written by the owner only. ``mkstemp`` alone would leave them 0600.
+RECORD_MODE = 0o640
+
+
+def write_atomic(path: Path, writer: Callable[[Path], None], mode: int = RECORD_MODE) -> None:
     """Call ``writer(tmp_path)`` then move the result to ``path`` atomically."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.fchmod(fd, mode)
     os.close(fd)
     tmp = Path(tmp_name)
     try:

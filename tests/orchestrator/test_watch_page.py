@@ -11,36 +11,18 @@ a browser test that skips is a check not made.
 from __future__ import annotations
 
 import os
-import shutil
 import threading
 from pathlib import Path
 from typing import Any
 
-import pytest
-from selenium import webdriver
-from selenium.webdriver.chrome.options import Options
-from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
 from gyrocal.cli import EXIT_FAULT, main
 from gyrocal.orchestrator.watch.server import WatchServer
+from tests.support.browser import headless_chromium
 
 PATIENCE_S = 120   # an upper bound for a loaded CI machine, not a speed claim
-
-
-def headless_chromium() -> webdriver.Chrome:
-    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
-    driver = shutil.which("chromedriver")
-    if not (chromium and driver):
-        pytest.fail("chromium/chromedriver not installed: `make browser` (run by `make test`) "
-                    "installs Debian's chromium and chromium-driver")
-    options = Options()
-    options.binary_location = chromium
-    for flag in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--disable-gpu",
-                 "--window-size=1400,1000"):
-        options.add_argument(flag)
-    return webdriver.Chrome(service=Service(driver), options=options)
 
 
 def test_live_page_shows_paused_then_follows_the_run_to_its_fault(

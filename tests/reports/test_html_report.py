@@ -65,9 +65,27 @@ def test_overdue_calibration_and_failed_limit_are_flagged(evil_run):
     results = json.loads((evil_run / "report" / "results.json").read_text())
     results["instruments"]["table"]["calibration_due"] = "2001-01-01"
     results["instruments"]["table"]["calibration_overdue"] = True
-    results["acceptance"][0]["pass"] = False
+    results["acceptance"][0].update({"pass": False, "decision": "FAIL"})
     results["journal"]["events"].append({"seq": 99, "event": "retry", "instrument": "chamber",
                                          "detail": f"timeout {EVIL}"})
     html = render_html(results)
     assert "OVERDUE" in html and "FAIL" in html
     assert "timeout &lt;script&gt;" in html and "<script" not in html.lower()
+
+
+def test_values_carry_their_expanded_uncertainty_and_the_decision(smoke_run):
+    """Issue 11: SF, bias and acceptance values are printed as value ± U with the digits U
+    supports (GUM 7.2.6), with k and the decision rule; a CONDITIONAL decision is shown."""
+    from gyrocal.reports.gum import round_to_uncertainty
+    from gyrocal.reports.html_report import render_html
+
+    results = json.loads((smoke_run / "report" / "results.json").read_text())
+    results["acceptance"][0].update({"decision": "CONDITIONAL", "decision_rule": "guarded"})
+    html = render_html(results)
+    for entry in results["scale_factor"]:
+        value, expanded = round_to_uncertainty(entry["sf"], entry["U"])
+        assert f"<td>{value} ± {expanded}</td>" in html
+    for point in results["bias"]:
+        value, expanded = round_to_uncertainty(point["bias_dph"], point["U"])
+        assert f"<td>{value} ± {expanded}</td>" in html
+    assert "guarded" in html and ">CONDITIONAL</span>" in html

@@ -127,3 +127,38 @@ def test_batch_means_sem_sees_correlated_noise():
     assert dof == 9.0
     assert sem > 5 * white
     assert sem == pytest.approx(true, rel=0.6)
+
+
+# -- coverage factors that hold (issue 11's coverage table) ---------------------------------
+
+def test_a_dominant_rectangular_input_gets_its_own_95_percent_point() -> None:
+    """One rectangular input alone: 95 % of a uniform ±a lies within 0.95·a = 1.645 u
+    (GUM G.2.3), not t(∞)·u = 1.96 u; a dominant normal input keeps k ≈ 1.96."""
+    from gyrocal.reports.gum import Contribution, EvalType, combine
+
+    rect = Contribution("rate", "station", EvalType.B, "rectangular", 1.0, 1.0, 1.0, math.inf)
+    alone = combine(0.0, [rect])
+    assert alone.k == pytest.approx(0.95 * math.sqrt(3.0), rel=0.01)
+    normal = Contribution("noise", "data", EvalType.B, "normal", 10.0, 1.0, 10.0, math.inf)
+    assert combine(0.0, [rect, normal]).k == pytest.approx(1.96, rel=0.01)
+    assert combine(0.0, [rect]).k == alone.k                      # fixed seed: reproducible
+
+
+def test_nonlinearity_noise_draws_are_what_the_analysis_gives() -> None:
+    """The vectorised maps against analyze_scale_factor itself on the same sampled means."""
+    from gyrocal.reports.dwell import Dwell
+    from gyrocal.reports.uncertainty import NOISE_BOUND_SEED, nonlinearity_noise_draws
+
+    rates = (10.0, -10.0, 50.0, -50.0, 100.0, -100.0, 200.0, -200.0)
+    means = [MeanU(25.0, r, 0.999 * r + 0.003, 2e-5 * (1 + abs(r) / 50), 9.0, f"s{r}")
+             for r in rates]
+    draws = nonlinearity_noise_draws(means, 0.999, draws=7)
+    rng = np.random.default_rng(NOISE_BOUND_SEED)
+    noise = np.column_stack([m.u * rng.standard_normal(7) for m in means])
+    for j in range(7):
+        result = analyze_scale_factor([Dwell(25.0, m.rate_dps, 0.999 * m.rate_dps + 0.003
+                                             + noise[j, i]) for i, m in enumerate(means)])
+        assert draws["nonlinearity_max_ppm_fs"][j] == pytest.approx(
+            result.nonlinearity_max_ppm_fs, rel=1e-6)
+        assert draws["nonlinearity_rms_pct"][j] == pytest.approx(
+            result.nonlinearity_rms_pct, rel=1e-6)
