@@ -342,7 +342,7 @@ def _allan(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any]
                      f"curve/fit: {exc}")
         return None
     return curve_json(curve, fit) | {
-        "fit_uncertainty": fit_uncertainty_json(fit),
+        "fit_uncertainty": fit_uncertainty_json(fit), "fit_dof": fit.dof,
         "model_adev_dph": fit.model_adev(curve.tau_s).tolist(),
         "step_id": step.step_id, "temp_c": step.setpoint_c,
         "duration_s": rate_dph.size / fs_hz, "n_samples": int(rate_dph.size),

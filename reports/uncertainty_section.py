@@ -15,6 +15,9 @@ from collections import defaultdict
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
+from gyrocal.reports import compensation as comp
 from gyrocal.reports.gum import Contribution, EvalType, Uncertainty, combine
 from gyrocal.reports.uncertainty import (
     MeanU,
@@ -85,10 +88,102 @@ def add_uncertainties(results: dict[str, Any], steps: list[StepMean], plan: dict
         slope = slope_uncertainty(temps, [bias_u[t] for t in temps], type_b, "bias")
         paths["bias_temperature.sensitivity_dph_per_c"] = slope
         results["bias_temperature"].update(slope.to_json())
+    _compensation_entries(results)
+    paths.update(_allan_terms(results))
     results["uncertainty"] = {path: {"value": u.value} | u.to_json() for path, u in paths.items()}
     results["uncertainty_inputs"] = type_b.to_json()
-    notes.append("uncertainty: compensation-table entries carry the u of the per-temperature SF "
-                 "and bias they are built from; the table fits themselves have no budget")
+
+
+#: results.json compensation table → (its points' list, the value key of a point)
+_TABLE_SOURCES = {"sf": ("scale_factor", "sf"), "bias_dph": ("bias", "bias_dph")}
+
+
+def _compensation_entries(results: dict[str, Any]) -> None:
+    """u/U/k/budget of every compensation-table entry (``tables.*.*.uncertainty``).
+
+    An entry is a linear function of the per-temperature points (the piecewise table's
+    nodes are the points; the polynomial's are its fitted values), so its budget is the
+    points' budgets carried through that map, taken from the table maker itself
+    (``reports/compensation.py`` applied to unit vectors). A budget line with the same
+    name in several points - the table's rate scale error, the site latitude - is one
+    input common to them (fully correlated), the others are each point's own.
+    """
+    tables = (results.get("compensation") or {}).get("tables") or {}
+    for key, (source, value_key) in _TABLE_SOURCES.items():
+        points = [p for p in results.get(source) or [] if p.get("budget")]
+        for table in (tables.get(key) or {}).values():
+            if table is None or len(points) != len(table["points"]):
+                continue
+            temps = [float(p["temp_c"]) for p in points]
+            make = _table_maker(table)
+            entries = table_entry_uncertainty(temps, [p[value_key] for p in points],
+                                              [p["budget"] for p in points], make)
+            table["uncertainty"] = [{"temp_c": t, "value": u.value} | u.to_json()
+                                    for t, u in entries]
+
+
+def _table_maker(table: dict[str, Any]):
+    """The function of reports/compensation.py that made ``table`` (same degree)."""
+    if not table.get("coefficients"):
+        return comp.piecewise_linear
+    degree = len(table["coefficients"]) - 1
+    return lambda temps, values: comp.polynomial(temps, values, degree=degree)
+
+
+def table_entry_uncertainty(temps: list[float], values: list[float],
+                            budgets: list[list[dict[str, Any]]], make
+                            ) -> list[tuple[float, Uncertainty]]:
+    """(temp, Uncertainty) of each entry of the table ``make(temps, values)``."""
+    n = len(temps)
+    eye = np.eye(n)
+    # h[i, j]: how entry i moves with point j (the table is linear in its points)
+    h = np.array([[p[1] for p in make(temps, eye[j]).points] for j in range(n)]).T
+    lines: dict[str, dict[str, Any]] = {}
+    sensitivity: dict[str, np.ndarray] = {}
+    for j, budget in enumerate(budgets):
+        for line in budget:
+            name = line["name"]
+            lines.setdefault(name, line)
+            sensitivity.setdefault(name, np.zeros(n))[j] += float(line["sensitivity"])
+    out = []
+    for i, (temp_c, value) in enumerate(make(temps, values).points):
+        contributions = []
+        for name, line in lines.items():
+            c = float(h[i] @ sensitivity[name])
+            u_input = float(line["u_input"])
+            contributions.append(Contribution(
+                name, line["source"], EvalType(line["type"]), line["distribution"], u_input,
+                c, abs(c) * u_input, math.inf if line.get("dof") is None else float(line["dof"])))
+        out.append((float(temp_c), combine(value, contributions)))
+    return out
+
+
+def _allan_terms(results: dict[str, Any]) -> dict[str, Uncertainty]:
+    """u/U/k/budget of each fitted noise term (``allan.uncertainty`` and the paths map).
+
+    u is the term's standard error from the weighted least-squares fit of the Allan
+    variance (weights from the Greenhall equivalent degrees of freedom), ν the fit's
+    degrees of freedom; the 68 % intervals already reported stay beside them. A term
+    fitted at zero keeps u = its upper-bound scale: a coefficient cannot be negative.
+    """
+    allan = results.get("allan")
+    if not allan or not allan.get("fit_uncertainty"):
+        return {}
+    dof = float(allan.get("fit_dof") or math.inf)
+    out: dict[str, Uncertainty] = {}
+    for name, est in allan["fit_uncertainty"].items():
+        value = (allan.get("fit") or {}).get(name) if "." not in name else None
+        stderr = est.get("stderr")
+        if not isinstance(value, (int, float)) or not isinstance(stderr, (int, float)) \
+                or not math.isfinite(stderr) or stderr <= 0:
+            continue
+        line = Contribution(f"{name}: WLS fit of the Allan variance", "reports/noise_fit.py "
+                            "(EDF-weighted least squares)", EvalType.A, "normal", stderr, 1.0,
+                            stderr, dof)
+        out[f"allan.fit.{name}"] = combine(float(value), [line])
+    allan["uncertainty"] = {name.removeprefix("allan.fit."): {"value": u.value} | u.to_json()
+                            for name, u in out.items()}
+    return out
 
 
 def _sweep_paths(results: dict[str, Any], per_temp: dict[float, dict[str, Uncertainty]],

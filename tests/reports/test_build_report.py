@@ -171,6 +171,25 @@ def test_one_temperature_gives_nulls_with_notes(tmp_path):
     assert results["scale_factor_ls"]["temp_c"] == 23.0
 
 
+def test_allan_terms_carry_u_big_u_k_and_a_budget(smoke_run):
+    """Issue 11: the noise terms had a 68 % interval only; now u/U/k/budget like the rest."""
+    import json
+    import math
+
+    from gyrocal.reports.gum import coverage_factor
+
+    results = json.loads((smoke_run / "report" / "results.json").read_text())
+    allan = results["allan"]
+    assert allan["uncertainty"], "no Allan term got an uncertainty"
+    for name, entry in allan["uncertainty"].items():
+        assert entry["value"] == allan["fit"][name]
+        assert entry["u"] == allan["fit_uncertainty"][name]["stderr"]
+        assert entry["k"] == pytest.approx(coverage_factor(allan["fit_dof"]))
+        assert entry["U"] == pytest.approx(entry["k"] * entry["u"])
+        assert [line["type"] for line in entry["budget"]] == ["A"]
+        assert math.isclose(results["uncertainty"][f"allan.fit.{name}"]["U"], entry["U"])
+
+
 def test_report_files_are_readable_by_the_group_and_say_when_the_steps_ended(smoke_run):
     """Issue 11: mkstemp left the report 0600 (owner only), and the HTML said "ended: (report
     built before the run closed)"; a QA group reads these files and wants the date."""

@@ -162,3 +162,38 @@ def test_nonlinearity_noise_draws_are_what_the_analysis_gives() -> None:
             result.nonlinearity_max_ppm_fs, rel=1e-6)
         assert draws["nonlinearity_rms_pct"][j] == pytest.approx(
             result.nonlinearity_rms_pct, rel=1e-6)
+
+
+def test_compensation_entries_carry_the_points_budgets_through_the_table() -> None:
+    """Piecewise entries are the points (same u); polynomial entries agree with a Monte Carlo
+    of numpy's polyfit over the points drawn from their budgets, a common rate-scale line
+    moving all points together (fully correlated) and each point's own noise apart."""
+    from gyrocal.reports import compensation as comp
+    from gyrocal.reports.uncertainty_section import table_entry_uncertainty
+
+    temps = [-40.0, -10.0, 25.0, 50.0, 75.0]
+    values = [0.99990, 0.99995, 1.0, 1.00004, 1.00009]
+    own_u = [2e-6, 3e-6, 1.5e-6, 2.5e-6, 4e-6]
+    common_u, common_c = 5.8e-6, -1.0            # table rate scale error, c = -SF
+    budgets = [[{"name": f"mean @{t:g}", "source": "data", "type": "A", "distribution": "normal",
+                 "u_input": u, "sensitivity": 1.0, "dof": None},
+                {"name": "table rate scale error", "source": "station", "type": "B",
+                 "distribution": "rectangular", "u_input": common_u,
+                 "sensitivity": common_c * v, "dof": None}]
+               for t, u, v in zip(temps, own_u, values, strict=True)]
+    piecewise = table_entry_uncertainty(temps, values, budgets, comp.piecewise_linear)
+    for (t, unc), u, v in zip(piecewise, own_u, values, strict=True):
+        assert unc.u == pytest.approx(math.hypot(u, common_u * v), rel=1e-9), t
+
+    def poly(t, v):
+        return comp.polynomial(t, v, degree=2)
+
+    entries = table_entry_uncertainty(temps, values, budgets, poly)
+    rng = np.random.default_rng(5)
+    draws = 20000
+    half = common_u * math.sqrt(3.0)
+    common = rng.uniform(-half, half, draws)
+    sampled = np.array(values) * (1 - common[:, None]) + rng.standard_normal((draws, 5)) * own_u
+    fitted = np.array([np.polyval(np.polyfit(temps, row, 2), temps) for row in sampled])
+    for i, (t, unc) in enumerate(entries):
+        assert unc.u == pytest.approx(fitted[:, i].std(), rel=0.03), t
