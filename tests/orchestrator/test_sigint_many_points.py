@@ -36,6 +36,7 @@ from pymodbus.client import ModbusTcpClient
 from pymodbus.framer import FramerType
 
 from gyrocal.cli import EXIT_FAULT
+from tests.support.sim_serve import served_station
 from tests.support.tcp_proxy import ExchangeProxy
 
 REPO = Path(__file__).resolve().parents[2]
@@ -124,25 +125,8 @@ def wait_for_step(out: Path, step_id: str, proc: subprocess.Popen, timeout_s: fl
 @pytest.fixture
 def served(tmp_path: Path):
     """``gyrocal sim serve`` in its own process; yields its live station file's content."""
-    live = tmp_path / "live.yaml"
-    serve = subprocess.Popen(
-        [sys.executable, "-m", "gyrocal", "sim", "serve", "--station", "stations/sim.yaml",
-         "--write-station", str(live)],
-        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline and \
-                "station file with these addresses" not in serve.stdout.readline():
-            pass
-        assert live.exists(), "sim serve did not start"
+    with served_station(tmp_path / "live.yaml") as live:
         yield yaml.safe_load(live.read_text())
-    finally:
-        serve.send_signal(signal.SIGINT)
-        try:
-            serve.communicate(timeout=20)
-        except subprocess.TimeoutExpired:
-            serve.kill()
-            serve.communicate()
 
 
 # (step the run is in, instrument whose exchange the signal lands in, requests after arming,
