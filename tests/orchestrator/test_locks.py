@@ -27,6 +27,7 @@ from gyrocal.orchestrator.locks import (
     holder,
     run_folder_lock,
 )
+from tests.support.sim_serve import served_station, stop
 
 pytestmark = pytest.mark.timeout(120)
 REPO = Path(__file__).resolve().parents[2]
@@ -146,37 +147,26 @@ sequence:
 
 def test_two_runs_on_one_live_station_the_second_is_refused_naming_the_holder(
         tmp_path: Path, private_lock_dir: Path, capsys) -> None:
-    live = tmp_path / "live-station.yaml"
     env = {**os.environ, LOCK_DIR_ENV: str(private_lock_dir)}
-    serve = subprocess.Popen(
-        [sys.executable, "-m", "gyrocal", "sim", "serve", "--station", "stations/sim.yaml",
-         "--write-station", str(live)],
-        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     first = None
-    try:
-        while "station file with these addresses" not in serve.stdout.readline():
-            assert serve.poll() is None, serve.communicate()
-        procedure = write_live_procedure(tmp_path, live)
-        first = subprocess.Popen(
-            [sys.executable, "-m", "gyrocal", "run", str(procedure), "--station", str(live),
-             "--out", str(tmp_path / "first")],
-            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-        wait_for(lambda: (tmp_path / "first" / "journal.jsonl").exists(), first)
-        capsys.readouterr()
-        code = main(["run", str(procedure), "--station", str(live), "--out", str(tmp_path / "second")])
-        err = capsys.readouterr().err
-        assert code == EXIT_FAULT, err
-        assert f"pid {first.pid}" in err and "in use" in err
-        assert not (tmp_path / "second").exists()          # refused before anything was written
-        stdout, stderr = first.communicate(timeout=100)
-        assert first.returncode in (0, 1), stderr
-        assert main(["verify", str(tmp_path / "first")]) == EXIT_OK
-    finally:
-        for proc in (first, serve):
-            if proc is not None and proc.poll() is None:
-                proc.send_signal(signal.SIGINT)
-                try:
-                    proc.communicate(timeout=20)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.communicate()
+    with served_station(tmp_path / "live-station.yaml", env=env) as live:
+        try:
+            procedure = write_live_procedure(tmp_path, live)
+            first = subprocess.Popen(
+                [sys.executable, "-m", "gyrocal", "run", str(procedure), "--station", str(live),
+                 "--out", str(tmp_path / "first")],
+                cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+            wait_for(lambda: (tmp_path / "first" / "journal.jsonl").exists(), first)
+            capsys.readouterr()
+            code = main(["run", str(procedure), "--station", str(live),
+                         "--out", str(tmp_path / "second")])
+            err = capsys.readouterr().err
+            assert code == EXIT_FAULT, err
+            assert f"pid {first.pid}" in err and "in use" in err
+            assert not (tmp_path / "second").exists()      # refused before anything was written
+            stdout, stderr = first.communicate(timeout=100)
+            assert first.returncode in (0, 1), stderr
+            assert main(["verify", str(tmp_path / "first")]) == EXIT_OK
+        finally:
+            if first is not None:
+                stop(first)

@@ -14,12 +14,13 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 @contextlib.contextmanager
-def served_station(live: Path, station: str = "stations/sim.yaml") -> Iterator[Path]:
+def served_station(live: Path, station: str = "stations/sim.yaml",
+                   env: dict[str, str] | None = None) -> Iterator[Path]:
     """Start the simulators, wait for the live station file, stop them with Ctrl-C after."""
     proc = subprocess.Popen(
         [sys.executable, "-m", "gyrocal", "sim", "serve", "--station", station,
          "--write-station", str(live)],
-        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         deadline = time.monotonic() + 30
         while time.monotonic() < deadline and \
@@ -29,9 +30,16 @@ def served_station(live: Path, station: str = "stations/sim.yaml") -> Iterator[P
             "sim serve did not start"
         yield live
     finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.communicate(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.communicate()
+        stop(proc)
+
+
+def stop(proc: subprocess.Popen) -> None:
+    """Ctrl-C, as an operator would; killed if it has not ended 20 s later."""
+    if proc.poll() is not None:
+        return
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.communicate(timeout=20)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
