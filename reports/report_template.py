@@ -58,26 +58,28 @@ th{background:#eee}.pass{color:#070;font-weight:bold}.fail{color:#b00;font-weigh
 <tr><td>{{ fmt(e.temp_c) }}</td><td>{{ fmt(e.sensor_temp_c) }}</td><td>{{ vu(e.sf, e.U) }}</td><td>{{ fmt(e.k, 3) }}</td><td>{{ vu(e.sf_plus, e.U) }}</td><td>{{ vu(e.sf_minus, e.U) }}</td>
 <td>{{ vu(e.asymmetry_ppm, un.asymmetry_ppm and un.asymmetry_ppm.U) }}</td><td>{{ vu(e.nonlinearity.rms_pct, un.nonlinearity_rms_pct and un.nonlinearity_rms_pct.U) }}</td><td>{{ vu(e.nonlinearity.max_ppm_fs, un.nonlinearity_max_ppm_fs and un.nonlinearity_max_ppm_fs.U) }}</td></tr>
 {% endfor %}</table>
-<p>LS line at the reference: {% if r.scale_factor_ls %}SF {{ fmt(r.scale_factor_ls.sf, 9) }}, bias {{ fmt(r.scale_factor_ls.bias) }} at {{ fmt(r.scale_factor_ls.temp_c) }} °C{% else %}not computed{% endif %}.
-Worst nonlinearity: {% if r.nonlinearity %}{{ fmt(r.nonlinearity.rms_pct) }} % RMS, {{ fmt(r.nonlinearity.max_ppm_fs) }} ppm FS{% else %}not computed{% endif %}.
-Asymmetry: {{ fmt(r.asymmetry_ppm) }} ppm.
-SF over temperature: {% if r.sf_temperature %}instability {{ fmt(r.sf_temperature.instability_pct) }} %, sensitivity {{ fmt(r.sf_temperature.sensitivity_ppm_per_c) }} ppm/°C{% else %}not computed{% endif %}.</p>
+{% set un = r.uncertainty or {} %}
+<p>LS line at the reference: {% if r.scale_factor_ls %}SF {{ vu(r.scale_factor_ls.sf, r.scale_factor_ls.U) }}, bias {{ vu(r.scale_factor_ls.bias, un["scale_factor_ls.bias"] and un["scale_factor_ls.bias"].U) }} at {{ fmt(r.scale_factor_ls.temp_c) }} °C{% else %}not computed{% endif %}.
+Worst nonlinearity: {% if r.nonlinearity %}{{ vu(r.nonlinearity.rms_pct, un["nonlinearity.rms_pct"] and un["nonlinearity.rms_pct"].U) }} % RMS, {{ vu(r.nonlinearity.max_ppm_fs, un["nonlinearity.max_ppm_fs"] and un["nonlinearity.max_ppm_fs"].U) }} ppm FS{% else %}not computed{% endif %}.
+Asymmetry: {{ vu(r.asymmetry_ppm, un["asymmetry_ppm"] and un["asymmetry_ppm"].U) }} ppm.
+SF over temperature: {% if r.sf_temperature %}instability {{ vu(r.sf_temperature.instability_pct, un["sf_temperature.instability_pct"] and un["sf_temperature.instability_pct"].U) }} %, sensitivity {{ vu(r.sf_temperature.sensitivity_ppm_per_c, un["sf_temperature.sensitivity_ppm_per_c"] and un["sf_temperature.sensitivity_ppm_per_c"].U) }} ppm/°C{% else %}not computed{% endif %}.
+(Values ± U, ≈ 95 %.)</p>
 {% for key in ["sf_vs_rate", "nonlinearity", "sf_vs_temp"] %}{% if plots[key] %}<img alt="{{ key }}" src="data:image/png;base64,{{ plots[key] }}">{% endif %}{% endfor %}
 
 <h2>Bias</h2>
 <p>Earth rate removed: {{ fmt(r.earth_rate_removed_dph) }} deg/h (vertical input axis at the station latitude).</p>
 <table><tr><th>Temp (°C)</th><th>Bias ± U (deg/h)</th><th>k</th><th>From</th></tr>
 {% for b in r.bias %}<tr><td>{{ fmt(b.temp_c) }}</td><td>{{ vu(b.bias_dph, b.U) }}</td><td>{{ fmt(b.k, 3) }}</td><td>{{ b.source }}</td></tr>{% endfor %}</table>
-<p>Bias temperature sensitivity: {% if r.bias_temperature %}{{ fmt(r.bias_temperature.sensitivity_dph_per_c) }} deg/h/°C{% else %}not computed{% endif %}.</p>
+<p>Bias temperature sensitivity: {% if r.bias_temperature %}{{ vu(r.bias_temperature.sensitivity_dph_per_c, r.bias_temperature.U) }} deg/h/°C{% else %}not computed{% endif %}.</p>
 {% if plots.bias_vs_temp %}<img alt="bias vs temperature" src="data:image/png;base64,{{ plots.bias_vs_temp }}">{% endif %}
 
 <h2>Allan deviation and noise terms</h2>
 {% if r.allan %}
 <p>Hold {{ r.allan.step_id }} at {{ fmt(r.allan.temp_c) }} °C, {{ fmt(r.allan.duration_s) }} s at {{ fmt(r.allan.rate_hz) }} Hz; {{ r.allan.method }}.</p>
-<table><tr><th>Term</th><th>Value</th><th>68 % interval</th></tr>
-{% for name, unit in terms %}<tr><td>{{ name }}</td><td>{{ fmt(r.allan.fit[name]) }} {{ unit }}</td>
+<table><tr><th>Term</th><th>Value ± U (95 %)</th><th>k</th><th>68 % interval</th></tr>
+{% for name, unit in terms %}{% set au = (r.allan.uncertainty or {})[name] %}<tr><td>{{ name }}</td><td>{{ vu(r.allan.fit[name], au and au.U) }} {{ unit }}</td><td>{{ fmt(au and au.k, 3) if au else "—" }}</td>
 <td>{% set u = r.allan.fit_uncertainty[name] %}{{ fmt(u.lo) }} … {{ fmt(u.hi) }}</td></tr>{% endfor %}
-<tr><td>Markov (σ, T<sub>c</sub>)</td><td colspan="2">{% if r.allan.fit.markov %}{{ fmt(r.allan.fit.markov.sigma_dph) }} deg/h, {{ fmt(r.allan.fit.markov.tau_s) }} s{% else %}not significant{% endif %}</td></tr>
+<tr><td>Markov (σ, T<sub>c</sub>)</td><td colspan="3">{% if r.allan.fit.markov %}{{ fmt(r.allan.fit.markov.sigma_dph) }} deg/h, {{ fmt(r.allan.fit.markov.tau_s) }} s{% else %}not significant{% endif %}</td></tr>
 </table>
 {% if plots.allan %}<img alt="Allan deviation" src="data:image/png;base64,{{ plots.allan }}">{% endif %}
 {% else %}<p>Not computed.</p>{% endif %}
@@ -87,8 +89,8 @@ SF over temperature: {% if r.sf_temperature %}instability {{ fmt(r.sf_temperatur
 <h3>{{ what }}</h3>
 {% for kind, table in t.items() %}{% if table %}
 <p>{{ table.kind }}: in-sample RMS residual {{ fmt(table.residual_rms) }}, leave-one-out RMS {{ fmt(table.loo_residual_rms) }}, max {{ fmt(table.loo_residual_max) }}
-{% if table.coefficients %}; coefficients (highest power first) {{ table.coefficients|map("string")|join(", ") }}{% endif %}</p>
-<table><tr><th>Temp (°C)</th><th>Value</th></tr>{% for p in table.points %}<tr><td>{{ fmt(p[0]) }}</td><td>{{ fmt(p[1], 9) }}</td></tr>{% endfor %}</table>
+{% if table.coefficients %}; coefficients (highest power first) {% for c in table.coefficients %}{{ fmt(c, 7) }}{% if not loop.last %}, {% endif %}{% endfor %}{% endif %}</p>
+<table><tr><th>Temp (°C)</th><th>Value ± U (95 %)</th><th>k</th></tr>{% for p in table.points %}{% set tu = (table.uncertainty or [])[loop.index0] %}<tr><td>{{ fmt(p[0]) }}</td><td>{{ vu(p[1], tu and tu.U) }}</td><td>{{ fmt(tu and tu.k, 3) if tu else "—" }}</td></tr>{% endfor %}</table>
 {% endif %}{% else %}{% endfor %}
 {% endfor %}
 

@@ -89,3 +89,8 @@ def test_values_carry_their_expanded_uncertainty_and_the_decision(smoke_run):
         value, expanded = round_to_uncertainty(point["bias_dph"], point["U"])
         assert f"<td>{value} ± {expanded}</td>" in html
     assert "guarded" in html and ">CONDITIONAL</span>" in html
+    ls = results["scale_factor_ls"]
+    assert "SF {} ± {},".format(*round_to_uncertainty(ls["sf"], ls["U"])) in html
+    for name, entry in results["allan"]["uncertainty"].items():
+        shown = "{} ± {}".format(*round_to_uncertainty(entry["value"], entry["U"]))
+        assert f"<td>{shown} " in html, name
