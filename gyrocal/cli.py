@@ -9,7 +9,6 @@ lives in its own module; this file only routes.
 from __future__ import annotations
 
 import argparse
-import errno
 import signal
 import sys
 import threading
@@ -21,6 +20,7 @@ from gyrocal.errors import (  # noqa: F401 - re-exported: the names scripts alre
     EXIT_BAD_INPUT,
     EXIT_FAULT,
     EXIT_OK,
+    NO_ROOM_ERRNOS,
     BadInput,
     RunFault,
 )
@@ -244,10 +244,6 @@ def _terminate(signum: int, frame: object) -> None:
     raise KeyboardInterrupt(f"signal {signum}")
 
 
-#: Disk full or over quota: the run stopped (the engine put the rig in its safe state
-#: before re-raising); free space and resume.
-_DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)   # EFBIG: a file-size limit
-
 
 def main(argv: Sequence[str] | None = None, *,
          on_sim_started: Callable[[Any], None] | None = None) -> int:
@@ -279,8 +275,8 @@ def _dispatch(args: argparse.Namespace) -> int:
     except Exception as exc:
         if args.debug:
             raise
-        if isinstance(exc, OSError) and exc.errno in _DISK_FULL:
-            print(f"gyrocal: fault: disk full ({exc.strerror}: {exc.filename or 'a write'}); "
+        if isinstance(exc, OSError) and exc.errno in NO_ROOM_ERRNOS:
+            print(f"gyrocal: fault: no room to write ({exc.strerror}: {exc.filename or 'a write'}); "
                   "nothing recorded is lost (every journal line is fsynced); free space, then "
                   "`gyrocal resume RUN_DIR` continues a run", file=sys.stderr)
             return EXIT_FAULT

@@ -8,6 +8,8 @@ reports can all raise these without importing the command line (which would
 tie every layer to the one above it).
 """
 
+import errno
+
 EXIT_OK = 0
 EXIT_ACCEPTANCE_FAILED = 1
 EXIT_BAD_INPUT = 2
@@ -20,3 +22,8 @@ class BadInput(Exception):
 
 class RunFault(Exception):
     """A run stopped on an instrument or run fault (exit 3); the rig was left safe."""
+
+
+#: No room to write: disk full, over quota, or a file-size limit (``ulimit -f``). A run stops
+#: as a fault (exit 3), safe and resumable, never as an internal error.
+NO_ROOM_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)

@@ -13,7 +13,6 @@ The same code runs against hardware (``RealClock``) and against simulators
 
 from __future__ import annotations
 
-import errno
 import sys
 import time
 from collections.abc import Callable, Mapping
@@ -21,6 +20,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from gyrocal.errors import NO_ROOM_ERRNOS
 from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments
 from gyrocal.instruments.interfaces import Identity
@@ -397,11 +397,6 @@ class RunEngine:
                       f"folder ({exc.strerror}); the console lines above are the record",
                       file=sys.stderr)
         return outcome
-
-
-#: No room to write: disk full, over quota, or a file-size limit (``ulimit -f``). The run stops
-#: as a fault (exit 3), safe and resumable, never as an internal error.
-NO_ROOM_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
 def _bad_reason(result: StepResult, loss: float, limit: float, rate_dps: float,
