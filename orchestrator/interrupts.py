@@ -24,9 +24,11 @@ import signal
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 from gyrocal.instruments.interfaces import Chamber, ChamberStatus, Identity, RateTable, TableStatus
+
+InstrumentT = TypeVar("InstrumentT", Chamber, RateTable)
 
 SHIELD_NOTICE = (b"gyrocal: interrupt received while making the instruments safe; "
                  b"it waits until the safe state is done\n")
@@ -96,16 +98,28 @@ class InterruptGate:
             del journal.append
 
 
-class GatedChamber:
-    """A chamber each of whose calls is one exchange a signal cannot cut in half."""
+class _Gated(Generic[InstrumentT]):
+    """The calls every instrument has, each one exchange a signal cannot cut in half."""
 
-    def __init__(self, chamber: Chamber, gate: InterruptGate) -> None:
-        self.inner = chamber
+    def __init__(self, inner: InstrumentT, gate: InterruptGate) -> None:
+        self.inner = inner
         self._gate = gate
 
     def identify(self) -> Identity:
         with self._gate.held():
             return self.inner.identify()
+
+    def reset_link(self) -> None:
+        with self._gate.held():
+            self.inner.reset_link()
+
+    def close(self) -> None:
+        with self._gate.held():
+            self.inner.close()
+
+
+class GatedChamber(_Gated[Chamber]):
+    """A chamber each of whose calls is one exchange a signal cannot cut in half."""
 
     def read_temperature_c(self) -> float:
         with self._gate.held():
@@ -123,25 +137,9 @@ class GatedChamber:
         with self._gate.held():
             return self.inner.read_status()
 
-    def reset_link(self) -> None:
-        with self._gate.held():
-            self.inner.reset_link()
 
-    def close(self) -> None:
-        with self._gate.held():
-            self.inner.close()
-
-
-class GatedTable:
+class GatedTable(_Gated[RateTable]):
     """A rate table each of whose calls is one exchange a signal cannot cut in half."""
-
-    def __init__(self, table: RateTable, gate: InterruptGate) -> None:
-        self.inner = table
-        self._gate = gate
-
-    def identify(self) -> Identity:
-        with self._gate.held():
-            return self.inner.identify()
 
     def interlock_closed(self) -> bool:
         with self._gate.held():
@@ -178,11 +176,3 @@ class GatedTable:
     def stop(self) -> None:
         with self._gate.held():
             self.inner.stop()
-
-    def reset_link(self) -> None:
-        with self._gate.held():
-            self.inner.reset_link()
-
-    def close(self) -> None:
-        with self._gate.held():
-            self.inner.close()
