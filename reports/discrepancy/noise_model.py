@@ -222,8 +222,14 @@ def quiet_allan(residual_dph: np.ndarray, fs_hz: float, quiet: list[slice]):
 
 
 def estimate_noise(residual_dph: np.ndarray, fs_hz: float, quiet: list[slice],
-                   prior: NoiseModel, allow_markov: bool = True) -> NoiseEstimate:
+                   prior: NoiseModel, allow_markov: bool = True,
+                   long_terms: bool = True) -> NoiseEstimate:
     """Fit the noise terms on the quiet segments of ``residual_dph`` (deg/h, full rate).
+
+    ``long_terms=False`` keeps the model file's B and K whatever the quiet
+    segments say: the discrepancy workflow judges slow noise over the whole
+    record instead (stochastic.py), and a B taken from a few minutes of data
+    absorbs a Markov bias into the noise model, where nothing can name it.
 
     Falls back to ``prior`` (the model file) when there is too little quiet
     data for an Allan curve (< 2 minutes or < 8 τ points).
@@ -248,6 +254,9 @@ def estimate_noise(residual_dph: np.ndarray, fs_hz: float, quiet: list[slice],
                      quantization_arcsec=fit.Q_arcsec.value)
     source = ["N, Q from quiet segments"]
     for term, key in ((fit.B_dph, "bias_instability_dph"), (fit.K_dph_per_rth, "rrw_deg_per_h_rth")):
+        if not long_terms:
+            source.append(f"{key} from the model file (slow noise is judged over the whole record)")
+            continue
         prior_value = getattr(prior, key)
         scale = max(term.value, prior_value)
         if scale > 0 and 0.5 * (term.hi - term.lo) < INFORMATIVE_HALF_WIDTH * scale:

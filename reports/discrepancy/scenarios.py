@@ -168,6 +168,29 @@ def sized_effect(name: str, snr: float, profile: Profile, nominal: GyroModel | N
     return EffectSpec(name, params)
 
 
+def sized_markov(snr: float, tau_s: float, profile: Profile, nominal: GyroModel | None = None,
+                 max_bins: int = 1000) -> EffectSpec:
+    """markov_bias of correlation time ``tau_s`` whose expected likelihood ratio is snr².
+
+    The stochastic counterpart of ``sized_effect``: E[LR] = 2·KL between the
+    noise model with and without the process (Whittle form, on the analysis's
+    bins), solved for σ by bisection in log σ.
+    """
+    from gyrocal.reports.discrepancy.stochastic import WhittleTest
+
+    nominal = nominal or nominal_model()
+    bins = make_bins(profile.t_s, profile.fs_hz, max_bins=max_bins)
+    test = WhittleTest(NoiseModel.of_model(nominal), bins, profile.fs_hz)
+    lo, hi = math.log(1e-4), math.log(1e3)
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if test.expected_lr(math.exp(mid), tau_s) < snr * snr:
+            lo = mid
+        else:
+            hi = mid
+    return EffectSpec("markov_bias", {"sigma_dph": math.exp(0.5 * (lo + hi)), "tau_s": tau_s})
+
+
 def _lag_for_snr(snr: float, base: GyroModel, builder: DesignBuilder, whitener: Whitener, bins) -> float:
     """τ of thermal_lag whose noise-free misfit under the lag-free base is snr² (bisection in log τ)."""
     def misfit(tau_s: float) -> float:

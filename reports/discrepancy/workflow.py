@@ -3,10 +3,12 @@
 1. Refit the model's own linear parameters (bias, SF error, tempcos, any
    effect amplitudes) to the bin means by GLS, so what remains is structure
    the model lacks rather than wrong numbers.
-2. Estimate the noise on the quiet segments of that residual (a Markov hump
-   found there is the ``markov_bias`` effect) and build the whitening.
+2. Estimate the noise on the quiet segments of that residual and build the
+   whitening.
 3. Score every catalogue effect the model lacks (shape parameters by grid and
    a bounded scalar search), periodic interference on the full-rate spectrum,
+   a Gauss–Markov bias by the Whittle likelihood of the whole residual
+   (stochastic.py; an accepted one joins the noise model and the whitening),
    and an out-of-catalogue probe (a bias step at any time).
 4. Calibrate the acceptance threshold by simulation: effect-free data from
    the refitted model and the noise model, the maximum score over the whole
@@ -69,6 +71,7 @@ from gyrocal.reports.discrepancy.scoring import (
 )
 from gyrocal.reports.discrepancy.segments import Bins, Segments, derive_segments, make_bins
 from gyrocal.reports.discrepancy.signatures import DesignBuilder, SearchSpace, rate_levels
+from gyrocal.reports.discrepancy.stochastic import MARKOV, StochasticCandidate, WhittleTest
 from gyrocal.reports.measured_log import LogFormatError, MeasuredLog
 
 #: Family-wise false-positive rate of the acceptance threshold in the first pass; pass k
@@ -271,10 +274,17 @@ def _refine_found(analysis: _Analysis, model: GyroModel, names: list[str]) -> Gy
     return analysis.fit(model).model
 
 
+def _markov_test(analysis: _Analysis, fit: Fit, z: np.ndarray) -> StochasticCandidate:
+    """The whole-record Markov alternative, on the data and on the same simulated nulls."""
+    null_resid = analysis.whitener.colour(z - fit.basis @ (fit.basis.T @ z))
+    return WhittleTest(analysis.noise, analysis.bins, analysis.fs_hz).test(fit.resid_bins, null_resid)
+
+
 def _library_threshold(scores: dict[str, EffectScores], fit: Fit, z: np.ndarray,
-                       periodic: PeriodicScan | None, rng: np.random.Generator, alpha: float) -> float:
+                       periodic: PeriodicScan | None, rng: np.random.Generator, alpha: float,
+                       extra_nulls: list[np.ndarray]) -> float:
     nulls = null_scores(scores, fit, z)
-    columns = list(nulls.values())
+    columns = list(nulls.values()) + list(extra_nulls)
     if periodic is not None:
         # exact under the noise model: the max-of-M tail makes the periodic p-value uniform
         columns.append(-np.log10(rng.uniform(size=z.shape[1])))
@@ -355,10 +365,11 @@ def _noise_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> None:
     first = analysis.fit(model)
     noise_est = estimate_noise(analysis.resid_full(first), analysis.fs_hz,
                                analysis.segments.quiet_slices(analysis.fs_hz), prior,
-                               allow_markov=not model.has_effect("markov_bias"))
+                               allow_markov=False, long_terms=False)
     noise = noise_est.model
-    search.noise_before = replace(noise, markov_sigma_dph=prior.markov_sigma_dph,
-                                  markov_tau_s=prior.markov_tau_s)
+    # a Markov bias is judged over the whole record (stochastic.py), not from the quiet
+    # segments' Allan hump, which misses correlation times longer than those segments
+    search.noise_before = noise
     lattice = (None if model.has_effect("quantization")
                else detect_pulse(log.gyro, model.scale_factor, analysis.fs_hz))
     if lattice is not None:
@@ -376,14 +387,6 @@ def _noise_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> None:
     analysis.use_noise(noise, f"model {model.name or '(unnamed)'}")
     notes.append(f"noise model: {noise_est.source}")
 
-    if noise.has_markov and not model.has_effect("markov_bias"):
-        spec = EffectSpec("markov_bias", {"sigma_dph": noise.markov_sigma_dph, "tau_s": noise.markov_tau_s})
-        search.current = search.current.with_effect(spec)
-        delta = noise_est.fit.markov.delta_chi2 if noise_est.fit and noise_est.fit.markov else 0.0
-        search.found.append(FoundEffect("markov_bias", dict(spec.params), 1.0, [], "",
-                                        score_from_delta(delta, 2), float(delta), float("nan")))
-        notes.append("markov_bias: Allan hump in the quiet segments, significant by the noise fit's "
-                     "99.9 % rule; it is not part of the deterministic search")
     if log.sensor_temp_c is not None:
         notes.append("the log has sensor_temp_c: thermal_lag is not searched (the measured sensor "
                      "temperature is used as it is)")
@@ -407,10 +410,14 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
                                              lattice.pulse_arcsec)):
             scan = None  # the quantization's beat, bounded in angle: not interference
         z = analysis.rng.standard_normal((analysis.bins.n_bins, analysis.n_null))
-        threshold = _library_threshold(scores, fit, z, scan, analysis.rng, ALPHA / iteration)
+        markov = None if search.current.has_effect(MARKOV) else _markov_test(analysis, fit, z)
+        threshold = _library_threshold(scores, fit, z, scan, analysis.rng, ALPHA / iteration,
+                                       [] if markov is None else [markov.null_scores()])
         step = _step_probe(fit, analysis.whitener, analysis.bins, z)
         ranked = {name: s.score for name, s in scores.items()}
         deltas = {name: s.delta_chi2 for name, s in scores.items()}
+        if markov is not None:
+            ranked[MARKOV], deltas[MARKOV] = markov.score, markov.lr
         if scan is not None:
             ranked["periodic_interference"] = scan.score
             deltas["periodic_interference"] = scan.delta_chi2
@@ -427,6 +434,20 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
         search.iterations.append(Iteration(ranked, deltas, threshold, accepted, step))
         if accepted is None:
             break
+        if accepted == MARKOV:
+            spec = EffectSpec(MARKOV, dict(markov.params))
+            search.current = search.current.with_effect(spec)
+            search.noise = replace(search.noise, markov_sigma_dph=spec["sigma_dph"],
+                                   markov_tau_s=spec["tau_s"])
+            analysis.use_noise(search.noise)
+            fit = analysis.fit(search.current)
+            search.found.append(FoundEffect(MARKOV, {}, 1.0, [], "", markov.score, markov.lr, threshold))
+            if markov.at_rrw_limit:
+                search.notes.append(
+                    f"markov_bias: τ at the top of its range ({spec['tau_s']:.0f} s, longer than the "
+                    "record): to this record it is a rate random walk of "
+                    f"{markov.rrw_deg_per_h_rth:.3g} deg/h/√h")
+            continue
         if accepted == "periodic_interference":
             spec = EffectSpec(accepted, {"freq_hz": scan.freq_hz, "amplitude_dph": scan.amplitude_dph})
             probability, rivals, experiment, score = 1.0, [], "", scan.score
