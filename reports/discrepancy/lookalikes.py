@@ -43,6 +43,20 @@ def probabilities(scores: dict[str, EffectScores]) -> dict[str, float]:
     return dict(zip(names, weights.tolist(), strict=True))
 
 
+def real_probability(score: float, threshold: float) -> float:
+    """Probability that an accepted claim is not a noise fluke: odds 10^(score − threshold).
+
+    Both are −log10 tail probabilities on one scale, the threshold calibrated by
+    simulation to the (1 − α) point of the best effect-free score over the whole
+    library; their difference is the log of how much rarer the claim is than
+    the worst fluke the search lets through. A claim right at the threshold is a
+    coin toss (0.5), one decade above it 0.91, two 0.99. The look-alike split is
+    applied on top of it. docs/discrepancy-validation.md holds the reliability
+    diagram this is judged by (of claims near 0.9, how many were right).
+    """
+    return 1.0 / (1.0 + 10.0 ** (-(score - threshold)))
+
+
 def _correlation(a: np.ndarray | None, b: np.ndarray | None) -> float:
     if a is None or b is None:
         return 0.0

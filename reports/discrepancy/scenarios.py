@@ -56,11 +56,15 @@ def procedure_profile(duration_s: float = 3600.0, fs_hz: float = 10.0,
                       ramps_c_per_min: tuple[float, ...] = (3.0, 5.0, 2.0),
                       rates_dps: tuple[float, ...] = (0.5, 2.0, 10.0, 50.0, 200.0),
                       dwell_s: float = 20.0, static_s: float = 120.0,
-                      slow_rate_dps: float = 3.0, allan_hold_s: float = 0.0) -> Profile:
+                      slow_rate_dps: float = 3.0, allan_hold_s: float = 0.0,
+                      accel_dps2: float | None = None) -> Profile:
     """Soaks at ``setpoints_c`` joined by ramps; in each soak a static hold, ± dwells, one slow turn.
 
     ``allan_hold_s`` adds a long static hold at the end of the first soak (a
-    procedure's Allan hold), which the noise estimate needs to see a Markov hump.
+    procedure's Allan hold). ``accel_dps2`` gives the table a real acceleration:
+    each rate change becomes a slew at that rate of change, eating into the
+    start of the new dwell (None: instantaneous steps, as a table logged at a
+    low rate would show them).
     """
     if len(ramps_c_per_min) != len(setpoints_c) - 1:
         raise ValueError("one ramp rate per transition between setpoints is needed")
@@ -95,7 +99,36 @@ def procedure_profile(duration_s: float = 3600.0, fs_hz: float = 10.0,
         temp[sel] = t0 + (t1 - t0) * (t[sel] - start) / length
         start += length
     temp[t >= start] = setpoints_c[-1]
+    if accel_dps2 is not None:
+        rate = _slewed(rate, fs_hz, accel_dps2)
     return Profile(t, rate, temp)
+
+
+def _slewed(rate_dps: np.ndarray, fs_hz: float, accel_dps2: float) -> np.ndarray:
+    """Each step of the commanded rate replaced by a constant-acceleration slew."""
+    out = rate_dps.copy()
+    for i in np.flatnonzero(np.diff(rate_dps)) + 1:
+        start, target = out[i - 1], rate_dps[i]
+        steps = int(math.ceil(abs(target - start) / accel_dps2 * fs_hz))
+        k = np.arange(1, steps + 1)
+        ramp = start + np.sign(target - start) * np.minimum(k * accel_dps2 / fs_hz, abs(target - start))
+        stop = min(i + steps, out.size)
+        out[i:stop] = ramp[: stop - i]
+    return out
+
+
+def five_temperature_profile(fs_hz: float = 100.0, accel_dps2: float = 10.0) -> Profile:
+    """The second validation profile: five temperatures, a heating and a cooling branch.
+
+    25 → 55 °C (heating), then 40, 10 and −10 °C (cooling), ramps of 2, 1, 3
+    and 1.5 °C/min, a 30-minute static hold in the first soak, 100 Hz, a table
+    accelerating at 10 deg/s²: 2.6 hours, nothing in common with the first
+    profile but the kind of steps.
+    """
+    return procedure_profile(9300.0, fs_hz, setpoints_c=(25.0, 55.0, 40.0, 10.0, -10.0),
+                             ramps_c_per_min=(2.0, 1.0, 3.0, 1.5),
+                             rates_dps=(1.0, 4.0, 20.0, 100.0), dwell_s=30.0, static_s=90.0,
+                             slow_rate_dps=4.0, allan_hold_s=1800.0, accel_dps2=accel_dps2)
 
 
 NOMINAL = {
@@ -168,18 +201,18 @@ def sized_effect(name: str, snr: float, profile: Profile, nominal: GyroModel | N
     return EffectSpec(name, params)
 
 
-def sized_markov(snr: float, tau_s: float, profile: Profile, nominal: GyroModel | None = None,
-                 max_bins: int = 1000) -> EffectSpec:
+def sized_markov(snr: float, tau_s: float, profile: Profile, nominal: GyroModel | None = None
+                 ) -> EffectSpec:
     """markov_bias of correlation time ``tau_s`` whose expected likelihood ratio is snr².
 
     The stochastic counterpart of ``sized_effect``: E[LR] = 2·KL between the
-    noise model with and without the process (Whittle form, on the analysis's
-    bins), solved for σ by bisection in log σ.
+    noise model with and without the process (Whittle form, on the test's
+    one-second bins), solved for σ by bisection in log σ.
     """
-    from gyrocal.reports.discrepancy.stochastic import WhittleTest
+    from gyrocal.reports.discrepancy.stochastic import WhittleTest, fine_bins
 
     nominal = nominal or nominal_model()
-    bins = make_bins(profile.t_s, profile.fs_hz, max_bins=max_bins)
+    bins = fine_bins(profile.t_s, profile.fs_hz)
     test = WhittleTest(NoiseModel.of_model(nominal), bins, profile.fs_hz)
     lo, hi = math.log(1e-4), math.log(1e3)
     for _ in range(60):

@@ -33,6 +33,8 @@ from gyrocal.reports.discrepancy.signatures import (
     DesignBuilder,
     SearchSpace,
     apply_coefficients,
+    dead_zone_candidates,
+    dead_zone_neighbourhood,
     placeholder_spec,
     searched_effects,
     shape_grid,
@@ -248,9 +250,24 @@ def score_library(builder: DesignBuilder, base: Fit, whitener: Whitener, y_bins:
 
 
 def refine_shape(score: EffectScores, builder: DesignBuilder, base: Fit, whitener: Whitener,
-                 y_bins: np.ndarray, iterations: int = 12) -> CandidateScore:
-    """Bounded scalar search in log τ between the best grid point's neighbours."""
+                 y_bins: np.ndarray, space: SearchSpace, iterations: int = 12) -> CandidateScore:
+    """Bounded scalar search in log τ between the best grid point's neighbours.
+
+    A dead-zone threshold is profiled instead over every distinct threshold the
+    slew samples inside its bracket allow (the likelihood is a step function of
+    it, so a scalar search would stall on a flat step).
+    """
     best = score.best
+    if "threshold_dps" in best.shape:
+        # two stages: the bracket thinned, then every threshold around the best of those
+        tried = list(score.candidates)
+        for stage in (dead_zone_candidates, "neighbourhood"):
+            centre = max(tried, key=lambda s: s.delta_chi2).shape["threshold_dps"]
+            values = (dead_zone_candidates(centre, space) if stage is dead_zone_candidates else
+                      dead_zone_neighbourhood(centre, [c.shape["threshold_dps"] for c in tried], space))
+            tried += [score_candidate(score.effect, {**best.shape, "threshold_dps": t}, builder, base,
+                                      whitener, y_bins) for t in values]
+        return max(tried, key=lambda s: s.delta_chi2)
     keys = [k for k in best.shape if k.endswith("tau_s")]
     if not keys:
         return best

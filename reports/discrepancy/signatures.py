@@ -185,6 +185,9 @@ class SearchSpace:
     duration_s: float
     bin_width_s: float
     rate_levels_dps: tuple[float, ...]   # distinct |ω_t| held for a while, ascending, 0 first
+    #: every distinct |ω_t| the table passed through (slews included), ascending: where a
+    #: dead-zone threshold between two held levels can still be told apart
+    passed_rates_dps: tuple[float, ...] = ()
 
 
 def rate_levels(table_rate_dps: np.ndarray, fs_hz: float, min_hold_s: float = 5.0) -> tuple[float, ...]:
@@ -195,22 +198,76 @@ def rate_levels(table_rate_dps: np.ndarray, fs_hz: float, min_hold_s: float = 5.
     return tuple(sorted({0.0, *held.tolist()}))
 
 
+#: Dead-zone thresholds tried per bracket of held levels before the refinement.
+DEAD_ZONE_PER_BRACKET = 4
+
+
+def passed_rates(table_rate_dps: np.ndarray, limit: int = 20000) -> tuple[float, ...]:
+    """Distinct |rate| values of every sample, exactly, at most ``limit`` of them.
+
+    Not rounded: a slew sample logged as 1.2999999999 and one at 1.3000000001
+    fall on opposite sides of a 1.3 deg/s threshold, and rounding them together
+    leaves a spike of ω·3600 deg/h wherever the two disagree.
+    """
+    values = np.unique(np.abs(np.asarray(table_rate_dps, dtype=float)))
+    if values.size > limit:
+        values = values[np.linspace(0, values.size - 1, limit).round().astype(int)]
+    return tuple(values.tolist())
+
+
+def dead_zone_candidates(threshold_dps: float, space: SearchSpace, most: int = 48) -> list[float]:
+    """Thresholds that predict different data inside the bracket of held levels around one.
+
+    Between two held levels only the slew samples tell thresholds apart: any two
+    thresholds with no sample rate between them predict the same data, so the
+    candidates are the midpoints between consecutive sample rates in the
+    bracket (thinned to ``most``, evenly in rank).
+    """
+    levels = space.rate_levels_dps
+    lo = max([v for v in levels if v < threshold_dps], default=0.0)
+    hi = min([v for v in levels if v > threshold_dps], default=threshold_dps * 2.0)
+    return _midpoints_between(lo, hi, space.passed_rates_dps, most)
+
+
+def _midpoints_between(lo: float, hi: float, rates: tuple[float, ...], most: int) -> list[float]:
+    inside = np.array([lo, *(r for r in rates if lo < r < hi), hi])
+    mids = 0.5 * (inside[:-1] + inside[1:])
+    if mids.size > most:
+        mids = mids[np.linspace(0, mids.size - 1, most).round().astype(int)]
+    return [float(m) for m in mids]
+
+
+def dead_zone_neighbourhood(threshold_dps: float, tried: list[float], space: SearchSpace,
+                            most: int = 48) -> list[float]:
+    """Every distinguishable threshold between the two tried ones around ``threshold_dps``."""
+    lo = max([v for v in tried if v < threshold_dps], default=0.0)
+    hi = min([v for v in tried if v > threshold_dps], default=threshold_dps * 2.0)
+    return _midpoints_between(lo, hi, space.passed_rates_dps, most)
+
+
 def shape_grid(name: str, space: SearchSpace) -> list[dict[str, float]]:
     """Shape-parameter values to try for effect ``name`` (one empty dict if it has none).
 
     τ grids are log-spaced between a few bins and the record length; dead-zone
-    thresholds are midpoints between the held rate levels (any threshold
-    between two levels predicts the same data, so only the bracket is
-    identifiable).
+    thresholds are spread over each bracket of held rate levels by the slew
+    samples inside it (without slews any threshold in a bracket predicts the
+    same data and only the bracket is identifiable).
     """
     lo_tau = max(3.0 * space.bin_width_s, 10.0)
     if name == "thermal_lag":
         return [{"tau_s": float(t)} for t in np.geomspace(lo_tau, max(0.5 * space.duration_s, 2 * lo_tau), 14)]
     if name == "warmup_transient":
-        return [{"tau_s": float(t)} for t in np.geomspace(max(lo_tau, 30.0), max(space.duration_s, 2 * lo_tau), 14)]
+        # a transient that does not decay within the record is a drift: up to a third of the
+        # record, beyond it bias_ramp is the simpler claim (a 10σ ramp was taken for a
+        # warm-up of τ = 1.1 × the record)
+        top = max(space.duration_s / 3.0, 2 * lo_tau)
+        return [{"tau_s": float(t)} for t in np.geomspace(min(max(lo_tau, 30.0), top / 2), top, 14)]
     if name == "dead_zone":
+        # a few thresholds inside each bracket of held levels (the slews tell them apart),
+        # refined later over every distinguishable one (scoring.refine_shape)
         levels = space.rate_levels_dps[:7]
-        return [{"threshold_dps": 0.5 * (a + b)} for a, b in zip(levels[:-1], levels[1:], strict=True)]
+        return [{"threshold_dps": t} for a, b in zip(levels[:-1], levels[1:], strict=True)
+                for t in _midpoints_between(a, b, space.passed_rates_dps, DEAD_ZONE_PER_BRACKET)]
     return [{}]
 
 

@@ -24,8 +24,9 @@ The likelihood is Whittle's (the periodogram of the bin means against each
 model's spectrum), which is what makes this affordable: every candidate
 spectrum is evaluated on the real residual *and* on several hundred
 simulated effect-free residuals with one matrix product, so the threshold is
-calibrated by the same simulation as the deterministic library and the
-statistic is the same on both. Whittle's likelihood is the exact one's
+calibrated by simulation like the deterministic library's and the
+statistic is the same on both (the nulls are drawn in the periodogram's own
+distribution, see ``WhittleTest``). Whittle's likelihood is the exact one's
 large-sample form; ``tests/reports/discrepancy/test_stochastic.py`` checks
 that its likelihood ratio agrees with the exact Gaussian likelihood ratio of
 the time-domain bin covariance (``NoiseModel.bin_covariance``, scipy's dense
@@ -50,7 +51,17 @@ from scipy import optimize
 from gyrocal.models.noise import flicker_bank
 from gyrocal.reports.discrepancy.noise_model import NoiseModel
 from gyrocal.reports.discrepancy.scoring import score_from_delta
-from gyrocal.reports.discrepancy.segments import Bins
+from gyrocal.reports.discrepancy.segments import Bins, make_bins
+
+#: Width of the fine bins the test is run on (s), and at most this many of them.
+FINE_BIN_S = 1.0
+MAX_FINE_BINS = 1 << 18
+
+
+def fine_bins(t_s: np.ndarray, fs_hz: float) -> Bins:
+    """About one-second bins over the whole record (wider only past MAX_FINE_BINS of them)."""
+    return make_bins(t_s, fs_hz, max_bins=MAX_FINE_BINS, min_width_s=FINE_BIN_S)
+
 
 #: Free scale of the null's white level, and the grid it is profiled on.
 WHITE_SCALES = np.geomspace(0.7, 1.4, 8)
@@ -122,14 +133,35 @@ class StochasticCandidate:
         return np.array([score_from_delta(float(v), self.dof) for v in self.null_lr])
 
 
+def frequency_bands(k_max: int, single: int = 32, ratio: float = 1.05) -> np.ndarray:
+    """Edges (ordinate indices 0…k_max) of bands: the first ``single`` ordinates alone, then
+    bands growing by ``ratio``; a few hundred bands carry a record of any length."""
+    edges = list(range(min(single, k_max) + 1))
+    while edges[-1] < k_max:
+        edges.append(min(k_max, max(edges[-1] + 1, int(round(edges[-1] * ratio)))))
+    return np.array(edges)
+
+
 class WhittleTest:
-    """Whittle likelihoods of the bin-mean residual under H0 and H_markov."""
+    """Whittle likelihoods of the residual's bin means under H0 and H_markov.
+
+    The bins here are fine (about a second: ``fine_bins``), not the GLS bins,
+    so correlation times of seconds are not averaged away; the periodogram is
+    averaged over frequency bands (exact for the lowest ordinates, bands 5 %
+    wide above), so the likelihood of a 20-hour record costs a few hundred
+    terms. Under H0 each band mean is S·Gamma(m, 1)/m, so the effect-free
+    nulls are drawn directly in that form.
+    """
 
     def __init__(self, noise: NoiseModel, bins: Bins, fs_hz: float) -> None:
         n = bins.n_bins
         self.width_s = bins.width_s
         self.duration_s = n * bins.width_s
-        self.omega = 2.0 * math.pi * np.arange(1, (n - 1) // 2 + 1) / n
+        self.edges = frequency_bands((n - 1) // 2)
+        self.counts = np.diff(self.edges).astype(float)
+        k = np.arange(1, (n - 1) // 2 + 1)
+        omega_k = 2.0 * math.pi * k / n
+        self.omega = np.add.reduceat(omega_k, self.edges[:-1]) / self.counts
         white_var = 3600.0 * noise.arw_deg_per_rth**2 * fs_hz / bins.samples_per_bin
         flicker = np.zeros_like(self.omega)
         if noise.bias_instability_dph > 0:
@@ -161,32 +193,42 @@ class WhittleTest:
                         rows.append(base + sigma2 * unit)
                         self.labels.append((True, float(a), float(b), math.sqrt(sigma2), float(tau)))
         spectra = np.vstack(rows)
-        self._inverse = 1.0 / spectra
-        self._log_sum = np.log(spectra).sum(axis=1)
+        self._weighted_inverse = self.counts / spectra
+        self._log_sum = np.log(spectra) @ self.counts
         self._alternative = np.array([label[0] for label in self.labels])
 
+    def band_means(self, x: np.ndarray) -> np.ndarray:
+        """The periodogram of ``x`` (bin means) averaged over the test's bands."""
+        return np.add.reduceat(periodogram(x), self.edges[:-1], axis=0) / (
+            self.counts if np.ndim(x) == 1 else self.counts[:, None])
+
     def spectrum(self, a: float, b: float = 1.0, markov: tuple[float, float] | None = None) -> np.ndarray:
-        """The model spectrum of bin means at the test's frequencies."""
+        """The model spectrum of bin means at the bands' mean frequencies."""
         s = a * self.white_var + b * self.flicker + self.rest
         if markov is not None:
             s = s + gm_bin_spectrum(markov[0], markov[1], self.width_s, self.omega)
         return s
 
-    def loglik(self, periodogram_values: np.ndarray, a: float, b: float = 1.0,
+    def loglik(self, band_values: np.ndarray, a: float, b: float = 1.0,
                markov: tuple[float, float] | None = None) -> float:
         s = self.spectrum(a, b, markov)
-        return float(-np.sum(np.log(s)) - np.sum(periodogram_values / s))
+        return float(-np.sum(self.counts * (np.log(s) + band_values / s)))
 
     def expected_lr(self, sigma_dph: float, tau_s: float) -> float:
         """E[LR] when the Markov process is really there: 2·KL(H_markov ‖ H0), Whittle form."""
         ratio = self.spectrum(1.0, 1.0, (sigma_dph, tau_s)) / self.spectrum(1.0)
-        return float(np.sum(ratio - 1.0 - np.log(ratio)))
+        return float(np.sum(self.counts * (ratio - 1.0 - np.log(ratio))))
 
-    def test(self, resid_bins: np.ndarray, null_resid_bins: np.ndarray) -> StochasticCandidate:
-        """The Markov alternative on the data (refined) and on every simulated null (grid)."""
-        data = periodogram(resid_bins)
-        nulls = periodogram(null_resid_bins)
-        grid = -self._log_sum[:, None] - self._inverse @ np.column_stack([data, nulls])
+    def null_bands(self, rng: np.random.Generator, n_null: int) -> np.ndarray:
+        """Band means of effect-free periodograms: S0·Gamma(m, 1)/m per band, independent."""
+        return self.spectrum(1.0)[:, None] * rng.gamma(self.counts[:, None], 1.0,
+                                                       (self.counts.size, n_null)) / self.counts[:, None]
+
+    def test(self, resid_bins: np.ndarray, rng: np.random.Generator, n_null: int) -> StochasticCandidate:
+        """The Markov alternative on the data (refined) and on ``n_null`` simulated nulls (grid)."""
+        data = self.band_means(resid_bins)
+        grid = -self._log_sum[:, None] - self._weighted_inverse @ np.column_stack(
+            [data, self.null_bands(rng, n_null)])
         best_null = grid[~self._alternative].max(axis=0)
         rows = np.flatnonzero(self._alternative)
         best_row = rows[np.argmax(grid[rows, 0])]

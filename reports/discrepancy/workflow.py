@@ -44,7 +44,12 @@ from gyrocal.reports.discrepancy.gap import (
     g1,
     segment_rms,
 )
-from gyrocal.reports.discrepancy.lookalikes import LookAlike, lookalike_group, separating_experiment
+from gyrocal.reports.discrepancy.lookalikes import (
+    LookAlike,
+    lookalike_group,
+    real_probability,
+    separating_experiment,
+)
 from gyrocal.reports.discrepancy.noise_model import NoiseEstimate, NoiseModel, estimate_noise
 from gyrocal.reports.discrepancy.periodic import (
     REFINEMENT_FACTOR,
@@ -65,13 +70,24 @@ from gyrocal.reports.discrepancy.scoring import (
     null_scores,
     order_statistic_quantile,
     refine_shape,
+    score_candidate,
     score_from_delta,
     score_library,
     step_columns,
 )
 from gyrocal.reports.discrepancy.segments import Bins, Segments, derive_segments, make_bins
-from gyrocal.reports.discrepancy.signatures import DesignBuilder, SearchSpace, rate_levels
-from gyrocal.reports.discrepancy.stochastic import MARKOV, StochasticCandidate, WhittleTest
+from gyrocal.reports.discrepancy.signatures import (
+    DesignBuilder,
+    SearchSpace,
+    passed_rates,
+    rate_levels,
+)
+from gyrocal.reports.discrepancy.stochastic import (
+    MARKOV,
+    StochasticCandidate,
+    WhittleTest,
+    fine_bins,
+)
 from gyrocal.reports.measured_log import LogFormatError, MeasuredLog
 
 #: Family-wise false-positive rate of the acceptance threshold in the first pass; pass k
@@ -205,7 +221,8 @@ class _Analysis:
         self.y_full = output_to_dph(log.gyro, model.scale_factor)
         self.y_bins = self.bins.mean(self.y_full)
         self.space = SearchSpace(float(log.t_s[-1] - log.t_s[0]), self.bins.width_s,
-                                 rate_levels(log.table_rate_dps, self.fs_hz))
+                                 rate_levels(log.table_rate_dps, self.fs_hz),
+                                 passed_rates(log.table_rate_dps))
         self.rng = np.random.default_rng(seed)
         self.n_null = n_null
         self.whitener: Whitener | None = None
@@ -274,10 +291,41 @@ def _refine_found(analysis: _Analysis, model: GyroModel, names: list[str]) -> Gy
     return analysis.fit(model).model
 
 
-def _markov_test(analysis: _Analysis, fit: Fit, z: np.ndarray) -> StochasticCandidate:
-    """The whole-record Markov alternative, on the data and on the same simulated nulls."""
-    null_resid = analysis.whitener.colour(z - fit.basis @ (fit.basis.T @ z))
-    return WhittleTest(analysis.noise, analysis.bins, analysis.fs_hz).test(fit.resid_bins, null_resid)
+def _markov_test(analysis: _Analysis, fit: Fit) -> StochasticCandidate:
+    """The whole-record Markov alternative on one-second bins of the full-rate residual."""
+    bins = fine_bins(analysis.log.t_s, analysis.fs_hz)
+    test = WhittleTest(analysis.noise, bins, analysis.fs_hz)
+    return test.test(bins.mean(analysis.resid_full(fit)), analysis.rng, analysis.n_null)
+
+
+def _explained_by_markov(analysis: _Analysis, model: GyroModel, markov: StochasticCandidate,
+                         rival: EffectScores | None, threshold: float) -> bool:
+    """Whether a slow structure that outscored the Markov bias is only that bias's wander.
+
+    Scored under a noise model without the Markov process, any slow deterministic
+    shape (or a bias step, ``rival=None``) catches part of a Markov realisation and
+    can outscore it. Rescored under the noise model *with* the fitted process, a
+    real effect keeps its significance and a mere look-alike falls below the
+    threshold: then the Markov bias is the better explanation. Asked only when the
+    Markov bias's own likelihood gain is at least the rival's: a Markov process
+    fitted to a real 20σ bias ramp also "explains" it, but with far less
+    likelihood (LR 250 against Δχ² 380). Not asked when the
+    fitted process is slower than the record (``at_rrw_limit``): a walk that slow
+    is any slow drift, and a named deterministic shape is the sharper claim (a
+    20σ bias_ramp was otherwise taken for a random walk).
+    """
+    noise = replace(analysis.noise, markov_sigma_dph=markov.params["sigma_dph"],
+                    markov_tau_s=markov.params["tau_s"])
+    bins = analysis.bins
+    whitener = Whitener(noise.bin_covariance(bins.centre_s, bins.width_s, bins.samples_per_bin,
+                                             analysis.fs_hz))
+    fit = gls_fit(analysis.builder, whitener, analysis.y_bins, model)
+    if rival is None:
+        z = analysis.rng.standard_normal((bins.n_bins, analysis.n_null))
+        return not _step_probe(fit, whitener, bins, z).significant
+    candidate = score_candidate(rival.effect, rival.best.shape, analysis.builder, fit, whitener,
+                                analysis.y_bins)
+    return candidate.score <= threshold
 
 
 def _library_threshold(scores: dict[str, EffectScores], fit: Fit, z: np.ndarray,
@@ -365,10 +413,14 @@ def _noise_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> None:
     first = analysis.fit(model)
     noise_est = estimate_noise(analysis.resid_full(first), analysis.fs_hz,
                                analysis.segments.quiet_slices(analysis.fs_hz), prior,
-                               allow_markov=False, long_terms=False)
-    noise = noise_est.model
-    # a Markov bias is judged over the whole record (stochastic.py), not from the quiet
-    # segments' Allan hump, which misses correlation times longer than those segments
+                               allow_markov=not model.has_effect(MARKOV), long_terms=False)
+    # A Markov bias is judged over the whole record (stochastic.py), not from the quiet
+    # segments' Allan hump, which misses correlation times longer than those segments. The
+    # hump is still allowed in the quiet fit, so that N and Q are not bent to absorb it
+    # (σ 1.2 deg/h, τ 8 s came back as τ 3.7 s when Q had soaked up part of the process),
+    # but the term itself is left out of the noise model.
+    noise = replace(noise_est.model, markov_sigma_dph=prior.markov_sigma_dph,
+                    markov_tau_s=prior.markov_tau_s)
     search.noise_before = noise
     lattice = (None if model.has_effect("quantization")
                else detect_pulse(log.gyro, model.scale_factor, analysis.fs_hz))
@@ -410,7 +462,7 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
                                              lattice.pulse_arcsec)):
             scan = None  # the quantization's beat, bounded in angle: not interference
         z = analysis.rng.standard_normal((analysis.bins.n_bins, analysis.n_null))
-        markov = None if search.current.has_effect(MARKOV) else _markov_test(analysis, fit, z)
+        markov = None if search.current.has_effect(MARKOV) else _markov_test(analysis, fit)
         threshold = _library_threshold(scores, fit, z, scan, analysis.rng, ALPHA / iteration,
                                        [] if markov is None else [markov.null_scores()])
         step = _step_probe(fit, analysis.whitener, analysis.bins, z)
@@ -424,10 +476,20 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
         if not ranked:
             break
         best = max(ranked, key=ranked.get)
+        if (markov is not None and best not in (MARKOV, "periodic_interference")
+                and markov.score > threshold and not markov.at_rrw_limit
+                and markov.lr >= deltas[best]
+                and _explained_by_markov(analysis, search.current, markov, scores[best], threshold)):
+            best = MARKOV
         accepted = None
         if ranked[best] > threshold:
-            if (step.significant and best != "periodic_interference"
-                    and step.delta_chi2 - 2.0 * math.log(step.n_positions) > deltas[best]):
+            if best == MARKOV:
+                step_beats = (step.significant and not _explained_by_markov(
+                    analysis, search.current, markov, None, step.threshold))
+            else:
+                step_beats = (step.significant and best != "periodic_interference"
+                              and step.delta_chi2 - 2.0 * math.log(step.n_positions) > deltas[best])
+            if step_beats:
                 search.preempted = step
             else:
                 accepted = best
@@ -441,7 +503,8 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
                                    markov_tau_s=spec["tau_s"])
             analysis.use_noise(search.noise)
             fit = analysis.fit(search.current)
-            search.found.append(FoundEffect(MARKOV, {}, 1.0, [], "", markov.score, markov.lr, threshold))
+            search.found.append(FoundEffect(MARKOV, {}, real_probability(markov.score, threshold), [], "",
+                                            markov.score, markov.lr, threshold))
             if markov.at_rrw_limit:
                 search.notes.append(
                     f"markov_bias: τ at the top of its range ({spec['tau_s']:.0f} s, longer than the "
@@ -450,13 +513,17 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
             continue
         if accepted == "periodic_interference":
             spec = EffectSpec(accepted, {"freq_hz": scan.freq_hz, "amplitude_dph": scan.amplitude_dph})
-            probability, rivals, experiment, score = 1.0, [], "", scan.score
+            probability, rivals, experiment, score = real_probability(scan.score, threshold), [], "", scan.score
             delta = scan.delta_chi2
         else:
-            refined = refine_shape(scores[accepted], analysis.builder, fit, analysis.whitener, analysis.y_bins)
+            refined = refine_shape(scores[accepted], analysis.builder, fit, analysis.whitener, analysis.y_bins,
+                                       analysis.space)
             scores[accepted].candidates.append(refined)
             spec = refined.spec(fit.model)
-            probability, rivals = lookalike_group(accepted, scores)
+            split, rivals = lookalike_group(accepted, scores)
+            real = real_probability(refined.score, threshold)
+            probability = split * real
+            rivals = [replace(r, probability=r.probability * real) for r in rivals]
             tau = spec.params.get("tau_s")
             experiment = separating_experiment(accepted, [r.name for r in rivals], tau,
                                                analysis.space.rate_levels_dps)
