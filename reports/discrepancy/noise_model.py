@@ -223,9 +223,11 @@ def quiet_allan(residual_dph: np.ndarray, fs_hz: float, quiet: list[slice]):
 
 def estimate_noise(residual_dph: np.ndarray, fs_hz: float, quiet: list[slice],
                    prior: NoiseModel, allow_markov: bool = True,
-                   long_terms: bool = True) -> NoiseEstimate:
+                   long_terms: bool = True, markov_min_tau_s: float = 0.0) -> NoiseEstimate:
     """Fit the noise terms on the quiet segments of ``residual_dph`` (deg/h, full rate).
 
+    ``markov_min_tau_s`` refuses a Markov term faster than that (a pulse-counting
+    gyro's white noise came back as N = 0 plus a 0.04 s "Markov" process).
     ``long_terms=False`` keeps the model file's B and K whatever the quiet
     segments say: the discrepancy workflow judges slow noise over the whole
     record instead (stochastic.py), and a B taken from a few minutes of data
@@ -248,6 +250,7 @@ def estimate_noise(residual_dph: np.ndarray, fs_hz: float, quiet: list[slice],
         peak = with_markov.markov.tau_peak_s
         if (fit.chi2 - with_markov.chi2 > MARKOV_MIN_DELTA_CHI2
                 and MARKOV_PEAK_MARGIN * tau[0] < peak < tau[-1] / MARKOV_PEAK_MARGIN
+                and with_markov.markov.tau_s.value >= markov_min_tau_s
                 and with_markov.markov.sigma_dph.value > 0):
             fit = with_markov
     chosen = replace(prior, arw_deg_per_rth=fit.N_deg_per_rth.value,

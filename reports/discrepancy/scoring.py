@@ -324,8 +324,3 @@ def order_statistic_quantile(values: np.ndarray, level: float) -> float:
     ordered = np.sort(np.asarray(values, dtype=float))
     k = min(len(ordered), math.ceil(level * (len(ordered) + 1)))
     return float(ordered[k - 1])
-
-
-def step_columns(n_bins: int, positions: np.ndarray) -> np.ndarray:
-    """Unit bias steps starting at each bin position (the out-of-catalogue probe)."""
-    return (np.arange(n_bins)[:, None] >= positions[None, :]).astype(float)

@@ -180,6 +180,11 @@ class WhittleTest:
         self.tau_bounds_s = (max(0.5 * self.width_s, 1.0), max(RRW_LIMIT * self.duration_s, 2.0 * self.width_s))
         self.taus_s = np.geomspace(*self.tau_bounds_s, TAU_POINTS)
         units = [gm_bin_spectrum(1.0, float(tau), self.width_s, self.omega) for tau in self.taus_s]
+        # the power grid is relative to the null's own level (its median over the bands), not
+        # to the white part alone, which is 0 for a pulse-counting gyro whose noise is all Q
+        reference = float(np.median(white_var + flicker + rest))
+        if not reference > 0:
+            raise ValueError("the noise model has no power at all: nothing to test a Markov bias against")
         rows: list[np.ndarray] = []
         self.labels: list[tuple[bool, float, float, float, float]] = []   # alternative?, a, b, σ, τ
         for a in WHITE_SCALES:
@@ -189,7 +194,7 @@ class WhittleTest:
                 self.labels.append((False, float(a), float(b), 0.0, 0.0))
                 for tau, unit in zip(self.taus_s, units, strict=True):
                     for ratio in POWER_RATIOS:
-                        sigma2 = ratio * white_var / unit[0]
+                        sigma2 = ratio * reference / unit[0]
                         rows.append(base + sigma2 * unit)
                         self.labels.append((True, float(a), float(b), math.sqrt(sigma2), float(tau)))
         spectra = np.vstack(rows)

@@ -9,7 +9,8 @@
    a bounded scalar search), periodic interference on the full-rate spectrum,
    a Gauss–Markov bias by the Whittle likelihood of the whole residual
    (stochastic.py; an accepted one joins the noise model and the whitening),
-   and an out-of-catalogue probe (a bias step at any time).
+   and the out-of-catalogue probes (probes.py: a bias step, a scale-factor step,
+   a slow sinusoid of unknown period), which compete on equal footing.
 4. Calibrate the acceptance threshold by simulation: effect-free data from
    the refitted model and the noise model, the maximum score over the whole
    library per dataset, its (1 − α) quantile. Accept the best effect only
@@ -28,7 +29,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import optimize
 from threadpoolctl import threadpool_limits
 
 from gyrocal.models.gyro_model import EffectSpec, GyroModel, ModelError
@@ -57,6 +58,7 @@ from gyrocal.reports.discrepancy.periodic import (
     periodic_scan,
     sine_dph,
 )
+from gyrocal.reports.discrepancy.probes import Probe, ProbeKind, all_probes, strongest
 from gyrocal.reports.discrepancy.quantization import (
     PulseLattice,
     detect_pulse,
@@ -71,9 +73,7 @@ from gyrocal.reports.discrepancy.scoring import (
     order_statistic_quantile,
     refine_shape,
     score_candidate,
-    score_from_delta,
     score_library,
-    step_columns,
 )
 from gyrocal.reports.discrepancy.segments import Bins, Segments, derive_segments, make_bins
 from gyrocal.reports.discrepancy.signatures import (
@@ -83,6 +83,7 @@ from gyrocal.reports.discrepancy.signatures import (
     rate_levels,
 )
 from gyrocal.reports.discrepancy.stochastic import (
+    FINE_BIN_S,
     MARKOV,
     StochasticCandidate,
     WhittleTest,
@@ -99,8 +100,6 @@ from gyrocal.reports.measured_log import LogFormatError, MeasuredLog
 ALPHA = 0.02
 #: G1 after the refit above this quantile of its effect-free distribution is "unexplained".
 UNEXPLAINED_LEVEL = 0.99
-#: Number of step positions the out-of-catalogue probe tries.
-STEP_POSITIONS = 150
 
 
 @dataclass(frozen=True)
@@ -129,22 +128,6 @@ class FoundEffect:
 
 
 @dataclass(frozen=True)
-class StepProbe:
-    """The best single bias step (not a catalogue effect: a locator for the unexplained)."""
-
-    time_s: float
-    size_dph: float
-    delta_chi2: float
-    score: float
-    threshold: float
-    n_positions: int
-
-    @property
-    def significant(self) -> bool:
-        return self.score > self.threshold
-
-
-@dataclass(frozen=True)
 class Iteration:
     """What one pass scored, for the report: every effect's score and the threshold."""
 
@@ -152,7 +135,12 @@ class Iteration:
     delta_chi2: dict[str, float]
     threshold: float
     accepted: str | None
-    step: StepProbe
+    probes: list[Probe]
+
+    @property
+    def step(self) -> Probe:
+        """The bias-step probe (kept under its old JSON key)."""
+        return next(p for p in self.probes if p.kind is ProbeKind.BIAS_STEP)
 
 
 @dataclass
@@ -192,7 +180,11 @@ class DiscrepancyResult:
                           "per_iteration": [it.threshold for it in self.iterations]},
             "scores": [{"effects": it.scores, "threshold": it.threshold, "accepted": it.accepted,
                         "step_probe": {"time_s": it.step.time_s, "size_dph": it.step.size_dph,
-                                       "score": it.step.score, "threshold": it.step.threshold}}
+                                       "score": it.step.score, "threshold": it.step.threshold},
+                        "probes": [{"kind": p.kind.value, "where": p.where, "size": p.size,
+                                    "delta_chi2": p.delta_chi2, "score": p.score,
+                                    "threshold": p.threshold, "candidates": p.n_candidates}
+                                   for p in it.probes]}
                        for it in self.iterations],
             "noise_model": {**self.noise.model.__dict__, "source": self.noise.source,
                             "quiet_seconds": self.noise.quiet_seconds},
@@ -220,6 +212,7 @@ class _Analysis:
         self.builder = DesignBuilder(self.inputs, self.bins)
         self.y_full = output_to_dph(log.gyro, model.scale_factor)
         self.y_bins = self.bins.mean(self.y_full)
+        self.rate_bins_dps = self.bins.mean(log.table_rate_dps)
         self.space = SearchSpace(float(log.t_s[-1] - log.t_s[0]), self.bins.width_s,
                                  rate_levels(log.table_rate_dps, self.fs_hz),
                                  passed_rates(log.table_rate_dps))
@@ -250,26 +243,6 @@ class _Analysis:
     def scan(self, fit: Fit) -> PeriodicScan | None:
         return periodic_scan(self.resid_full(fit), self.fs_hz, self.noise,
                              0.5 / self.bins.width_s, self.log.t_s)
-
-
-def _step_probe(fit: Fit, whitener: Whitener, bins: Bins, z: np.ndarray) -> StepProbe:
-    n = bins.n_bins
-    positions = np.unique(np.linspace(0.02 * n, 0.98 * n, STEP_POSITIONS).astype(int))
-    ws = whitener.white(step_columns(n, positions))
-    perp = ws - fit.basis @ (fit.basis.T @ ws)
-    norms = np.linalg.norm(perp, axis=0)
-    usable = norms > 1e-9 * norms.max()
-    q = perp[:, usable] / norms[usable]
-    proj = q.T @ fit.white_resid
-    k = int(np.argmax(proj**2))
-    null = np.max((q.T @ z) ** 2, axis=0)
-    with np.errstate(divide="ignore"):
-        null_score = -stats.chi2.logsf(null, 1) / math.log(10.0)
-    threshold = order_statistic_quantile(null_score, 1.0 - ALPHA)
-    position = positions[usable][k]
-    return StepProbe(float(bins.centre_s[position] - bins.width_s / 2), float(proj[k] / norms[usable][k]),
-                     float(proj[k] ** 2), score_from_delta(float(proj[k] ** 2), 1), threshold,
-                     int(usable.sum()))
 
 
 def _refine_found(analysis: _Analysis, model: GyroModel, names: list[str]) -> GyroModel:
@@ -303,7 +276,7 @@ def _explained_by_markov(analysis: _Analysis, model: GyroModel, markov: Stochast
     """Whether a slow structure that outscored the Markov bias is only that bias's wander.
 
     Scored under a noise model without the Markov process, any slow deterministic
-    shape (or a bias step, ``rival=None``) catches part of a Markov realisation and
+    shape (or a generic probe, ``rival=None``) catches part of a Markov realisation and
     can outscore it. Rescored under the noise model *with* the fitted process, a
     real effect keeps its significance and a mere look-alike falls below the
     threshold: then the Markov bias is the better explanation. Asked only when the
@@ -322,7 +295,7 @@ def _explained_by_markov(analysis: _Analysis, model: GyroModel, markov: Stochast
     fit = gls_fit(analysis.builder, whitener, analysis.y_bins, model)
     if rival is None:
         z = analysis.rng.standard_normal((bins.n_bins, analysis.n_null))
-        return not _step_probe(fit, whitener, bins, z).significant
+        return strongest(all_probes(fit, whitener, bins, analysis.rate_bins_dps, z, ALPHA)) is None
     candidate = score_candidate(rival.effect, rival.best.shape, analysis.builder, fit, whitener,
                                 analysis.y_bins)
     return candidate.score <= threshold
@@ -385,7 +358,7 @@ class _Search:
     lattice: PulseLattice | None = None
     found: list[FoundEffect] = field(default_factory=list)
     iterations: list[Iteration] = field(default_factory=list)
-    preempted: StepProbe | None = None
+    preempted: Probe | None = None
     notes: list[str] = field(default_factory=list)
 
 
@@ -413,7 +386,8 @@ def _noise_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> None:
     first = analysis.fit(model)
     noise_est = estimate_noise(analysis.resid_full(first), analysis.fs_hz,
                                analysis.segments.quiet_slices(analysis.fs_hz), prior,
-                               allow_markov=not model.has_effect(MARKOV), long_terms=False)
+                               allow_markov=not model.has_effect(MARKOV), long_terms=False,
+                               markov_min_tau_s=FINE_BIN_S)
     # A Markov bias is judged over the whole record (stochastic.py), not from the quiet
     # segments' Allan hump, which misses correlation times longer than those segments. The
     # hump is still allowed in the quiet fit, so that N and Q are not bent to absorb it
@@ -465,7 +439,8 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
         markov = None if search.current.has_effect(MARKOV) else _markov_test(analysis, fit)
         threshold = _library_threshold(scores, fit, z, scan, analysis.rng, ALPHA / iteration,
                                        [] if markov is None else [markov.null_scores()])
-        step = _step_probe(fit, analysis.whitener, analysis.bins, z)
+        probes = all_probes(fit, analysis.whitener, analysis.bins, analysis.rate_bins_dps, z, ALPHA)
+        probe = strongest(probes)
         ranked = {name: s.score for name, s in scores.items()}
         deltas = {name: s.delta_chi2 for name, s in scores.items()}
         if markov is not None:
@@ -483,17 +458,17 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
             best = MARKOV
         accepted = None
         if ranked[best] > threshold:
-            if best == MARKOV:
-                step_beats = (step.significant and not _explained_by_markov(
-                    analysis, search.current, markov, None, step.threshold))
+            if probe is None or best == "periodic_interference":
+                probe_beats = False
+            elif best == MARKOV:
+                probe_beats = not _explained_by_markov(analysis, search.current, markov, None, threshold)
             else:
-                step_beats = (step.significant and best != "periodic_interference"
-                              and step.delta_chi2 - 2.0 * math.log(step.n_positions) > deltas[best])
-            if step_beats:
-                search.preempted = step
+                probe_beats = probe.penalised_delta > deltas[best]
+            if probe_beats:
+                search.preempted = probe
             else:
                 accepted = best
-        search.iterations.append(Iteration(ranked, deltas, threshold, accepted, step))
+        search.iterations.append(Iteration(ranked, deltas, threshold, accepted, probes))
         if accepted is None:
             break
         if accepted == MARKOV:
@@ -571,13 +546,16 @@ def _gap_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> Discrep
     primary = choose_primary(metrics, bool(found))
 
     g1_limit = order_statistic_quantile(null_g1, UNEXPLAINED_LEVEL)
-    last_step = _step_probe(after, analysis.whitener, analysis.bins,
-                            analysis.rng.standard_normal((analysis.bins.n_bins, analysis.n_null)))
+    last_probe = strongest(all_probes(
+        after, analysis.whitener, analysis.bins, analysis.rate_bins_dps,
+        analysis.rng.standard_normal((analysis.bins.n_bins, analysis.n_null)), ALPHA))
     unexplained = preempted is not None or metrics["g1_segment_mean"].after > g1_limit
     signals = _signals(analysis, after.model)
     where = ""
     if unexplained:
-        step_info = last_step if last_step.significant else preempted
+        probe_info = last_probe or preempted
+        step_info = (probe_info if probe_info is not None and probe_info.kind is ProbeKind.BIAS_STEP
+                     else None)
         line = None
         if scan_after is not None and scan_after.score > 2.0 and not after.model.has_effect("periodic_interference"):
             line = (scan_after.freq_hz, scan_after.amplitude_dph)
@@ -586,8 +564,11 @@ def _gap_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> Discrep
                                    None if step_info is None else (step_info.time_s, step_info.size_dph),
                                    line)
         if preempted is not None:
-            notes.append(f"a bias step near t = {preempted.time_s:.0f} s explains the data better than "
-                         f"any catalogue effect (Δχ² {preempted.delta_chi2:.1f}); nothing was named")
+            notes.append(f"{preempted.describe()} explains the data better than any catalogue "
+                         f"effect (Δχ² {preempted.delta_chi2:.1f}); nothing was named")
+        elif probe_info is not None and step_info is None:
+            notes.append(f"what is left looks like {probe_info.describe()} (Δχ² "
+                         f"{probe_info.delta_chi2:.1f})")
     return DiscrepancyResult(
         found, unexplained, where, metrics, primary, model, after.model, search.noise_est,
         search.iterations, analysis.bins, analysis.segments, np.unique(seg_of_bin), geometry,
