@@ -104,3 +104,19 @@ def test_markov_bias_is_found_from_the_quiet_segments(sigma_dph):
     assert abs(params["tau_s"] / 8.0 - 1.0) < 0.35
     allan = result.metrics["allan_mismatch"]
     assert allan.after < allan.before
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("threshold_dps", [0.3, 1.3, 6.0])
+def test_dead_zone_threshold_is_fitted_from_the_slew_samples(threshold_dps):
+    """At 100 Hz with a 10 deg/s² table the slews pass every rate 0.1 deg/s apart: the
+    threshold is fitted to within 20 % (issue 12), not put halfway between dwell levels
+    (which would give 0.5, 2.5 and 12 deg/s for these three)."""
+    prof = scenarios.procedure_profile(1500.0, 100.0, setpoints_c=(25.0, 35.0), ramps_c_per_min=(5.0,),
+                                       rates_dps=(1.0, 4.0, 20.0), dwell_s=15.0, static_s=60.0,
+                                       slow_rate_dps=4.0, accel_dps2=10.0)
+    result = run([EffectSpec("dead_zone", {"threshold_dps": threshold_dps})], seed=8, prof=prof)
+    assert [f.name for f in result.found] == ["dead_zone"]
+    assert result.found[0].parameters["threshold_dps"] == pytest.approx(threshold_dps, rel=0.2)
+    gap = result.metrics["g1_segment_mean"]
+    assert gap.after < gap.noise_floor + 4.0 * gap.noise_spread < gap.before

@@ -166,3 +166,22 @@ def test_cli_end_to_end_writes_the_three_files(files):
                          capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2
     assert "nope.csv" in bad.stderr + bad.stdout and "Traceback" not in bad.stderr
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("kind", ["sf_step", "slow_sine"])
+def test_structure_outside_the_catalogue_is_not_named_after_a_neighbour(kind):
+    """A 300 ppm scale-factor step and a 0.5 deg/h sinusoid of period 1500 s are in no
+    catalogue entry: nothing is named, the result is unexplained and says what it looks like
+    (before the probes, a scale-factor step first drew thermal_lag and sf_temp_quadratic)."""
+    t = PROFILE.t_s
+    if kind == "sf_step":
+        extra = np.where(t >= 1300.0, 300e-6 * PROFILE.table_rate_dps * 3600.0, 0.0)
+        expected = r"scale-factor step of \+3\d\d ppm near t = 1[23]\d\d s"
+    else:
+        extra = 0.5 * np.sin(2.0 * np.pi * t / 1500.0)
+        expected = r"slow sinusoid of 0\.[45]\d* deg/h, period 1[45]\d\d s"
+    result = scenarios.analyse_scenario(PROFILE, [], 43, extra_dph=extra)
+    assert result.found == []
+    assert result.unexplained
+    assert any(re.search(expected, note) for note in result.notes), result.notes
