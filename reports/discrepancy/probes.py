@@ -8,8 +8,11 @@ sf_temp_quadratic at probability 1.0 before ending unexplained). The probes:
 * a **bias step** at any of ``POSITIONS`` times (deg/h);
 * a **scale-factor step** at any of those times (ppm: a rate-proportional
   change, ω·1e-6·ppm in deg/s);
-* a **slow sinusoid** of unknown period, from twice the record down to eight
-  bins (a cos/sin pair per frequency, deg/h).
+* a **slow sinusoid** of unknown period, from half the record down to eight
+  bins (a cos/sin pair per frequency, deg/h). At least two periods must be in
+  the record: less is a bump, not a periodicity, and a bump is what two wiggles
+  of a slow Gauss–Markov bias look like (a sinusoid of period 1.1 record lengths
+  took the place of a τ = 1000 s Markov bias on a 1-hour record).
 
 Each is scored like a catalogue effect (the Δχ² of its columns after the
 refitted base and the whitening), its threshold is the (1 − α) point of its
@@ -59,6 +62,7 @@ class Probe:
     dof: int
     threshold: float
     n_candidates: int
+    phase_rad: float = 0.0   # slow sinusoid: size·cos(2π·where·t − phase)
 
     @property
     def score(self) -> float:
@@ -80,6 +84,14 @@ class Probe:
     @property
     def size_dph(self) -> float:
         return self.size
+
+    def signal_dph(self, t_s: np.ndarray, rate_dps: np.ndarray) -> np.ndarray:
+        """The fitted probe at times ``t_s`` (table rate ``rate_dps``), deg/h."""
+        if self.kind is ProbeKind.BIAS_STEP:
+            return np.where(t_s >= self.where, self.size, 0.0)
+        if self.kind is ProbeKind.SF_STEP:
+            return np.where(t_s >= self.where, self.size * 1e-6 * 3600.0 * rate_dps, 0.0)
+        return self.size * np.cos(2.0 * math.pi * self.where * t_s - self.phase_rad)
 
     def describe(self) -> str:
         if self.kind is ProbeKind.BIAS_STEP:
@@ -136,7 +148,7 @@ def sf_step_probe(fit: Fit, whitener: Whitener, bins: Bins, rate_bins_dps: np.nd
 
 def slow_sine_probe(fit: Fit, whitener: Whitener, bins: Bins, z: np.ndarray, alpha: float) -> Probe:
     duration_s = bins.n_bins * bins.width_s
-    f_lo, f_hi = 0.5 / duration_s, 1.0 / (8.0 * bins.width_s)
+    f_lo, f_hi = 2.0 / duration_s, 1.0 / (8.0 * bins.width_s)
     count = int(min(MAX_FREQUENCIES, max(2, (f_hi - f_lo) * duration_s * 2)))
     freqs = np.geomspace(f_lo, f_hi, count)
     phase = 2.0 * math.pi * bins.centre_s[:, None] * freqs[None, :]
@@ -162,7 +174,7 @@ def slow_sine_probe(fit: Fit, whitener: Whitener, bins: Bins, z: np.ndarray, alp
     null = np.max(gains(z), axis=0)
     threshold = order_statistic_quantile(_null_scores(null, 2), 1.0 - alpha)
     return Probe(ProbeKind.SLOW_SINE, float(freqs[k]), float(math.hypot(*coef)), float(data[k]), 2,
-                 threshold, int(usable.sum()))
+                 threshold, int(usable.sum()), float(math.atan2(coef[1], coef[0])))
 
 
 def all_probes(fit: Fit, whitener: Whitener, bins: Bins, rate_bins_dps: np.ndarray, z: np.ndarray,
