@@ -131,6 +131,17 @@ def five_temperature_profile(fs_hz: float = 100.0, accel_dps2: float = 10.0) -> 
                              slow_rate_dps=4.0, allan_hold_s=1800.0, accel_dps2=accel_dps2)
 
 
+def static_profile(duration_s: float = 7200.0, fs_hz: float = 200.0, temp_c: float = 25.0) -> Profile:
+    """A long static at one temperature (the third validation profile: 2 h at 200 Hz).
+
+    Only what shows without rate or temperature change can be named here: bias
+    drifts, interference, quantization, the Markov bias; the table and
+    temperature effects have nothing to act on.
+    """
+    t = np.arange(int(round(duration_s * fs_hz))) / fs_hz
+    return Profile(t, np.zeros_like(t), np.full_like(t, temp_c))
+
+
 NOMINAL = {
     "version": 1, "name": "nominal FOG (discrepancy scenarios)", "output_units": "deg/s",
     "scale_factor": 1.0, "reference_temp_c": 25.0, "bias_dph": 2.0,
