@@ -120,3 +120,16 @@ def test_dead_zone_threshold_is_fitted_from_the_slew_samples(threshold_dps):
     assert result.found[0].parameters["threshold_dps"] == pytest.approx(threshold_dps, rel=0.2)
     gap = result.metrics["g1_segment_mean"]
     assert gap.after < gap.noise_floor + 4.0 * gap.noise_spread < gap.before
+
+
+@pytest.mark.timeout(180)
+def test_dead_zone_spikes_on_wide_bins_are_not_taken_for_a_fast_markov_process():
+    """On the 2.6 h, 100 Hz five-temperature profile a 0.3 deg/s dead zone touches only
+    slew samples: each crossing is a 36σ spike in its one-second bin, which the Markov test
+    read as a 1 s process (LR 9300 against the dead zone's Δχ² 840 on 9 s bins), so a
+    Markov bias and a spurious line were named before the dead zone. Fitted, the dead zone
+    leaves no Markov bias behind: it alone is named."""
+    result = run([EffectSpec("dead_zone", {"threshold_dps": 0.3})], seed=2000,
+                 prof=scenarios.five_temperature_profile())
+    assert [f.name for f in result.found] == ["dead_zone"]
+    assert result.found[0].parameters["threshold_dps"] == pytest.approx(0.3, rel=0.2)
