@@ -157,24 +157,24 @@ def read_run_folder_log(run_dir: Path) -> MeasuredLog:
     from gyrocal.orchestrator.record.run_folder import OPTIONAL_SAMPLE_COLUMNS, RunFolder
 
     folder = RunFolder.open(run_dir)
-    events = folder.journal_events()
-    parts: list[dict[str, np.ndarray]] = []
-    labels: list[np.ndarray] = []
-    for event in events:
-        if event.get("event") == "step_completed" and event.get("chunks"):
-            data = folder.read_chunks(event["chunks"])
-            status = data.pop("status", None)
-            for name in OPTIONAL_SAMPLE_COLUMNS:
-                data.pop(name, None)
-            if status is not None:
-                # Samples the gyro flagged (saturated, in error) are bad data: never analysed.
-                good = status == 0
-                data = {name: values[good] for name, values in data.items()}
-            parts.append(data)
-            labels.append(np.full(len(data["t_s"]), event["step_id"], dtype=object))
-    if not parts:
+    steps = [event for event in folder.journal_events()
+             if event.get("event") == "step_completed" and event.get("chunks")]
+    if not steps:
         raise LogFormatError(f"{run_dir}: the run folder has no completed logged steps")
-    columns = {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
+    # one read of every chunk (not one per step: on an overnight folder the per-step
+    # copies and the per-sample label fill were half of the 10 s it took)
+    data, rows = folder.read_chunk_groups([event["chunks"] for event in steps], optional=("status",))
+    labels = np.repeat(np.array([event["step_id"] for event in steps], dtype=object), rows)
+    status = data.pop("status", None)
+    for name in OPTIONAL_SAMPLE_COLUMNS:
+        data.pop(name, None)
+    columns: dict[str, np.ndarray | None] = dict(data)
+    if status is not None:
+        # Samples the gyro flagged (saturated, in error) are bad data: never analysed.
+        good = status == 0
+        if not np.all(good):
+            columns = {name: values[good] for name, values in data.items()}
+            labels = labels[good]
     if np.all(np.isnan(columns["sensor_temp_c"])):
         columns["sensor_temp_c"] = None
     checked = {k: v for k, v in columns.items() if v is not None}
@@ -183,5 +183,5 @@ def read_run_folder_log(run_dir: Path) -> MeasuredLog:
         source=str(run_dir),
         **{name: columns[name] for name in REQUIRED_COLUMNS},
         **{name: columns.get(name) for name in OPTIONAL_COLUMNS},
-        segment=np.concatenate(labels),
+        segment=labels,
     )
