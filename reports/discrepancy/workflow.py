@@ -275,10 +275,14 @@ def _refine_found(analysis: _Analysis, model: GyroModel, names: list[str]) -> Gy
 
 
 def _markov_test(analysis: _Analysis, fit: Fit) -> StochasticCandidate:
-    """The whole-record Markov alternative on one-second bins of the full-rate residual."""
+    """The whole-record Markov alternative on one-second bins of the fit's full-rate residual."""
+    return _markov_test_of(analysis, analysis.resid_full(fit))
+
+
+def _markov_test_of(analysis: _Analysis, resid_dph: np.ndarray) -> StochasticCandidate:
     bins = fine_bins(analysis.log.t_s, analysis.fs_hz)
     test = WhittleTest(analysis.noise, bins, analysis.fs_hz)
-    return test.test(bins.mean(analysis.resid_full(fit)), analysis.rng, analysis.n_null)
+    return test.test(bins.mean(resid_dph), analysis.rng, analysis.n_null)
 
 
 def _gap_open(analysis: _Analysis, fit: Fit, z: np.ndarray) -> bool:
@@ -302,12 +306,11 @@ def _gap_open(analysis: _Analysis, fit: Fit, z: np.ndarray) -> bool:
 
 
 def _explained_by_markov(analysis: _Analysis, model: GyroModel, markov: StochasticCandidate,
-                         rival: EffectScores | None, threshold: float) -> bool:
+                         rival: EffectScores, threshold: float) -> bool:
     """Whether a slow structure that outscored the Markov bias is only that bias's wander.
 
     Scored under a noise model without the Markov process, any slow deterministic
-    shape (or a generic probe, ``rival=None``) catches part of a Markov realisation and
-    can outscore it. Rescored under the noise model *with* the fitted process, a
+    shape catches part of a Markov realisation and can outscore it. Rescored under the noise model *with* the fitted process, a
     real effect keeps its significance and a mere look-alike falls below the
     threshold: then the Markov bias is the better explanation. Asked only when the
     Markov bias's own likelihood gain is at least the rival's: a Markov process
@@ -323,9 +326,6 @@ def _explained_by_markov(analysis: _Analysis, model: GyroModel, markov: Stochast
     whitener = Whitener(noise.bin_covariance(bins.centre_s, bins.width_s, bins.samples_per_bin,
                                              analysis.fs_hz))
     fit = gls_fit(analysis.builder, whitener, analysis.y_bins, model)
-    if rival is None:
-        z = analysis.rng.standard_normal((bins.n_bins, analysis.n_null))
-        return strongest(all_probes(fit, whitener, bins, analysis.rate_bins_dps, z, ALPHA)) is None
     candidate = score_candidate(rival.effect, rival.best.shape, analysis.builder, fit, whitener,
                                 analysis.y_bins)
     return candidate.score <= threshold
@@ -373,9 +373,7 @@ def _probe_explains_markov(analysis: _Analysis, fit: Fit, probe: Probe) -> bool:
     coeffs[kept] -= shift
     model = apply_coefficients(fit.model, fit.design.columns, coeffs)
     resid = analysis.y_full - analysis.builder.rate_dph(model) - probe.signal_dph(log.t_s, log.table_rate_dps)
-    fine = fine_bins(log.t_s, analysis.fs_hz)
-    rest = WhittleTest(analysis.noise, fine, analysis.fs_hz).test(fine.mean(resid), analysis.rng, analysis.n_null)
-    return not _markov_left(rest)
+    return not _markov_left(_markov_test_of(analysis, resid))
 
 
 def _markov_survives(analysis: _Analysis, fit: Fit, spec: EffectSpec) -> bool:
@@ -411,9 +409,9 @@ def _structure_behind_markov(analysis: _Analysis, model: GyroModel, fit: Fit, ma
     the Markov test like a fast process with a likelihood ratio ten times the
     structure's own Δχ² (9300 against 840 on a 100 Hz log with a 0.3 deg/s dead zone,
     where the Markov bias, a spurious line and then the dead zone were named).
-    The strongest significant deterministic effect is fitted; if the Markov test on
-    that residual falls below the threshold while the effect, rescored under the noise
-    with the Markov process, stays above it, the structure is the explanation.
+    The strongest significant deterministic effect is fitted; if no Markov bias is left
+    in that residual (``_markov_left``) while the effect, rescored under the noise with
+    the Markov process, stays above the threshold, the structure is the explanation.
     """
     rivals = {name: s for name, s in scores.items() if s.score > threshold}
     if not rivals:
