@@ -154,7 +154,7 @@ def read_run_folder_log(run_dir: Path) -> MeasuredLog:
     chunks of bad or interrupted attempts stay on disk (nothing is deleted)
     but do not enter the analysis.
     """
-    from gyrocal.orchestrator.record.run_folder import OPTIONAL_SAMPLE_COLUMNS, RunFolder
+    from gyrocal.orchestrator.record.run_folder import RunFolder
 
     folder = RunFolder.open(run_dir)
     steps = [event for event in folder.journal_events()
@@ -165,9 +165,7 @@ def read_run_folder_log(run_dir: Path) -> MeasuredLog:
     # copies and the per-sample label fill were half of the 10 s it took)
     data, rows = folder.read_chunk_groups([event["chunks"] for event in steps], optional=("status",))
     labels = np.repeat(np.array([event["step_id"] for event in steps], dtype=object), rows)
-    status = data.pop("status", None)
-    for name in OPTIONAL_SAMPLE_COLUMNS:
-        data.pop(name, None)
+    status = data.pop("status", None)   # the only optional column read
     columns: dict[str, np.ndarray | None] = dict(data)
     if status is not None:
         # Samples the gyro flagged (saturated, in error) are bad data: never analysed.
