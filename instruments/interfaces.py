@@ -11,6 +11,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from gyrocal.instruments.gyro.channels import SensorChannels
+
 
 @dataclass(frozen=True)
 class Identity:
@@ -87,6 +89,8 @@ class GyroBlock:
     extra: dict = field(default_factory=dict)
     rate_xyz: np.ndarray | None = None     # (n, 3) all three axes of a multi-axis unit; ``rate`` is the unit under test
     flagged: np.ndarray | None = None      # bool per sample: the status byte marks it not valid for the unit under test
+    #: accelerometers, inclinometers, per-sensor temperatures and statuses, where the datagram has them
+    channels: SensorChannels | None = None
 
     def __len__(self) -> int:
         return int(self.rate.shape[0])

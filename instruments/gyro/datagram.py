@@ -1,37 +1,33 @@
-"""The STIM300 gyro datagrams 0x90 and 0x94: layout, vectorised encoder and decoder.
+"""STIM300 normal-mode datagrams: vectorised encoder and decoder (layouts in datagram_types.py).
 
-This module is the one place the wire format is defined. Everything else
-(driver, simulator, benchmarks) imports these constants; the tests build
-their expected bytes by hand from the datasheet tables instead.
+Every normal-mode type of TS1524 rev 31 Table 5-21 (0x90–0x94, 0xA5–0xA7,
+0xF0–0xF7) is handled; the byte layout of each comes from
+:func:`~gyrocal.instruments.gyro.datagram_types.layout_of` (Table 5-20 order).
+The tests build their expected bytes by hand from the datasheet tables
+instead of importing the layouts.
 
-Layout (all multi-byte fields big-endian; STIM300 datasheet, datagram
-content tables; cross-checked against a public reader of real units,
-geirhovland/stim300 ``stim300_read.py``)::
+Scaling (all fields big-endian two's complement unless said):
 
-    0x90 "rate", 18 bytes                 0x94 "rate + temperature", 25 bytes
-      0      identifier 0x90                0      identifier 0x94
-      1..9   rate x, y, z: 3 × 24-bit       1..9   rate x, y, z
-             two's complement               10     status (rates)
-      10     status                         11..16 temperature x, y, z: 3 × 16-bit
-      11     counter (mod 256)                     two's complement, 1/256 °C
-      12..13 latency, µs                    17     temperature status
-      14..17 CRC-32                         18     counter
-                                            19..20 latency, µs
-                                            21..24 CRC-32
+* rates: ``raw * lsb``; ``lsb`` is a station setting whose default 2**-14
+  deg/s is the angular-rate output's LSB (§7.5.2.2.2, Equation 1, p. 50);
+* accelerometers: LSB per range 5/10/30/80 g = 2**-20/-19/-18/-16 g
+  (§7.5.2.2.7, Equation 3, p. 52); the range is a station setting;
+* inclinometers: 2**-22 g (§7.5.2.2.11, Equation 5, p. 53);
+* temperatures: 16 bit, 1/256 °C (§7.5.2.2.17, Equation 9, p. 55);
+* counter: unsigned byte counting the internal 2000 Hz samples
+  (§7.5.2.2.18, p. 55), so it steps 2000/fs per datagram: the decoder
+  unwraps it into a datagram index with that step (``counter_step``);
+* latency: unsigned 16 bit, µs (§7.5.2.2.19, p. 55).
 
-CRC rule (datasheet): CRC-32 (poly 0x04C11DB7, init 0xFFFFFFFF, MSB first,
-no final XOR) over the datagram from the identifier up to the CRC, padded
-with dummy 0x00 bytes to a whole number of 32-bit words: 14 + 2 dummy bytes
-for 0x90, 21 + 3 for 0x94. The unit may be set to append CR LF after each
-datagram (``crlf=True``); the terminator is outside the CRC.
+CRC rule (§5.5.7, p. 37; Table 5-22, p. 38): CRC-32 (poly 0x04C11DB7, init
+0xFFFFFFFF, MSB first, no final XOR) over the datagram from the identifier
+up to the CRC, padded with dummy 0x00 bytes to a whole number of 32-bit
+words. The unit may be set to append CR LF (``crlf=True``), outside the CRC.
 
-Rate scaling: ``rate = raw * lsb``; ``lsb`` is a station setting whose
-default 2**-14 deg/s is the ±400 deg/s range's LSB. Temperature LSB 1/256 °C.
-
-Status byte bits (datasheet status table, bit 7 first; cited in this form by
-public STIM300 drivers): 7 system integrity error, 6 start-up, 5 outside
-operating conditions, 4 overload, 3 error in measurement channel, 2/1/0 the
-z/y/x channel the overload or error refers to. The encoder never wraps an
+Status bytes (Table 5-23, p. 38), bit 7 first: 7 system integrity error,
+6 start-up, 5 outside operating conditions, 4 overload, 3 error in
+measurement channel, 2/1/0 the z/y/x channel the overload or error refers
+to. Each sensor cluster has its own status byte. The encoder never wraps an
 out-of-range value: it clips it to full scale and sets overload + the axis
 bit, because a wrapped sample is a plausible-looking wrong number.
 
@@ -57,10 +53,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyrocal.instruments.gyro.channels import SensorChannels, concat_channels
 from gyrocal.instruments.gyro.crc32_mpeg2 import crc32_mpeg2_rows
-
-ID_RATE = 0x90
-ID_RATE_TEMP = 0x94
+from gyrocal.instruments.gyro.datagram_types import (  # noqa: F401 - re-exported for the driver, sim and tests
+    ACCELEROMETER_LSB_G,
+    DEFAULT_ACCELEROMETER_RANGE_G,
+    ID_RATE,
+    ID_RATE_TEMP,
+    INCLINOMETER_LSB_G,
+    LAYOUT_RATE,
+    LAYOUT_RATE_TEMP,
+    RATE_OFFSET,
+    STATUS_OFFSET,
+    FrameLayout,
+    counter_values,
+    frames_per_counter_step,
+    layout_for,
+    layout_of,
+)
 
 AXES = ("x", "y", "z")
 RAW_FULL_SCALE = 2**23 - 1
@@ -81,8 +91,6 @@ STATUS_AXIS_BITS = (STATUS_AXIS_X, STATUS_AXIS_Y, STATUS_AXIS_Z)
 STATUS_WHOLE_UNIT = STATUS_SYSTEM_INTEGRITY | STATUS_STARTUP | STATUS_OUTSIDE_OPERATING
 STATUS_CHANNEL_FLAGS = STATUS_OVERLOAD | STATUS_CHANNEL_ERROR
 
-RATE_OFFSET = 1
-STATUS_OFFSET = 10
 CRLF = b"\r\n"
 
 
@@ -109,45 +117,6 @@ def flagged(status: np.ndarray, axis: int) -> np.ndarray:
     return ((status & np.uint8(STATUS_WHOLE_UNIT)) != 0) | (channel & this_axis)
 
 
-@dataclass(frozen=True)
-class FrameLayout:
-    """Byte offsets of one datagram type (see the module docstring)."""
-
-    identifier: int
-    temp_offset: int | None
-    temp_status_offset: int | None
-    counter_offset: int
-    latency_offset: int
-    crc_offset: int
-    crlf: bool = False
-
-    @property
-    def with_temperature(self) -> bool:
-        return self.temp_offset is not None
-
-    @property
-    def length(self) -> int:
-        """Bytes on the wire per datagram, terminator included."""
-        return self.crc_offset + 4 + (2 if self.crlf else 0)
-
-    @property
-    def crc_dummy_bytes(self) -> int:
-        """Zero bytes appended before the CRC is computed (to a multiple of 4)."""
-        return -self.crc_offset % 4
-
-
-LAYOUT_RATE = FrameLayout(ID_RATE, None, None, 11, 12, 14)
-LAYOUT_RATE_TEMP = FrameLayout(ID_RATE_TEMP, 11, 17, 18, 19, 21)
-
-
-def layout_for(with_temperature: bool, crlf: bool = False) -> FrameLayout:
-    base = LAYOUT_RATE_TEMP if with_temperature else LAYOUT_RATE
-    if not crlf:
-        return base
-    return FrameLayout(base.identifier, base.temp_offset, base.temp_status_offset,
-                       base.counter_offset, base.latency_offset, base.crc_offset, crlf=True)
-
-
 def frame_crc(rows: np.ndarray, layout: FrameLayout) -> np.ndarray:
     """CRC of each datagram row under the dummy-byte rule (uint32 per row)."""
     n = rows.shape[0]
@@ -167,15 +136,15 @@ def encode_frames(
     latency_us: int | np.ndarray = 0,
     lsb: float = DEFAULT_LSB,
     crlf: bool = False,
+    *,
+    datagram: int | None = None,
+    channels: SensorChannels | None = None,
+    accelerometer_range_g: int = DEFAULT_ACCELEROMETER_RANGE_G,
 ) -> bytes:
-    """Encode samples into concatenated datagrams (0x94 if ``temp_c`` is given, else 0x90).
-
-    ``rate`` is (n, 3) x/y/z; ``temp_c`` (n, 3) or broadcastable. ``counter``
-    is taken modulo 256, so the absolute frame index may be passed. Clipping
-    sets overload + the axis bit in ``status`` (rates) or the temperature
-    status. NaN cannot be represented and raises ``ValueError``.
-    """
-    return encode_frame_array(rate, counter, status, temp_c, latency_us, lsb, crlf).tobytes()
+    """Encode samples into concatenated datagrams (see :func:`encode_frame_array`)."""
+    return encode_frame_array(rate, counter, status, temp_c, latency_us, lsb, crlf,
+                              datagram=datagram, channels=channels,
+                              accelerometer_range_g=accelerometer_range_g).tobytes()
 
 
 def encode_frame_array(
@@ -186,10 +155,22 @@ def encode_frame_array(
     latency_us: int | np.ndarray = 0,
     lsb: float = DEFAULT_LSB,
     crlf: bool = False,
+    *,
+    datagram: int | None = None,
+    channels: SensorChannels | None = None,
+    accelerometer_range_g: int = DEFAULT_ACCELEROMETER_RANGE_G,
 ) -> np.ndarray:
-    """As :func:`encode_frames` but returns the (n_frames, frame_length) uint8 array.
+    """Datagrams as an (n_frames, frame_length) uint8 array (the simulator corrupts rows of it).
 
-    The simulator uses the array form to corrupt or drop individual frames.
+    ``datagram`` is the identifier (Table 5-21); without it 0x94 if
+    ``temp_c`` is given, else 0x90. ``rate`` is (n, 3) x/y/z; ``temp_c``
+    the gyro temperatures, (n, 3) or broadcastable, also used for the other
+    clusters' temperatures that ``channels`` does not give. ``channels``
+    gives accelerometers and inclinometers (g) and their statuses, where the
+    type carries them (zeros when not given). ``counter`` is taken modulo
+    256 (pass :func:`counter_values` of the frame index for the datasheet's
+    step). Clipping sets overload + the axis bit in that cluster's status.
+    NaN cannot be represented and raises ``ValueError``.
     """
     if not lsb > 0:
         raise ValueError(f"lsb must be > 0, got {lsb!r}")
@@ -197,26 +178,40 @@ def encode_frame_array(
     if rate.ndim != 2 or rate.shape[1] != 3:
         raise ValueError(f"rate must have shape (n, 3) (x, y, z), got {rate.shape}")
     n = rate.shape[0]
-    layout = layout_for(temp_c is not None, crlf)
-    counter = np.broadcast_to(np.asarray(counter), (n,))
-    status_out = np.zeros(n, np.uint8) if status is None else np.broadcast_to(
-        np.asarray(status, dtype=np.uint8), (n,)).copy()
+    layout = layout_for(temp_c is not None, crlf) if datagram is None else layout_of(datagram, crlf)
+    channels = channels if channels is not None else SensorChannels()
     latency = np.broadcast_to(np.asarray(latency_us), (n,))
     if latency.size and (latency.min() < 0 or latency.max() > 0xFFFF):
         raise ValueError("latency_us must be within 0..65535")
 
     frames = np.empty((n, layout.length), dtype=np.uint8)
     frames[:, 0] = layout.identifier
-    raw_rate, rate_saturated = _to_raw(rate / lsb, RAW_FULL_SCALE, "rate")
-    status_out |= _overload_bits(rate_saturated)
-    _put_int(frames, RATE_OFFSET, raw_rate, 3)
-    frames[:, STATUS_OFFSET] = status_out
-    if layout.temp_offset is not None and layout.temp_status_offset is not None:
-        temp = np.broadcast_to(np.asarray(temp_c, dtype=np.float64).reshape(-1, 3 if np.ndim(temp_c) == 2 else 1), (n, 3))
-        raw_temp, temp_saturated = _to_raw(temp / TEMP_LSB_C, TEMP_RAW_FULL_SCALE, "temp_c")
-        _put_int(frames, layout.temp_offset, raw_temp, 2)
-        frames[:, layout.temp_status_offset] = _overload_bits(temp_saturated)
-    frames[:, layout.counter_offset] = np.asarray(counter, dtype=np.int64) & 0xFF
+    _put_triplet(frames, RATE_OFFSET, STATUS_OFFSET, rate / lsb, status, RAW_FULL_SCALE, 3, "rate")
+    acc_lsb = accelerometer_lsb_g(accelerometer_range_g)
+    for offset, status_offset, values, cluster_status, lsb_g, what in (
+        (layout.acc_offset, layout.acc_status_offset, channels.acc_g, channels.acc_status, acc_lsb, "acc_g"),
+        (layout.incl_offset, layout.incl_status_offset, channels.incl_g, channels.incl_status,
+         INCLINOMETER_LSB_G, "incl_g"),
+    ):
+        if offset is not None and status_offset is not None:
+            scaled = np.zeros((n, 3)) if values is None else _as_xyz(values, n) / lsb_g
+            _put_triplet(frames, offset, status_offset, scaled, cluster_status, RAW_FULL_SCALE, 3, what)
+    for offset, status_offset, values in (
+        (layout.temp_offset, layout.temp_status_offset, channels.gyro_temp_c),
+        (layout.acc_temp_offset, layout.acc_temp_status_offset, channels.acc_temp_c),
+        (layout.incl_temp_offset, layout.incl_temp_status_offset, channels.incl_temp_c),
+    ):
+        if offset is not None and status_offset is not None:
+            values = values if values is not None else temp_c
+            if values is None:
+                raise ValueError(f"datagram 0x{layout.identifier:02X} carries temperatures: give temp_c")
+            _put_triplet(frames, offset, status_offset, _as_xyz(values, n) / TEMP_LSB_C, None,
+                         TEMP_RAW_FULL_SCALE, 2, "temp_c")
+    if layout.pps_offset is not None and layout.pps_status_offset is not None:
+        pps = np.zeros(n) if channels.pps is None else np.broadcast_to(channels.pps, (n,))
+        _put_int(frames, layout.pps_offset, np.asarray(pps, dtype=np.int64)[:, None], 3)
+        frames[:, layout.pps_status_offset] = 0 if channels.pps_status is None else channels.pps_status
+    frames[:, layout.counter_offset] = np.broadcast_to(np.asarray(counter, dtype=np.int64), (n,)) & 0xFF
     _put_int(frames, layout.latency_offset, latency.astype(np.int64)[:, None], 2)
     crc = frame_crc(frames, layout)
     for byte in range(4):
@@ -225,6 +220,32 @@ def encode_frame_array(
         frames[:, -2] = 0x0D
         frames[:, -1] = 0x0A
     return frames
+
+
+def accelerometer_lsb_g(range_g: int) -> float:
+    """g per LSB of the accelerometers at ``range_g`` (§7.5.2.2.7, p. 52)."""
+    try:
+        return ACCELEROMETER_LSB_G[int(range_g)]
+    except (KeyError, TypeError, ValueError):
+        raise ValueError(f"accelerometer range must be one of "
+                         f"{', '.join(str(r) for r in ACCELEROMETER_LSB_G)} g, got {range_g!r}") from None
+
+
+def _as_xyz(values: np.ndarray, n: int) -> np.ndarray:
+    values = np.asarray(values, dtype=np.float64)
+    return np.broadcast_to(values.reshape(-1, 3) if values.ndim == 2 else values.reshape(-1, 1), (n, 3))
+
+
+def _put_triplet(frames: np.ndarray, offset: int, status_offset: int, scaled: np.ndarray,
+                 status: np.ndarray | None, full_scale: int, width: int, what: str) -> None:
+    """x, y, z fields of ``width`` bytes and their status byte (overload bits on clipping)."""
+    n = frames.shape[0]
+    status_out = np.zeros(n, np.uint8) if status is None else np.broadcast_to(
+        np.asarray(status, dtype=np.uint8), (n,)).copy()
+    raw, saturated = _to_raw(scaled, full_scale, what)
+    status_out |= _overload_bits(saturated)
+    _put_int(frames, offset, raw, width)
+    frames[:, status_offset] = status_out
 
 
 def _put_int(frames: np.ndarray, offset: int, values: np.ndarray, width: int) -> None:
@@ -266,33 +287,52 @@ class DecodedFrames:
     rate: np.ndarray            # float64 (n, 3) x, y, z in output units (raw * lsb)
     status: np.ndarray          # uint8 status byte of the rates
     counter: np.ndarray         # uint8
-    index: np.ndarray           # int64, frames since decoder reset, counter gaps unwrapped
+    index: np.ndarray           # int64, datagrams since decoder reset, counter gaps unwrapped
     latency_us: np.ndarray      # uint16
-    temp_c: np.ndarray | None   # float64 (n, 3) (0x94 datagrams) or None
-    temp_status: np.ndarray | None = None   # uint8 temperature status (0x94) or None
+    temp_c: np.ndarray | None   # float64 (n, 3) gyro temperatures, or None (no temperature)
+    temp_status: np.ndarray | None = None   # uint8 gyro temperature status, or None
     crc_errors: int = 0         # frame-length spans that started with the identifier and failed CRC
     garbage_bytes: int = 0      # bytes skipped while re-synchronising
-    lost_frames: int = 0        # frames missing according to counter gaps
+    lost_frames: int = 0        # datagrams missing according to counter gaps
+    channels: SensorChannels | None = None   # accelerometers, inclinometers, other temperatures
 
     def __len__(self) -> int:
         return int(self.rate.shape[0])
+
+    def sliced(self, selection: slice) -> DecodedFrames:
+        """Rows ``selection`` (counts of dropped frames are not carried)."""
+        return DecodedFrames(
+            self.rate[selection], self.status[selection], self.counter[selection],
+            self.index[selection], self.latency_us[selection],
+            None if self.temp_c is None else self.temp_c[selection],
+            None if self.temp_status is None else self.temp_status[selection],
+            channels=None if self.channels is None else self.channels.sliced(selection))
 
 
 class FrameDecoder:
     """Stateful vectorised decoder for one frame type.
 
     A station streams one configured datagram type, so the decoder accepts
-    one identifier; frames of the other type are skipped as garbage. Bytes
-    that cannot be decided yet (a partial trailing frame, or a failed
-    candidate whose outcome depends on bytes not yet received) are kept for
-    the next :meth:`feed`.
+    one identifier (``datagram``; without it 0x94 or 0x90 by
+    ``with_temperature``); frames of other types are skipped as garbage.
+    ``counter_step`` is the counter's advance per datagram (2000 / fs,
+    ``datagram_types.counter_step``). Bytes that cannot be decided yet (a partial
+    trailing frame, or a failed candidate whose outcome depends on bytes not
+    yet received) are kept for the next :meth:`feed`.
     """
 
-    def __init__(self, with_temperature: bool = False, lsb: float = DEFAULT_LSB, crlf: bool = False) -> None:
+    def __init__(self, with_temperature: bool = False, lsb: float = DEFAULT_LSB, crlf: bool = False,
+                 *, datagram: int | None = None, counter_step: int = 1,
+                 accelerometer_range_g: int = DEFAULT_ACCELEROMETER_RANGE_G) -> None:
         if not lsb > 0:
             raise ValueError(f"lsb must be > 0, got {lsb!r}")
-        self.layout = layout_for(with_temperature, crlf)
+        if not 1 <= int(counter_step) <= 255:
+            raise ValueError(f"counter_step must be within 1..255, got {counter_step!r}")
+        self.layout = layout_for(with_temperature, crlf) if datagram is None else layout_of(datagram, crlf)
         self.lsb = float(lsb)
+        self.acc_lsb_g = accelerometer_lsb_g(accelerometer_range_g)
+        self.counter_step = int(counter_step)
+        self._frames_per_step = np.asarray(frames_per_counter_step(self.counter_step), dtype=np.int64)
         self.total_frames = 0
         self.total_crc_errors = 0
         self.total_garbage_bytes = 0
@@ -432,44 +472,98 @@ class FrameDecoder:
         status = rows[:, STATUS_OFFSET].copy()
         counter = rows[:, layout.counter_offset].copy()
         latency = _get_int(rows, layout.latency_offset, 1, 2, signed=False)[:, 0].astype(np.uint16)
-        temp_c = temp_status = None
-        if layout.temp_offset is not None and layout.temp_status_offset is not None:
-            temp_c = _get_int(rows, layout.temp_offset, 3, 2) * TEMP_LSB_C
-            temp_status = rows[:, layout.temp_status_offset].copy()
+        temp_c, temp_status = _cluster(rows, layout.temp_offset, layout.temp_status_offset, 2, TEMP_LSB_C)
+        acc_g, acc_status = _cluster(rows, layout.acc_offset, layout.acc_status_offset, 3, self.acc_lsb_g)
+        incl_g, incl_status = _cluster(rows, layout.incl_offset, layout.incl_status_offset, 3,
+                                       INCLINOMETER_LSB_G)
+        acc_t, acc_t_status = _cluster(rows, layout.acc_temp_offset, layout.acc_temp_status_offset, 2,
+                                       TEMP_LSB_C)
+        incl_t, incl_t_status = _cluster(rows, layout.incl_temp_offset, layout.incl_temp_status_offset,
+                                         2, TEMP_LSB_C)
+        pps = pps_status = None
+        if layout.pps_offset is not None and layout.pps_status_offset is not None:
+            pps = _get_int(rows, layout.pps_offset, 1, 3)[:, 0]
+            pps_status = rows[:, layout.pps_status_offset].copy()
+        channels = SensorChannels(acc_g, acc_status, incl_g, incl_status, temp_c, temp_status,
+                                  acc_t, acc_t_status, incl_t, incl_t_status, pps, pps_status)
         index, lost = self._unwrap(counter)
-        return DecodedFrames(rate, status, counter, index, latency, temp_c, temp_status, lost_frames=lost)
+        return DecodedFrames(rate, status, counter, index, latency, temp_c, temp_status, lost_frames=lost,
+                             channels=channels)
 
     def _unwrap(self, counter: np.ndarray) -> tuple[np.ndarray, int]:
-        """Frame index from the 8-bit counter; a step of 0 (mod 256) counts as 256 lost.
+        """Datagram index from the 8-bit counter, which advances ``counter_step`` per datagram.
 
-        A UART does not duplicate frames, so an unchanged counter can only
-        mean a whole wrap went missing; gaps of 256 or more frames are not
+        A step other than ``counter_step`` spans the smallest whole number of
+        datagrams that gives it (:func:`frames_per_counter_step`); an unchanged
+        counter therefore means a whole wrap (256 / step datagrams) went
+        missing, since a UART does not duplicate frames. Longer gaps are not
         detectable from the counter alone (use the clock for that).
         """
-        previous = (int(counter[0]) - 1) % 256 if self._last_counter is None else self._last_counter
+        step_ticks = self.counter_step
+        previous = (int(counter[0]) - step_ticks) % 256 if self._last_counter is None else self._last_counter
         step8 = np.diff(counter, prepend=np.uint8(previous))   # uint8: wraps modulo 256
         self._last_counter = int(counter[-1])
-        if (step8 == 1).all():
+        if (step8 == step_ticks).all():
             index = np.arange(self._last_index + 1, self._last_index + 1 + counter.size, dtype=np.int64)
             self._last_index = int(index[-1])
             return index, 0
-        step = step8.astype(np.int64)
-        step[step == 0] = 256
+        step = self._frames_per_step[step8]
         index = self._last_index + np.cumsum(step)
         self._last_index = int(index[-1])
         return index, int(step.sum()) - int(step.size)
 
     def _empty(self) -> DecodedFrames:
-        with_temp = self.layout.with_temperature
-        return DecodedFrames(
-            rate=np.empty((0, 3), np.float64),
-            status=np.empty(0, np.uint8),
-            counter=np.empty(0, np.uint8),
-            index=np.empty(0, np.int64),
-            latency_us=np.empty(0, np.uint16),
-            temp_c=np.empty((0, 3), np.float64) if with_temp else None,
-            temp_status=np.empty(0, np.uint8) if with_temp else None,
-        )
+        return _empty_frames(self.layout)
+
+
+def _empty_frames(layout: FrameLayout) -> DecodedFrames:
+    """No samples, with the fields ``layout`` carries present (empty) and the others None."""
+    def triplet(offset: int | None) -> tuple[np.ndarray | None, np.ndarray | None]:
+        if offset is None:
+            return None, None
+        return np.empty((0, 3), np.float64), np.empty(0, np.uint8)
+
+    temp_c, temp_status = triplet(layout.temp_offset)
+    pps = None if layout.pps_offset is None else np.empty(0, np.int64)
+    channels = SensorChannels(*triplet(layout.acc_offset), *triplet(layout.incl_offset), temp_c, temp_status,
+                              *triplet(layout.acc_temp_offset), *triplet(layout.incl_temp_offset),
+                              pps, None if pps is None else np.empty(0, np.uint8))
+    return DecodedFrames(
+        rate=np.empty((0, 3), np.float64),
+        status=np.empty(0, np.uint8),
+        counter=np.empty(0, np.uint8),
+        index=np.empty(0, np.int64),
+        latency_us=np.empty(0, np.uint16),
+        temp_c=temp_c,
+        temp_status=temp_status,
+        channels=channels,
+    )
+
+
+def concat_decoded(parts: list[DecodedFrames], layout: FrameLayout) -> DecodedFrames:
+    """Decoded blocks joined in order (empty, with ``layout``'s fields, when there are none)."""
+    if not parts:
+        return _empty_frames(layout)
+    if len(parts) == 1:
+        return parts[0]
+
+    def joined(name: str) -> np.ndarray | None:
+        arrays = [getattr(p, name) for p in parts]
+        return None if arrays[0] is None else np.concatenate(arrays)
+
+    channels = [p.channels for p in parts if p.channels is not None]
+    return DecodedFrames(
+        joined("rate"), joined("status"), joined("counter"), joined("index"), joined("latency_us"),
+        joined("temp_c"), joined("temp_status"),
+        channels=concat_channels(channels) if len(channels) == len(parts) else None)
+
+
+def _cluster(rows: np.ndarray, offset: int | None, status_offset: int | None, width: int,
+             lsb: float) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """x, y, z of one sensor cluster scaled by ``lsb``, and its status byte (None if absent)."""
+    if offset is None or status_offset is None:
+        return None, None
+    return _get_int(rows, offset, 3, width) * lsb, rows[:, status_offset].copy()
 
 
 def _get_int(rows: np.ndarray, offset: int, count: int, width: int, signed: bool = True) -> np.ndarray:

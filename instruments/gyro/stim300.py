@@ -13,22 +13,31 @@ from __future__ import annotations
 import contextlib
 import time
 
-import numpy as np
 import serial
 
-from gyrocal.instruments.errors import InstrumentConnectionError, InstrumentTimeout
+from gyrocal.instruments.errors import (
+    InstrumentConnectionError,
+    InstrumentProtocolError,
+    InstrumentTimeout,
+)
 from gyrocal.instruments.gyro.datagram import (
+    DEFAULT_ACCELEROMETER_RANGE_G,
     DEFAULT_LSB,
     DecodedFrames,
     FrameDecoder,
     axis_index,
+    concat_decoded,
     flagged,
 )
+from gyrocal.instruments.gyro.datagram_types import counter_step
+from gyrocal.instruments.gyro.survey import StreamSurvey, survey_stream
 from gyrocal.instruments.interfaces import GyroBlock, Identity
 
 _POLL_S = 0.05                  # longest single blocking read, so deadlines are honoured
 _MAX_READ_BYTES = 4 << 20       # cap per read() so one call cannot hoard memory
 _FLUSH_SETTLE_S = 0.02          # > a USB-serial adapter's latency timer (FTDI default 16 ms)
+_SURVEY_MIN_FRAMES = 4          # datagrams that must check before the stream's type is judged
+_SURVEY_MAX_BYTES = 1 << 16     # no datagram of any type in this much: the line carries none
 
 
 class Stim300Gyro:
@@ -45,6 +54,8 @@ class Stim300Gyro:
         name: str = "gyro",
         axis: str = "x",
         crlf: bool = False,
+        datagram: int | None = None,
+        accelerometer_range_g: int = DEFAULT_ACCELEROMETER_RANGE_G,
     ) -> None:
         self.port = port
         self.name = name
@@ -56,7 +67,14 @@ class Stim300Gyro:
         self.axis = axis
         self._axis = axis_index(axis)
         self.crlf = bool(crlf)
-        self._decoder = FrameDecoder(with_temperature=with_temperature, lsb=lsb, crlf=self.crlf)
+        self.accelerometer_range_g = int(accelerometer_range_g)
+        self._decoder = FrameDecoder(with_temperature=with_temperature, lsb=lsb, crlf=self.crlf,
+                                     datagram=datagram, counter_step=counter_step(self.sample_rate_hz),
+                                     accelerometer_range_g=self.accelerometer_range_g)
+        self.layout = self._decoder.layout
+        self.with_temperature = self.layout.with_temperature
+        self._survey_bytes = bytearray()     # the first bytes, until the stream's type is confirmed
+        self.survey: StreamSurvey | None = None
         self._frame_length = self._decoder.layout.length
         try:
             self._serial = serial.serial_for_url(
@@ -75,8 +93,11 @@ class Stim300Gyro:
             driver="stim300",
             address=self.port,
             description=(
-                f"STIM300-style datagram 0x{layout.identifier:02X} ({layout.length}-byte frames), "
-                f"{self.sample_rate_hz:g} Hz, lsb={self.lsb:g}, {self.baudrate} baud, "
+                f"STIM300 datagram {layout.kind.label()} ({layout.length}-byte frames), "
+                f"{self.sample_rate_hz:g} Hz (counter step {self._decoder.counter_step}), "
+                f"lsb={self.lsb:g}"
+                f"{f', accelerometers ±{self.accelerometer_range_g} g' if layout.kind.acceleration else ''}, "
+                f"{self.baudrate} baud, "
                 f"unit under test: {self.axis} axis{', CR LF' if self.crlf else ''}"
             ),
         )
@@ -153,6 +174,8 @@ class Stim300Gyro:
             raise InstrumentConnectionError(self.name, command, f"read failed on {self.port}: {exc}") from exc
         if not chunk:
             return
+        if self.survey is None:
+            self._check_stream(chunk)
         decoded = self._decoder.feed(chunk)
         self._pending_crc_errors += decoded.crc_errors
         self._pending_garbage_bytes += decoded.garbage_bytes
@@ -160,57 +183,72 @@ class Stim300Gyro:
             self._surplus.append(decoded)
             self._surplus_count += len(decoded)
 
-    def _take(self, n: int) -> GyroBlock:
-        parts = self._surplus
-        rate = _concat([p.rate for p in parts], np.float64).reshape(-1, 3)
-        status = _concat([p.status for p in parts], np.uint8)
-        counter = _concat([p.counter for p in parts], np.uint8)
-        index = _concat([p.index for p in parts], np.int64)
-        latency = _concat([p.latency_us for p in parts], np.uint16)
-        temp = temp_status = None
-        if self.with_temperature:
-            temp = _concat([p.temp_c for p in parts if p.temp_c is not None], np.float64).reshape(-1, 3)
-            temp_status = _concat([p.temp_status for p in parts if p.temp_status is not None], np.uint8)
+    def _check_stream(self, chunk: bytes) -> None:
+        """Compare the datagram type and counter step the unit sends with the declared ones.
 
-        if rate.shape[0] > n:
-            rest = DecodedFrames(
-                rate[n:], status[n:], counter[n:], index[n:], latency[n:],
-                None if temp is None else temp[n:], None if temp_status is None else temp_status[n:],
-            )
-            self._surplus, self._surplus_count = [rest], rate.shape[0] - n
+        A wrong declaration would decode as line corruption (no frame, every
+        byte garbage) or as lost frames on every step; either is a fault
+        that says what the unit sends and what the station declares.
+        """
+        self._survey_bytes += chunk
+        found = survey_stream(self._survey_bytes)
+        if found.frames_valid < _SURVEY_MIN_FRAMES:
+            if len(self._survey_bytes) >= _SURVEY_MAX_BYTES:
+                raise InstrumentProtocolError(
+                    self.name, "datagram check",
+                    f"no datagram of any STIM300 normal-mode type (TS1524 Table 5-21) in the first "
+                    f"{len(self._survey_bytes)} bytes on {self.port}; check the baud rate "
+                    f"({self.baudrate}) and that the unit is in normal mode")
+            return
+        self._survey_bytes = bytearray()
+        self.survey = found
+        declared = self.layout
+        if found.layout != declared:
+            crlf = " with CR LF" if declared.crlf else ""
+            raise InstrumentProtocolError(
+                self.name, "datagram check",
+                f"the unit sends {found.describe()}; the station declares "
+                f"{declared.kind.label()}{crlf}")
+        expected_step = self._decoder.counter_step
+        if found.counter_step is not None and found.counter_step != expected_step:
+            raise InstrumentProtocolError(
+                self.name, "datagram check",
+                f"the unit's counter steps {found.counter_step} per datagram, i.e. "
+                f"{found.sample_rate_hz:g} Hz (TS1524 §7.5.2.2.18: it counts 2000 Hz internal "
+                f"samples); the station declares {self.sample_rate_hz:g} Hz (step {expected_step})")
+
+    def _take(self, n: int) -> GyroBlock:
+        joined = concat_decoded(self._surplus, self.layout)
+        if len(joined) > n:
+            self._surplus, self._surplus_count = [joined.sliced(slice(n, None))], len(joined) - n
         else:
             self._surplus, self._surplus_count = [], 0
-
-        index = index[:n]
+        taken = joined.sliced(slice(0, n))
+        index = taken.index
         lost = 0
         if n:
             lost = int(index[-1] - self._last_index_returned) - n
             self._last_index_returned = int(index[-1])
-        extra: dict = {"latency_us": latency[:n]}
-        if temp is not None and temp_status is not None:
-            extra["temperature_xyz_c"] = temp[:n]
-            extra["temperature_status"] = temp_status[:n]
+        extra: dict = {"latency_us": taken.latency_us}
+        if taken.temp_c is not None and taken.temp_status is not None:
+            extra["temperature_xyz_c"] = taken.temp_c
+            extra["temperature_status"] = taken.temp_status
         block = GyroBlock(
-            rate=rate[:n, self._axis],
-            counter=counter[:n],
+            rate=taken.rate[:, self._axis],
+            counter=taken.counter,
             index=index,
-            status=status[:n],
-            temperature_c=None if temp is None else temp[:n, self._axis],
+            status=taken.status,
+            temperature_c=None if taken.temp_c is None else taken.temp_c[:, self._axis],
             crc_errors=self._pending_crc_errors,
             lost_frames=lost,
             garbage_bytes=self._pending_garbage_bytes,
             extra=extra,
-            rate_xyz=rate[:n],
-            flagged=flagged(status[:n], self._axis),
+            rate_xyz=taken.rate,
+            flagged=flagged(taken.status, self._axis),
+            channels=taken.channels,
         )
         self._pending_crc_errors = 0
         self._pending_garbage_bytes = 0
         return block
 
 
-def _concat(arrays: list[np.ndarray], dtype: type) -> np.ndarray:
-    if not arrays:
-        return np.empty(0, dtype=dtype)
-    if len(arrays) == 1:
-        return arrays[0]
-    return np.concatenate(arrays)

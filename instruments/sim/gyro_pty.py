@@ -1,11 +1,12 @@
-"""A simulated STIM300 gyro streaming 0x90 / 0x94 datagrams into a pseudo-terminal.
+"""A simulated STIM300 streaming its declared datagram type into a pseudo-terminal.
 
 The driver opens ``port_name`` exactly as it would open ``/dev/ttyUSB0``, so
 the same serial code path (pyserial, termios, select, partial reads) is
 exercised in dry runs and tests.
 
-Frames lie on an absolute grid ``t_k = k / sample_rate_hz`` with
-``counter = k mod 256``. Time follows the shared clock:
+Frames lie on an absolute grid ``t_k = k / sample_rate_hz`` with the
+datasheet's counter, ``k · 2000 / fs mod 256`` (gyro_frames.py says what a
+frame holds). Time follows the shared clock:
 
 * ``RealClock`` (any speed): the stream starts at the current time; a block
   is written once the clock has reached its end time (paced like the real
@@ -50,13 +51,15 @@ from collections.abc import Callable
 import numpy as np
 
 from gyrocal.instruments.gyro.datagram import (
+    DEFAULT_ACCELEROMETER_RANGE_G,
     DEFAULT_LSB,
     RATE_OFFSET,
     RAW_FULL_SCALE,
-    encode_frame_array,
     layout_for,
+    layout_of,
 )
 from gyrocal.instruments.sim.faults import FaultInjector
+from gyrocal.instruments.sim.gyro_frames import encode_sim_frames
 from gyrocal.models.clock import RealClock, SimClock
 
 FAULTS = ("corrupt_frames", "lose_frames", "garbage", "stall", "saturate")
@@ -85,6 +88,8 @@ class SimulatedGyroPort:
         seed: int = 0,
         axis: int = 0,
         crlf: bool = False,
+        datagram: int | None = None,
+        accelerometer_range_g: int = DEFAULT_ACCELEROMETER_RANGE_G,
     ) -> None:
         if not sample_rate_hz > 0:
             raise ValueError(f"sample_rate_hz must be > 0, got {sample_rate_hz!r}")
@@ -93,8 +98,10 @@ class SimulatedGyroPort:
         self.source = source
         self.clock = clock
         self.sample_rate_hz = float(sample_rate_hz)
-        self.with_temperature = bool(with_temperature)
-        self.layout = layout_for(with_temperature, crlf)
+        # the declared datagram type (TS1524 Table 5-21); without one 0x94 / 0x90
+        self.layout = layout_for(with_temperature, crlf) if datagram is None else layout_of(datagram, crlf)
+        self.with_temperature = self.layout.with_temperature
+        self.accelerometer_range_g = int(accelerometer_range_g)
         self.crlf = bool(crlf)
         self.axis = int(axis)       # the simulated unit is single-axis: its output on this axis, 0 on the others
         self.lsb = float(lsb)
@@ -224,8 +231,9 @@ class SimulatedGyroPort:
         saturated = slice(n_lost + n_corrupt, n_lost + n_corrupt + n_saturate)
         rate[saturated, self.axis] = 2.0 * RAW_FULL_SCALE * self.lsb
 
-        frames = encode_frame_array(rate, k, temp_c=temp_c, latency_us=self.latency_us, lsb=self.lsb,
-                                    crlf=self.crlf)
+        frames = encode_sim_frames(k, rate, temp_c, layout=self.layout, lsb=self.lsb,
+                                   latency_us=self.latency_us, sample_rate_hz=self.sample_rate_hz,
+                                   accelerometer_range_g=self.accelerometer_range_g)
         # Flip the middle rate byte: never the identifier, so the span still
         # looks like a frame and must be caught by the CRC.
         frames[n_lost : n_lost + n_corrupt, RATE_OFFSET + 3 * self.axis + 1] ^= 0xFF

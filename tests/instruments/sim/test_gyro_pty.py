@@ -77,11 +77,14 @@ def test_simulator_speaks_the_documented_layout_to_an_independent_reader():
     assert len(frames) >= 590
     counters = np.array([f[3] for f in frames])
     steps = np.diff(counters.astype(int)) % 256
-    assert np.all(steps == 1), "counter must step by one (mod 256)"
-    # Recover the frame number: the first frame is k0 with k0 = counter (mod 256).
+    # TS1524 §7.5.2.2.18 (p. 55): the counter counts the internal 2000 Hz samples,
+    # so at 1000 Hz it steps by 2 per datagram.
+    assert np.all(steps == 2), "counter must step by 2000 / fs = 2 (mod 256)"
+    # Recover the frame number: the first frame is k0 with 2 k0 = counter (mod 256).
     raw = np.array([f[0] for f in frames])
     temp = np.array([f[2] for f in frames])
-    candidates = [k0 for k0 in range(counters[0], 20000, 256)
+    assert counters[0] % 2 == 0
+    candidates = [k0 for k0 in range(counters[0] // 2, 12000, 128)
                   if np.array_equal(raw, np.rint(source((k0 + np.arange(len(frames))) / FS_HZ)[0] / LSB))]
     assert len(candidates) == 1, "the rates must match the source on the t_k = k / fs grid"
     t_s = (candidates[0] + np.arange(len(frames))) / FS_HZ
@@ -124,8 +127,11 @@ def test_real_clock_stream_starts_at_the_current_time_and_is_paced():
     assert len(got) == 18 * 15
     counters = list(got[11::18])     # 0x90: counter at offset 11
     assert got[0] == 0x90
-    assert counters[0] >= 10, "frames from before the gyro started must not be replayed"
-    assert np.all(np.diff(counters) == 1)
+    # TS1524 §7.5.2.2.18: 2000 Hz internal samples counted, so 20 per datagram at 100 Hz;
+    # the first frame k0 (k0 < 64 here) has 20 k0 = counter (mod 256).
+    k0 = next(k for k in range(64) if (20 * k) % 256 == counters[0])
+    assert k0 >= 10, "frames from before the gyro started must not be replayed"
+    assert np.all(np.diff(counters) % 256 == 20)
 
 
 def test_unknown_fault_names_are_refused():
