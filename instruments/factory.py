@@ -85,7 +85,8 @@ def open_instruments(station, clock: Clock, addresses=None,
         fs_hz = float(sample_rate_hz or g.sample_rate_hz)
         gyro = Stim300Gyro(gyro_port, baudrate=g.baudrate, sample_rate_hz=fs_hz,
                            with_temperature=g.with_temperature, lsb=g.rate_lsb,
-                           timeout_s=g.timeout_s, axis=g.axis, crlf=g.crlf)
+                           timeout_s=g.timeout_s, axis=g.axis, crlf=g.crlf, datagram=g.datagram,
+                           accelerometer_range_g=g.accelerometer_range_g)
         opened.append(gyro)
     except BaseException:
         for inst in opened:

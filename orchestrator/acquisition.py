@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gyrocal.instruments.factory import Instruments
+from gyrocal.instruments.gyro.channels import SensorChannels, concat_channels
 from gyrocal.instruments.gyro.plausibility import StreamPlausibility
 from gyrocal.models.clock import RealClock, SimClock
 from gyrocal.orchestrator.plan import PlanStep
@@ -98,6 +99,7 @@ class Acquisition:
         angle_start = (t0, rate_dps, angle_start[2])
         pending: dict[str, list[np.ndarray]] = {"index": [], "gyro": [], "sensor": [], "xyz": [], "raw_status": [],
                    "flagged": []}
+        channels: list[SensorChannels] = []     # accelerometers, inclinometers, temperatures
         pending_n = 0
         chunk_index = 0
         last_index = -1
@@ -132,6 +134,8 @@ class Acquisition:
                                       else np.asarray(block.flagged, dtype=bool))
             if block.rate_xyz is not None:     # all three axes (a multi-axis IMU calibration)
                 pending["xyz"].append(np.asarray(block.rate_xyz, dtype=np.float64).reshape(-1, 3))
+            if block.channels is not None:
+                channels.append(block.channels)
             temp = block.temperature_c
             pending["sensor"].append(np.full(len(block), np.nan) if temp is None
                                      else np.asarray(temp, dtype=np.float64))
@@ -144,6 +148,8 @@ class Acquisition:
             if pending_n >= chunk_n or result.samples >= n_total:
                 columns = self._assemble(pending, t0, fs, context_t, context_chamber,
                                          rate_dps, angle_start)
+                if channels and sum(c.rows for c in channels) == pending_n:
+                    columns.update(concat_channels(channels).columns())
                 angle_start = (float(columns["t_s"][-1]), float(columns["table_rate_dps"][-1]),
                                float(columns["table_angle_deg"][-1]))
                 record = self.folder.write_chunk(step.step_id, attempt, chunk_index, columns)
@@ -153,6 +159,7 @@ class Acquisition:
                 chunk_index += 1
                 pending = {"index": [], "gyro": [], "sensor": [], "xyz": [], "raw_status": [],
                    "flagged": []}
+                channels = []
                 pending_n = 0
         return result
 

@@ -16,6 +16,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gyrocal.inputs import load_yaml, outside_reference
+from gyrocal.instruments.gyro.datagram_types import (
+    ACCELEROMETER_LSB_G,
+    DEFAULT_ACCELEROMETER_RANGE_G,
+    ID_RATE,
+    ID_RATE_TEMP,
+    datagram_type,
+    parse_identifier,
+)
 from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
 from gyrocal.orchestrator.notify import NotifyTarget, parse_notify
 from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
@@ -156,6 +164,11 @@ class GyroConfig:
     timeout_s: float
     axis: str = "x"           # unit under test among the datagram's x, y, z (all three are logged)
     crlf: bool = False        # datagrams terminated by CR LF (a STIM300 setting)
+    #: the normal-mode datagram the unit is configured for (TS1524 Table 5-21); the driver
+    #: checks it against the stream. Default: 0x94 with temperature, else 0x90.
+    datagram: int = ID_RATE_TEMP
+    #: accelerometer range, g (5, 10, 30 or 80; TS1524 §7.5.2.2.7): sets the LSB
+    accelerometer_range_g: int = DEFAULT_ACCELEROMETER_RANGE_G
 
 
 @dataclass(frozen=True)
@@ -388,19 +401,43 @@ def _table(ctx: Context, parent: Fields) -> TableConfig:
 def _gyro(ctx: Context, parent: Fields) -> GyroConfig:
     fields = _section(ctx, parent, "gyro")
     driver = fields.take("driver", choice(GYRO_DRIVERS))
-    gyro = GyroConfig(
-        driver,
-        fields.take("port", _address(driver)),
-        fields.take("baudrate", integer(1200, 20_000_000), required=False, default=921600),
-        fields.take("sample_rate_hz", quantity(FREQUENCY, above=0.0)),
-        fields.take("rate_lsb", number(above=0.0)),
-        fields.take("with_temperature", boolean, required=False, default=True),
-        fields.take("timeout_s", duration(bare_seconds=True), required=False, default=2.0),
-        fields.take("axis", choice(GYRO_AXES), required=False, default="x"),
-        fields.take("crlf", boolean, required=False, default=False),
-    )
+    port = fields.take("port", _address(driver))
+    baudrate = fields.take("baudrate", integer(1200, 20_000_000), required=False, default=921600)
+    sample_rate_hz = fields.take("sample_rate_hz", quantity(FREQUENCY, above=0.0))
+    rate_lsb = fields.take("rate_lsb", number(above=0.0))
+    with_temperature = fields.take("with_temperature", boolean, required=False, default=None)
+    timeout_s = fields.take("timeout_s", duration(bare_seconds=True), required=False, default=2.0)
+    axis = fields.take("axis", choice(GYRO_AXES), required=False, default="x")
+    crlf = fields.take("crlf", boolean, required=False, default=False)
+    datagram = fields.take("datagram", _identifier, required=False, default=None)
+    range_g = fields.take("accelerometer_range_g", choice_of_ints(tuple(ACCELEROMETER_LSB_G)),
+                          required=False, default=DEFAULT_ACCELEROMETER_RANGE_G)
+    if datagram is None:
+        datagram = ID_RATE if with_temperature is False else ID_RATE_TEMP
+    elif with_temperature is not None and with_temperature != datagram_type(datagram).temperature:
+        ctx.report(fields.child("with_temperature"),
+                   f"{str(with_temperature).lower()} contradicts datagram "
+                   f"{datagram_type(datagram).label()}; give one of them")
     fields.finish()
-    return gyro
+    return GyroConfig(driver, port, baudrate, sample_rate_hz, rate_lsb,
+                      datagram_type(datagram).temperature, timeout_s, axis, crlf, datagram,
+                      range_g)
+
+
+def _identifier(value: object) -> int:
+    try:
+        return parse_identifier(value)
+    except ValueError as exc:
+        raise UnitError(str(exc)) from None
+
+
+def choice_of_ints(options: tuple[int, ...]):
+    """One of the whole numbers ``options`` (e.g. an accelerometer range)."""
+    def convert(value: object) -> int:
+        if isinstance(value, bool) or value not in options:
+            raise UnitError(f"expected one of {', '.join(str(o) for o in options)}, got {value!r}")
+        return int(value)
+    return convert
 
 
 def _simulation(ctx: Context, where: KeyPath, value: object, base_dir: Path) -> SimulationConfig:

@@ -32,6 +32,12 @@ class SensorChannels:
     pps: np.ndarray | None = None                # raw 24-bit PPS field (unit set in the unit)
     pps_status: np.ndarray | None = None
 
+    @property
+    def rows(self) -> int:
+        """Samples held (0 when the datagram carries none of these channels)."""
+        names = self.present()
+        return 0 if not names else int(len(getattr(self, names[0])))
+
     def present(self) -> list[str]:
         return [f.name for f in fields(self) if getattr(self, f.name) is not None]
 

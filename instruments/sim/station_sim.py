@@ -150,7 +150,8 @@ class SimulatedStation:
             self.source, clock, sample_rate_hz=self.sample_rate_hz,
             with_temperature=gyro_cfg.with_temperature, lsb=gyro_cfg.rate_lsb,
             faults=self.gyro_faults, block_frames=gyro_block_frames, seed=self.seed + _SEED_PTY,
-            axis=axis_index(gyro_cfg.axis), crlf=gyro_cfg.crlf,
+            axis=axis_index(gyro_cfg.axis), crlf=gyro_cfg.crlf, datagram=gyro_cfg.datagram,
+            accelerometer_range_g=gyro_cfg.accelerometer_range_g,
         )
         self._started = False
 

@@ -23,6 +23,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from gyrocal import __version__
+from gyrocal.instruments.gyro.channels import CHANNEL_COLUMNS, CHANNEL_STATUS_COLUMNS
 from gyrocal.orchestrator.record.atomic import write_atomic, write_bytes_atomic
 from gyrocal.orchestrator.record.journal import Journal, read_journal, sha256_file
 
@@ -44,6 +45,11 @@ SAMPLE_COLUMNS = (
 #: the three axes of a multi-axis unit (``gyro`` is the unit under test's axis),
 #: the raw status byte, and ``status``, a bit set of :data:`SAMPLE_FLAGS` (0 = good).
 OPTIONAL_SAMPLE_COLUMNS = ("gyro_x", "gyro_y", "gyro_z", "gyro_status", "status")
+#: What else the gyro's datagram carries, written when present (instruments/gyro/channels.py):
+#: accelerometers and inclinometers (``acc_x_g``…, ``incl_x_g``…), per-sensor temperatures
+#: (``gyro_temp_x_c``…) and each cluster's status byte. Not read unless asked for.
+SENSOR_COLUMNS = CHANNEL_COLUMNS + CHANNEL_STATUS_COLUMNS
+_UINT8_COLUMNS = frozenset(("gyro_status", "status") + CHANNEL_STATUS_COLUMNS)
 #: Chunk files read side by side.
 READ_THREADS = 2
 
@@ -169,9 +175,9 @@ class RunFolder:
             raise ValueError(f"sample chunk lacks columns {missing}")
         rows = len(columns["t_s"])
         data = {name: pa.array(np.asarray(columns[name], dtype=np.float64)) for name in SAMPLE_COLUMNS}
-        for name in OPTIONAL_SAMPLE_COLUMNS:
+        for name in OPTIONAL_SAMPLE_COLUMNS + SENSOR_COLUMNS:
             if name in columns:
-                kind = np.uint8 if name in ("gyro_status", "status") else np.float64
+                kind = np.uint8 if name in _UINT8_COLUMNS else np.float64
                 data[name] = pa.array(np.asarray(columns[name], dtype=kind))
         table = pa.table(data)
         rel = Path(SAMPLES) / step_id / f"attempt{attempt}-chunk{chunk_index:05d}.parquet"
