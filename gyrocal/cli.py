@@ -208,6 +208,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.set_defaults(func=_lazy("gyrocal.reports.discrepancy.command", "cmd_discrepancy"))
 
+    p = sub.add_parser("decode", help="a gyro's recorded bytes as a measured log, with a summary",
+                       description="Decode a raw capture from a unit (binary, or one decimal number "
+                       "per byte): the datagram type and sample rate are read from the bytes.")
+    p.add_argument("capture", help="the captured bytes (binary, or decimal text)")
+    p.add_argument("--driver", required=True, help="the gyro's driver (stim300)")
+    p.add_argument("--accelerometer-range-g", type=int, default=10, choices=(5, 10, 30, 80),
+                   help="the unit's accelerometer range (sets the LSB; default 10)")
+    p.add_argument("--rate-lsb", type=float, default=2.0**-14,
+                   help="gyro output units per LSB (default 2**-14 deg/s)")
+    p.add_argument("--axis", default="x", choices=("x", "y", "z"),
+                   help="the unit under test's axis, logged as `gyro` (all three are logged)")
+    p.add_argument("--table-rate-dps", type=float, default=0.0,
+                   help="the rate the unit was turned at during the capture (default 0)")
+    p.add_argument("--chamber-temp-c", type=float, default=None,
+                   help="the ambient during the capture (default: the gyro's own temperature "
+                   "where the datagram has it, else 23 °C, stated as assumed)")
+    p.add_argument("--out", default=None, help="the measured log, .parquet or .csv")
+    p.add_argument("--json", default=None, help="write the summary here as JSON")
+    p.set_defaults(func=_lazy("gyrocal.orchestrator.decode_capture", "cmd_decode"))
+
     p = sub.add_parser("sim", help="simulated instruments")
     ssub = p.add_subparsers(dest="sim_command", required=True, metavar="SIM_COMMAND")
     s = ssub.add_parser("serve", help="serve simulated instruments until Ctrl-C")
