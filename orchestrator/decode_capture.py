@@ -27,6 +27,7 @@ import numpy as np
 
 from gyrocal.errors import EXIT_OK, BadInput
 from gyrocal.instruments.gyro.capture import read_capture
+from gyrocal.instruments.gyro.configuration import find_configuration
 from gyrocal.instruments.gyro.datagram import (
     DEFAULT_LSB,
     DecodedFrames,
@@ -191,6 +192,23 @@ def _gravity_check(acc: np.ndarray, status: np.ndarray | None, range_g: int) -> 
     return out
 
 
+def _configuration_figures(config, capture: DecodedCapture) -> dict:
+    """The unit's configuration datagram (0xBC/0xBD), when the capture holds one, against the stream."""
+    if config is None:
+        return {}
+    out: dict = {"unit_configuration": {
+        "datagram_id": f"0x{config.datagram:02X}", "sample_rate_hz": config.sample_rate_hz,
+        "crlf": config.crlf, "bit_rate": config.bit_rate,
+        "accelerometer_range_g": list(config.accelerometer_range_g),
+        "firmware": config.firmware, "revision": config.revision}}
+    if config.datagram != capture.datagram_id or (
+            config.sample_rate_hz is not None and config.sample_rate_hz != capture.sample_rate_hz):
+        out["configuration_note"] = (
+            f"the configuration datagram says 0x{config.datagram:02X} at {config.sample_rate_hz} Hz; "
+            f"the stream is 0x{capture.datagram_id:02X} at {capture.sample_rate_hz:g} Hz")
+    return out
+
+
 def write_log(columns: dict[str, np.ndarray], out: Path) -> None:
     import pyarrow as pa
 
@@ -221,9 +239,11 @@ def cmd_decode(args: argparse.Namespace) -> int:
     if not options.rate_lsb > 0:
         raise BadInput(f"--rate-lsb: must be > 0, got {options.rate_lsb!r}")
     source = str(args.capture)
-    capture = decode_capture(read_capture(args.capture), source, options)
+    data = read_capture(args.capture)
+    capture = decode_capture(data, source, options)
     columns, temp_source = log_columns(capture, options)
     figures = summary(capture, source, options, temp_source)
+    figures.update(_configuration_figures(find_configuration(data), capture))
     if args.out:
         write_log(columns, Path(args.out))
         figures["log"] = str(args.out)
@@ -240,6 +260,7 @@ def _print(figures: dict) -> None:
     for key in ("frames_valid", "crc_errors", "garbage_bytes", "incomplete_tail_bytes", "lost_frames",
                 "status_flagged", "duration_s", "gyro_mean_dps", "accelerometer_range_g",
                 "accelerometer_mean_g", "accelerometer_magnitude_median_g", "inclinometer_mean_g",
-                "gyro_temperature_mean_c", "accelerometer_note", "chamber_temp_c_source", "log"):
+                "gyro_temperature_mean_c", "accelerometer_note", "unit_configuration",
+                "configuration_note", "chamber_temp_c_source", "log"):
         if figures.get(key) is not None:
             print(f"  {key}: {figures[key]}")
