@@ -236,6 +236,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=None)
     s.add_argument("--write-station", default=None,
                    help="write the station file with the live addresses here")
+    s.add_argument("--replay-gyro", default=None, metavar="CAPTURE",
+                   help="serve this recorded capture (binary or decimal text) as the gyro, byte "
+                   "for byte at its own rate, looped")
     s.set_defaults(func=_lazy("gyrocal.orchestrator.sim_serve", "cmd_sim_serve"))
 
     p = sub.add_parser("demo", help="the dry run against simulated instruments")

@@ -25,6 +25,8 @@ from pathlib import Path
 import yaml
 
 from gyrocal.errors import EXIT_OK, BadInput, RunFault
+from gyrocal.instruments.gyro.capture import read_capture
+from gyrocal.instruments.sim.replay_pty import ReplayGyroPort
 from gyrocal.instruments.sim.station_sim import SimAddresses, SimulatedStation
 from gyrocal.models.clock import RealClock
 from gyrocal.orchestrator.station import load_station
@@ -32,12 +34,20 @@ from gyrocal.orchestrator.station import load_station
 DEFAULT_STATION = Path("stations/sim.yaml")
 
 
-def resolved_station_text(station_path: Path, addresses: SimAddresses) -> str:
-    """The station file with ``sim`` addresses replaced by the running servers' addresses."""
+def resolved_station_text(station_path: Path, addresses: SimAddresses,
+                          replay: ReplayGyroPort | None = None) -> str:
+    """The station file with ``sim`` addresses replaced by the running servers' addresses.
+
+    With a replayed capture, the gyro's datagram, CR LF and rate are the capture's.
+    """
     data = yaml.safe_load(station_path.read_text())
     data["chamber"]["address"] = addresses.chamber
     data["table"]["address"] = addresses.table
     data["gyro"]["port"] = addresses.gyro
+    if replay is not None and replay.survey.layout is not None:
+        data["gyro"].pop("with_temperature", None)
+        data["gyro"].update(datagram=f"0x{replay.survey.layout.identifier:02X}",
+                            crlf=replay.survey.layout.crlf, sample_rate_hz=replay.sample_rate_hz)
     sim = data.get("simulation")
     if isinstance(sim, dict) and "gyro_model" in sim:
         sim["gyro_model"] = str((station_path.parent / sim["gyro_model"]).resolve())
@@ -57,9 +67,17 @@ def cmd_sim_serve(args: argparse.Namespace) -> int:
         clock = RealClock(speed)
     except ValueError as exc:
         raise BadInput(f"--speed: {exc}") from None
+    replay = None
+    if getattr(args, "replay_gyro", None):
+        try:
+            replay = ReplayGyroPort(read_capture(args.replay_gyro), clock, source=args.replay_gyro)
+        except ValueError as exc:
+            raise BadInput(f"--replay-gyro {exc}") from None
     try:
-        simulated = SimulatedStation(station, clock, seed=args.seed)
+        simulated = SimulatedStation(station, clock, seed=args.seed, gyro_port=replay)
     except ValueError as exc:
+        if replay is not None:
+            replay.stop()
         raise BadInput(str(exc)) from None
     stop = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
@@ -68,11 +86,14 @@ def cmd_sim_serve(args: argparse.Namespace) -> int:
             addresses = simulated.addresses
             out = Path(args.write_station) if args.write_station else None
             if out is not None:
-                out.write_text(resolved_station_text(station_path, addresses))
+                out.write_text(resolved_station_text(station_path, addresses, replay))
             print(f"simulated station {station.name!r} (real time × {speed:g}), Ctrl-C to stop")
             print(f"  chamber ({station.chamber.driver}): {addresses.chamber}")
             print(f"  table   ({station.table.driver}): {addresses.table}")
             print(f"  gyro    ({station.gyro.driver}): {addresses.gyro}")
+            if replay is not None:
+                print(f"    replaying {args.replay_gyro}: {replay.survey.describe()} at "
+                      f"{replay.sample_rate_hz:g} Hz, {replay.duration_s:g} s, looped")
             if out is not None:
                 print(f"  station file with these addresses: {out}")
             sys.stdout.flush()

@@ -27,6 +27,7 @@ from gyrocal.instruments.sim.faults import FaultInjector
 from gyrocal.instruments.sim.gyro_pty import FAULTS as GYRO_FAULTS
 from gyrocal.instruments.sim.gyro_pty import SimulatedGyroPort
 from gyrocal.instruments.sim.imu_source import FIXTURE_FAULTS, ImuPhysicsSource, SimulatedFixture
+from gyrocal.instruments.sim.replay_pty import ReplayGyroPort
 from gyrocal.instruments.sim.table_server import FAULTS as TABLE_FAULTS
 from gyrocal.instruments.sim.table_server import SimulatedAcutrol
 from gyrocal.models.chamber import ChamberPhysics
@@ -84,7 +85,9 @@ class SimulatedStation:
 
     def __init__(self, station, clock: RealClock | SimClock, seed: int | None = None,
                  model: GyroModel | ImuModel | None = None, gyro_block_frames: int | None = None,
-                 sample_rate_hz: float | None = None) -> None:
+                 sample_rate_hz: float | None = None,
+                 gyro_port: ReplayGyroPort | None = None) -> None:
+        """``gyro_port``: a replayed capture to serve as the gyro instead of the simulated one."""
         sim = station.simulation
         if sim is None:
             raise ValueError(f"{station.file}: the station has no simulation: section; "
@@ -146,13 +149,17 @@ class SimulatedStation:
             # be large; 512 frames (0.26 s at 2 kHz, 2 s at 250 Hz) keeps that cost under 1 µs a
             # frame while the clock runs at most one block ahead of what the reader consumed.
             gyro_block_frames = 512
-        self.gyro_port = SimulatedGyroPort(
-            self.source, clock, sample_rate_hz=self.sample_rate_hz,
-            with_temperature=gyro_cfg.with_temperature, lsb=gyro_cfg.rate_lsb,
-            faults=self.gyro_faults, block_frames=gyro_block_frames, seed=self.seed + _SEED_PTY,
-            axis=axis_index(gyro_cfg.axis), crlf=gyro_cfg.crlf, datagram=gyro_cfg.datagram,
-            accelerometer_range_g=gyro_cfg.accelerometer_range_g,
-        )
+        self.gyro_port: SimulatedGyroPort | ReplayGyroPort
+        if gyro_port is not None:
+            self.gyro_port = gyro_port
+        else:
+            self.gyro_port = SimulatedGyroPort(
+                self.source, clock, sample_rate_hz=self.sample_rate_hz,
+                with_temperature=gyro_cfg.with_temperature, lsb=gyro_cfg.rate_lsb,
+                faults=self.gyro_faults, block_frames=gyro_block_frames, seed=self.seed + _SEED_PTY,
+                axis=axis_index(gyro_cfg.axis), crlf=gyro_cfg.crlf, datagram=gyro_cfg.datagram,
+                accelerometer_range_g=gyro_cfg.accelerometer_range_g,
+            )
         self._started = False
 
     @property

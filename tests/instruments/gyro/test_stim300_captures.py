@@ -12,11 +12,10 @@ Table 5-20 (p. 36), independent of the decoder.
 from __future__ import annotations
 
 import json
-import struct
-from pathlib import Path
 
 import numpy as np
 import pytest
+from ubc_captures import FAST, FRAME, SLOW, struct_reader
 
 from gyrocal.cli import EXIT_BAD_INPUT, EXIT_OK, main
 from gyrocal.inputs import InputError
@@ -24,29 +23,6 @@ from gyrocal.instruments.gyro.capture import read_capture
 from gyrocal.instruments.gyro.datagram import FrameDecoder
 from gyrocal.instruments.gyro.survey import survey_stream
 from gyrocal.reports.measured_log import read_measured_log
-
-CAPTURES = Path(__file__).parent / "captures"
-FAST = CAPTURES / "imu_uart_data_2_datagrams400-799.txt"     # 2000 Hz, 400 datagrams
-SLOW = CAPTURES / "imu_uart_data_3_first300.txt"     # 125 Hz, 300 datagrams
-FRAME = 40        # 0x93: 38 bytes (Table 5-20 without temperatures and PPS) + CR LF
-
-
-def struct_reader(data: bytes, range_lsb_g: float) -> dict[str, np.ndarray]:
-    """0x93 field by field (Table 5-20): id, 3×24-bit rate, status, 3×24 acc, status,
-    3×24 incl, status, counter, 16-bit latency, CRC, CR LF."""
-    def s24(b: bytes) -> int:
-        return int.from_bytes(b, "big", signed=True)
-
-    rows = [data[i:i + FRAME] for i in range(0, len(data) - FRAME + 1, FRAME)]
-    assert all(r[0] == 0x93 and r[38:40] == b"\r\n" for r in rows)
-    return {
-        "rate": np.array([[s24(r[1 + 3 * a:4 + 3 * a]) for a in range(3)] for r in rows]) / 2**14,
-        "acc": np.array([[s24(r[11 + 3 * a:14 + 3 * a]) for a in range(3)] for r in rows]) * range_lsb_g,
-        "incl": np.array([[s24(r[21 + 3 * a:24 + 3 * a]) for a in range(3)] for r in rows]) / 2**22,
-        "status": np.array([[r[10], r[20], r[30]] for r in rows]),
-        "counter": np.array([r[31] for r in rows]),
-        "latency": np.array([struct.unpack(">H", r[32:34])[0] for r in rows]),
-    }
 
 
 @pytest.mark.parametrize("path, frames, rate_hz, step", [(FAST, 400, 2000.0, 1), (SLOW, 300, 125.0, 16)])
