@@ -33,10 +33,12 @@ SPEED = 4.0
 def test_the_driver_reads_the_replayed_capture_byte_for_byte_at_its_rate():
     data = read_capture(SLOW)
     oracle = struct_reader(data, 2.0**-18)
-    with ReplayGyroPort(data, RealClock(SPEED), loop=False) as replay:
-        assert (replay.sample_rate_hz, replay.survey.layout.identifier) == (125.0, 0x93)
-        gyro = Stim300Gyro(replay.port_name, sample_rate_hz=125, datagram=0x93, crlf=True,
-                           accelerometer_range_g=30, axis="y", timeout_s=10)
+    replay = ReplayGyroPort(data, RealClock(SPEED), loop=False)
+    assert (replay.sample_rate_hz, replay.survey.layout.identifier) == (125.0, 0x93)
+    # opened before the first byte is sent (pyserial flushes the input when it opens a port)
+    gyro = Stim300Gyro(replay.port_name, sample_rate_hz=125, datagram=0x93, crlf=True,
+                       accelerometer_range_g=30, axis="y", timeout_s=10)
+    with replay:
         try:
             started = time.monotonic()
             block = gyro.read_samples(250)
@@ -61,8 +63,9 @@ def test_the_driver_reads_the_replayed_capture_byte_for_byte_at_its_rate():
      "the unit's counter steps 16 per datagram, i.e. 125 Hz"),
 ])
 def test_a_wrong_declaration_is_a_fault_naming_both(declared, expected):
-    with ReplayGyroPort(read_capture(SLOW), RealClock(SPEED), loop=False) as replay:
-        gyro = Stim300Gyro(replay.port_name, timeout_s=5, **declared)
+    replay = ReplayGyroPort(read_capture(SLOW), RealClock(SPEED), loop=False)
+    gyro = Stim300Gyro(replay.port_name, timeout_s=5, **declared)
+    with replay:
         try:
             with pytest.raises(InstrumentProtocolError) as caught:
                 gyro.read_samples(50)
