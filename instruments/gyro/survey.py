@@ -48,9 +48,11 @@ class StreamSurvey:
 def survey_stream(data: bytes | bytearray | memoryview) -> StreamSurvey:
     """Try every normal-mode type on ``data``; the one explaining the most bytes wins.
 
-    Ties (a CR LF stream also checks as the same type without CR LF, the
-    terminator then counted as garbage) go to the type explaining more
-    bytes, so the terminator is found.
+    A CR LF stream also checks as the same type without CR LF (the
+    terminator then reads as garbage), and its last datagram may still lack
+    its terminator; so CR LF is chosen when it finds all the datagrams the
+    plain reading finds but the last. A plain stream read with CR LF finds
+    almost none (its terminators are not there).
     """
     buf = bytes(data)
     best: tuple[int, FrameLayout | None, np.ndarray] = (0, None, np.empty(0, np.uint8))
@@ -58,12 +60,14 @@ def survey_stream(data: bytes | bytearray | memoryview) -> StreamSurvey:
     for identifier in NORMAL_MODE_TYPES:
         if identifier not in present:
             continue
-        for crlf in (False, True):
-            layout = layout_of(identifier, crlf)
-            decoded = FrameDecoder(datagram=identifier, crlf=crlf).feed(buf)
-            explained = len(decoded) * layout.length
-            if explained > best[0]:
-                best = (explained, layout, decoded.counter)
+        plain = FrameDecoder(datagram=identifier, crlf=False).feed(buf)
+        terminated = FrameDecoder(datagram=identifier, crlf=True).feed(buf)
+        crlf = len(terminated) > 0 and len(terminated) >= len(plain) - 1
+        decoded = terminated if crlf else plain
+        layout = layout_of(identifier, crlf)
+        explained = len(decoded) * layout.length
+        if explained > best[0]:
+            best = (explained, layout, decoded.counter)
     _, layout, counter = best
     return StreamSurvey(layout, int(counter.size), dominant_counter_step(counter), len(buf))
 

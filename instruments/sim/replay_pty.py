@@ -8,7 +8,7 @@ released in proportion to the clock (``speed`` times real time on a scaled
 clock). At the end the capture starts again from its first byte when
 ``loop`` is set; the counter then jumps, which a reader sees as it would
 on a real line (a counter gap), never hidden. Like a real unit, the replay
-does not wait for a reader more than half a second behind: those bytes are
+does not wait for a reader more than half a second behind (the pty full): those bytes are
 dropped (the reader sees garbage and a gap), never released late as if current.
 """
 
@@ -51,6 +51,7 @@ class ReplayGyroPort:
         self.bytes_written = 0        # over all passes (dropped bytes included)
         self.bytes_dropped = 0        # skipped while nobody read (the reader sees a gap)
         self.error: BaseException | None = None
+        self._reader_behind = False   # the pty was full at the last write: nobody is reading
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._master_fd, self._slave_fd = os.openpty()
@@ -106,7 +107,7 @@ class ReplayGyroPort:
                     self._stop.wait(_POLL_S)
                     continue
                 lag = due - self.bytes_written - int(_MAX_LAG_S * self.bytes_per_s)
-                if lag > 0:
+                if lag > 0 and self._reader_behind:
                     self.bytes_dropped += lag       # a real unit does not wait for its reader
                     self.bytes_written += lag
                 offset = self.bytes_written % total
@@ -119,11 +120,13 @@ class ReplayGyroPort:
     def _write(self, chunk: bytes) -> int:
         """Write what the pty takes now (a full pty is a reader that is behind: wait)."""
         _, writable, _ = select.select([], [self._master_fd], [], _POLL_S)
+        self._reader_behind = not writable
         if not writable:
             return 0
         try:
             return os.write(self._master_fd, chunk)
         except BlockingIOError:
+            self._reader_behind = True
             return 0
         except OSError as exc:
             if exc.errno == errno.EIO and self._stop.is_set():

@@ -26,6 +26,7 @@ from gyrocal.instruments.gyro.datagram_types import (
     frames_per_counter_step,
     layout_of,
 )
+from gyrocal.instruments.gyro.survey import survey_stream
 
 # Table 5-21: identifier → content, typed.
 TABLE_5_21 = {
@@ -208,3 +209,13 @@ def test_configuration_datagram_typed_from_table_5_16(crlf):
     corrupt[5] ^= 1
     with pytest.raises(ValueError, match="CRC"):
         decode_configuration(bytes(corrupt))
+
+
+@pytest.mark.parametrize("identifier", sorted(TABLE_5_21))
+@pytest.mark.parametrize("crlf", [False, True])
+def test_the_stream_survey_names_the_type_even_with_a_partial_last_datagram(identifier, crlf):
+    stream = b"\x55\x00" + hand_datagram(identifier, crlf) * 5
+    survey = survey_stream(stream[:-1])            # the last datagram one byte short
+    assert survey.layout is not None
+    assert (survey.layout.identifier, survey.layout.crlf) == (identifier, crlf)
+    assert survey.frames_valid == 4
