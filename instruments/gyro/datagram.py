@@ -9,7 +9,7 @@ instead of importing the layouts.
 Scaling (all fields big-endian two's complement unless said):
 
 * rates: ``raw * lsb``; ``lsb`` is a station setting whose default 2**-14
-  deg/s is the angular-rate output's LSB (§7.5.2.2.2, Equation 1, p. 50);
+  deg/s is the angular-rate output's LSB (§7.5.2.2.2, Equation 1, p. 49);
 * accelerometers: LSB per range 5/10/30/80 g = 2**-20/-19/-18/-16 g
   (§7.5.2.2.7, Equation 3, p. 52); the range is a station setting;
 * inclinometers: 2**-22 g (§7.5.2.2.11, Equation 5, p. 53);

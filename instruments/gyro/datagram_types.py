@@ -28,7 +28,7 @@ from functools import cache
 INTERNAL_RATE_HZ = 2000.0
 #: accelerometer LSB per range in g (§7.5.2.2.7, Equation 3, p. 52)
 ACCELEROMETER_LSB_G = {5: 2.0**-20, 10: 2.0**-19, 30: 2.0**-18, 80: 2.0**-16}
-#: the standard accelerometer range (Table 5-1 note 1, p. 10; Table 5-16 byte 17 code 0)
+#: the standard accelerometer range (Table 5-1 note 1, p. 7; Table 5-16 byte 17 code 0)
 DEFAULT_ACCELEROMETER_RANGE_G = 10
 #: inclinometer LSB in g (§7.5.2.2.11, Equation 5, p. 53)
 INCLINOMETER_LSB_G = 2.0**-22

@@ -3,7 +3,7 @@
 Sources (STIM300 datasheet TS1524 rev 31): Table 5-20 (p. 36) field order
 of the full datagram; Table 5-21 (p. 37) identifiers and content; Table
 5-22 (p. 38) CRC dummy bytes per identifier; §5.5.7 (p. 37) CRC rule;
-§7.5.2.2.2/7/11/17 (pp. 50–55) LSBs: rate 2^-14 °/s, acceleration
+§7.5.2.2.2/7/11/17 (pp. 49–55) LSBs: rate 2^-14 °/s, acceleration
 2^-20/2^-19/2^-18/2^-16 g for 5/10/30/80 g, inclination 2^-22 g, temperature
 1/256 °C; Table 5-16 (pp. 31–33) configuration datagram. Expected bytes are
 written here field by field (and one real unit's datagram is typed out
