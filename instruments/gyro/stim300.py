@@ -146,6 +146,23 @@ class Stim300Gyro:
             self._read_chunk(n - self._surplus_count, command)
         return self._take(n)
 
+    def detect(self, timeout_s: float | None = None) -> StreamSurvey:
+        """What the unit sends (datagram type, counter step, rate), checked against the declaration.
+
+        Reads until enough datagrams have checked (the bytes are decoded as
+        samples too, kept for the next :meth:`read_samples`); a mismatch
+        raises the same fault as the first read would. For a station check.
+        """
+        timeout_s = self.timeout_s if timeout_s is None else float(timeout_s)
+        deadline = time.monotonic() + timeout_s
+        while self.survey is None:
+            if time.monotonic() >= deadline:
+                raise InstrumentTimeout(self.name, "datagram check",
+                                        f"not enough datagrams to tell the type within {timeout_s:g} s "
+                                        f"({len(self._survey_bytes)} bytes) on {self.port}")
+            self._read_chunk(_SURVEY_MIN_FRAMES, "datagram check")
+        return self.survey
+
     def close(self) -> None:
         with contextlib.suppress(serial.SerialException, OSError):
             self._serial.close()

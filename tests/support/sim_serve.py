@@ -15,11 +15,12 @@ REPO = Path(__file__).resolve().parents[2]
 
 @contextlib.contextmanager
 def served_station(live: Path, station: str = "stations/sim.yaml",
-                   env: dict[str, str] | None = None) -> Iterator[Path]:
+                   env: dict[str, str] | None = None,
+                   extra_args: tuple[str, ...] = ()) -> Iterator[Path]:
     """Start the simulators, wait for the live station file, stop them with Ctrl-C after."""
     proc = subprocess.Popen(
         [sys.executable, "-m", "gyrocal", "sim", "serve", "--station", station,
-         "--write-station", str(live)],
+         "--write-station", str(live), *extra_args],
         cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         deadline = time.monotonic() + 30

@@ -5,13 +5,20 @@ with lsb = 1/fs), so every decoded sample says exactly which frame it was and
 the driver's counts can be compared with the truth.
 """
 
+import os
+import threading
 import time
+import tty
 
 import numpy as np
 import pytest
 from stim300_bytes import hand_frame_94
 
-from gyrocal.instruments.errors import InstrumentConnectionError, InstrumentTimeout
+from gyrocal.instruments.errors import (
+    InstrumentConnectionError,
+    InstrumentProtocolError,
+    InstrumentTimeout,
+)
 from gyrocal.instruments.gyro.datagram import RAW_FULL_SCALE, encode_frames
 from gyrocal.instruments.gyro.stim300 import Stim300Gyro
 from gyrocal.instruments.interfaces import GyroStream
@@ -262,3 +269,35 @@ def test_station_axis_selects_the_unit_under_test_and_all_three_are_kept(axis, c
     assert block.temperature_c.tolist() == [[25.0, 26.0, 27.0][column]] * 3
     assert block.flagged.tolist() == [False, axis == "y", False]
     assert block.crc_errors == 0 and block.garbage_bytes == 0
+
+
+def test_a_line_with_no_datagram_of_any_type_is_a_fault_not_a_silent_timeout():
+    """Bytes on a pty with no identifier byte of Table 5-21 (a wrong baud rate looks like this)."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    gyro = Stim300Gyro(os.ttyname(slave), lsb=LSB, timeout_s=5)
+    writer = threading.Thread(target=os.write, args=(master, bytes(range(0x20, 0x80)) * 700),
+                              daemon=True)                  # 67,200 bytes
+    writer.start()
+    try:
+        with pytest.raises(InstrumentProtocolError, match="no datagram of any STIM300 normal-mode type"):
+            gyro.read_samples(10)
+    finally:
+        gyro.close()
+        os.close(master)
+        os.close(slave)
+
+
+def test_detect_reports_the_stream_and_keeps_its_samples():
+    gyro = Stim300Gyro("loop://", lsb=LSB, sample_rate_hz=250.0, with_temperature=True)
+    try:
+        frames = [hand_frame_94((k, -k, 2 * k), 0, (6400, 6400, 6400), 0, (8 * k) % 256, 500)
+                  for k in range(10)]                               # 250 Hz: counter step 8
+        gyro._serial.write(b"".join(frames))
+        survey = gyro.detect(timeout_s=1)
+        assert (survey.layout.identifier, survey.counter_step, survey.sample_rate_hz) == (0x94, 8, 250.0)
+        block = gyro.read_samples(10, timeout_s=1)
+        assert np.rint(block.rate / LSB).astype(int).tolist() == list(range(10))
+        assert block.lost_frames == 0
+    finally:
+        gyro.close()

@@ -18,12 +18,14 @@ import numpy as np
 import pytest
 from ubc_captures import SLOW, struct_reader
 
+from gyrocal.cli import EXIT_FAULT, main
 from gyrocal.instruments.errors import InstrumentProtocolError
 from gyrocal.instruments.gyro.capture import read_capture
 from gyrocal.instruments.gyro.stim300 import Stim300Gyro
 from gyrocal.instruments.sim.replay_pty import ReplayGyroPort
 from gyrocal.models.clock import RealClock
 from gyrocal.orchestrator.station import load_station
+from tests.support.sim_serve import served_station
 
 pytestmark = pytest.mark.timeout(60)
 REPO = Path(__file__).resolve().parents[3]
@@ -112,3 +114,25 @@ def test_sim_serve_replays_a_capture_for_a_driver_built_from_the_written_station
         if proc.poll() is None:
             proc.kill()
             proc.communicate()
+
+
+def test_a_run_whose_station_misdeclares_the_replayed_unit_faults_naming_both(tmp_path, capsys):
+    """The real path: `gyrocal run --station` against sim serve replaying the 0x93 capture,
+    with the station edited to declare 0x94: a fault at connect (exit 3) that names both."""
+    live = tmp_path / "live.yaml"
+    with served_station(live, extra_args=("--replay-gyro", str(SLOW))):
+        text = live.read_text(encoding="utf-8").replace("datagram: '0x93'", "datagram: '0x94'")
+        assert "datagram: '0x94'" in text
+        wrong = tmp_path / "wrong.yaml"
+        wrong.write_text(text.replace("crlf: true", "crlf: false"), encoding="utf-8")
+        smoke = (REPO / "procedures" / "smoke.yaml").read_text(encoding="utf-8")
+        procedure = tmp_path / "smoke.yaml"
+        procedure.write_text(smoke.replace("sample_rate_hz: 2000", "sample_rate_hz: 125"),
+                             encoding="utf-8")
+        code = main(["run", str(procedure), "--station", str(wrong), "--out", str(tmp_path / "run"),
+                     "--allow-outside-paths"])
+    err = capsys.readouterr().err
+    assert code == EXIT_FAULT, err
+    assert "the unit sends 0x93 (rate, acceleration, inclination) with CR LF; the station declares " \
+           "0x94 (rate, temperature)" in err
+    assert "Traceback" not in err
