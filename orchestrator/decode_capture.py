@@ -245,12 +245,21 @@ def cmd_decode(args: argparse.Namespace) -> int:
     figures = summary(capture, source, options, temp_source)
     figures.update(_configuration_figures(find_configuration(data), capture))
     if args.out:
-        write_log(columns, Path(args.out))
+        _writing("--out", args.out, lambda: write_log(columns, Path(args.out)))
         figures["log"] = str(args.out)
     _print(figures)
     if args.json:
-        Path(args.json).write_text(json.dumps(figures, indent=2) + "\n", encoding="utf-8")
+        _writing("--json", args.json, lambda: Path(args.json).write_text(
+            json.dumps(figures, indent=2) + "\n", encoding="utf-8"))
     return EXIT_OK
+
+
+def _writing(option: str, path: str, write) -> None:
+    """An output that cannot be written is bad input naming the option and the file."""
+    try:
+        write()
+    except OSError as exc:
+        raise BadInput(f"{option} {path}: cannot write: {exc.strerror or exc}") from None
 
 
 def _print(figures: dict) -> None:

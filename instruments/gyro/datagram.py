@@ -187,6 +187,22 @@ def encode_frame_array(
     frames = np.empty((n, layout.length), dtype=np.uint8)
     frames[:, 0] = layout.identifier
     _put_triplet(frames, RATE_OFFSET, STATUS_OFFSET, rate / lsb, status, RAW_FULL_SCALE, 3, "rate")
+    _put_channels(frames, layout, channels, temp_c, accelerometer_range_g)
+    frames[:, layout.counter_offset] = np.broadcast_to(np.asarray(counter, dtype=np.int64), (n,)) & 0xFF
+    _put_int(frames, layout.latency_offset, latency.astype(np.int64)[:, None], 2)
+    crc = frame_crc(frames, layout)
+    for byte in range(4):
+        frames[:, layout.crc_offset + byte] = (crc >> np.uint32(24 - 8 * byte)) & np.uint32(0xFF)
+    if layout.crlf:
+        frames[:, -2] = 0x0D
+        frames[:, -1] = 0x0A
+    return frames
+
+
+def _put_channels(frames: np.ndarray, layout: FrameLayout, channels: SensorChannels,
+                  temp_c: np.ndarray | None, accelerometer_range_g: int) -> None:
+    """Accelerometers, inclinometers, temperatures and PPS, where ``layout`` has them."""
+    n = frames.shape[0]
     acc_lsb = accelerometer_lsb_g(accelerometer_range_g)
     for offset, status_offset, values, cluster_status, lsb_g, what in (
         (layout.acc_offset, layout.acc_status_offset, channels.acc_g, channels.acc_status, acc_lsb, "acc_g"),
@@ -211,15 +227,6 @@ def encode_frame_array(
         pps = np.zeros(n) if channels.pps is None else np.broadcast_to(channels.pps, (n,))
         _put_int(frames, layout.pps_offset, np.asarray(pps, dtype=np.int64)[:, None], 3)
         frames[:, layout.pps_status_offset] = 0 if channels.pps_status is None else channels.pps_status
-    frames[:, layout.counter_offset] = np.broadcast_to(np.asarray(counter, dtype=np.int64), (n,)) & 0xFF
-    _put_int(frames, layout.latency_offset, latency.astype(np.int64)[:, None], 2)
-    crc = frame_crc(frames, layout)
-    for byte in range(4):
-        frames[:, layout.crc_offset + byte] = (crc >> np.uint32(24 - 8 * byte)) & np.uint32(0xFF)
-    if layout.crlf:
-        frames[:, -2] = 0x0D
-        frames[:, -1] = 0x0A
-    return frames
 
 
 def accelerometer_lsb_g(range_g: int) -> float:

@@ -123,3 +123,19 @@ def test_bad_captures_are_bad_input_naming_the_file(tmp_path, capsys, content, e
 def test_a_missing_capture_is_named():
     with pytest.raises(InputError, match="nope.bin: file not found"):
         read_capture("nope.bin")
+
+
+def test_decode_writes_a_csv_log_the_contract_reader_accepts(tmp_path, capsys):
+    out = tmp_path / "log.csv"
+    assert main(["decode", str(FAST), "--driver", "stim300", "--accelerometer-range-g", "30",
+                 "--chamber-temp-c", "21.5", "--out", str(out)]) == EXIT_OK
+    log = read_measured_log(out)
+    assert len(log) == 400 and log.sample_rate_hz == pytest.approx(2000.0)
+    assert set(log.chamber_temp_c.tolist()) == {21.5}
+    assert np.array_equal(log.gyro, struct_reader(read_capture(FAST), 1.0)["rate"][:, 0])
+
+
+def test_an_unwritable_output_is_bad_input_naming_it(tmp_path, capsys):
+    out = tmp_path / "missing-folder" / "log.parquet"
+    assert main(["decode", str(SLOW), "--driver", "stim300", "--out", str(out)]) == EXIT_BAD_INPUT
+    assert f"--out {out}: cannot write" in capsys.readouterr().err
