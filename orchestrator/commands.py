@@ -23,6 +23,7 @@ from gyrocal.errors import EXIT_ACCEPTANCE_FAILED, EXIT_FAULT, EXIT_OK, BadInput
 from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments, open_instruments
 from gyrocal.models.clock import RealClock, SimClock, make_clock
+from gyrocal.orchestrator.doc_links import with_doc_links
 from gyrocal.orchestrator.engine import EnginePolicy, RunEngine
 from gyrocal.orchestrator.locks import FileLock, instrument_locks, run_folder_lock
 from gyrocal.orchestrator.notify import Notifier
@@ -69,9 +70,13 @@ def quiet_library_logs(debug: bool = False) -> None:
 # -- validate / plan -----------------------------------------------------------------------
 
 def cmd_validate(args: argparse.Namespace) -> int:
-    """Everything ``run`` checks before anything moves, for the same station and ``--sim``."""
-    procedure = load_procedure(args.procedure, station_path=args.station,
-                               allow_outside=args.allow_outside_paths)
+    """Everything ``run`` checks before anything moves, for the same station and ``--sim``.
+    Each problem links the part of docs/reference/ that explains its key."""
+    try:
+        procedure = load_procedure(args.procedure, station_path=args.station,
+                                   allow_outside=args.allow_outside_paths)
+    except ProcedureError as error:
+        raise with_doc_links(error, args.procedure) from None
     plan = expand_plan(procedure)
     # a station whose every address is `sim` can only run with --sim: judge it that way
     sim = args.sim or is_simulated(procedure)

@@ -1,0 +1,649 @@
+"""The three YAML languages (procedure, station, gyro model) described once, as data.
+
+The parsers (``procedure.py``, ``station.py``, ``models/gyro_model.py``) check
+files key by key in code; users need the same facts written down: every key,
+whether it is required, its default, the units it accepts and what it means.
+This module is that description. ``reference_docs.py`` renders it to the
+Markdown reference in ``docs/reference/`` and to JSON Schemas that editors
+(yaml-language-server) use to complete and check files, and
+``tests/orchestrator/test_languages.py`` holds it against the parsers: for
+every mapping, the keys listed here are the keys the parser allows there, so
+the description cannot drift from what ``gyrocal validate`` accepts.
+
+Constants are imported from the parsers (drivers, choices, limits, the effect
+catalogue, the metrics) rather than copied, for the same reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
+from gyrocal.models.effects import EFFECTS
+from gyrocal.models.gyro_model import OUTPUT_UNITS as MODEL_OUTPUT_UNITS
+from gyrocal.models.imu_model import AXES
+from gyrocal.models.noise_terms import NOISE_TERMS
+from gyrocal.orchestrator import procedure as proc
+from gyrocal.orchestrator import station as sta
+from gyrocal.orchestrator.metrics import METRICS, NEEDS_TEXT
+from gyrocal.orchestrator.notify import NotifyOn
+from gyrocal.orchestrator.units import (
+    ACCELERATION,
+    DURATION,
+    FREQUENCY,
+    RATE,
+    TEMPERATURE,
+    TEMPERATURE_RATE,
+    Dimension,
+)
+
+# -- the vocabulary ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Scalar:
+    """A leaf value. ``kind`` says how it is written; the other fields narrow it."""
+
+    kind: str                       # text, serial, integer, number, boolean, date, choice,
+    #                                 quantity, duration, path, anything, text_list
+    dimension: Dimension | None = None
+    choices: tuple[str, ...] = ()
+    minimum: float | None = None
+    maximum: float | None = None
+    exclusive_minimum: float | None = None
+    bare_seconds: bool = False      # a duration that also takes a bare number of seconds
+    constant: int | None = None     # a version number
+
+
+@dataclass(frozen=True)
+class Key:
+    name: str
+    value: Shape
+    doc: str
+    required: bool = True
+    default: str | None = None       # as the reference shows it ("1", "inherited from defaults")
+
+
+@dataclass(frozen=True)
+class Section:
+    """A mapping with a fixed set of keys; ``anchor`` names its part of the reference."""
+
+    anchor: str
+    title: str
+    doc: str
+    keys: tuple[Key, ...]
+    #: keys outside ``keys`` are allowed (free-form: ``templates``, matrix elements)
+    open_keys: Scalar | None = None
+
+    def key(self, name: str) -> Key | None:
+        return next((k for k in self.keys if k.name == name), None)
+
+
+@dataclass(frozen=True)
+class ListOf:
+    item: Shape
+    min_items: int = 1
+
+
+@dataclass(frozen=True)
+class Variants:
+    """A mapping whose keys depend on one key's value (``kind:`` of a test, ``name:`` of an
+    effect)."""
+
+    discriminator: str
+    sections: tuple[tuple[str, Section], ...]
+
+
+@dataclass(frozen=True)
+class Either:
+    """One of several shapes (``station:`` is a path or a whole station mapping)."""
+
+    options: tuple[Shape, ...]
+
+
+Shape = Scalar | Section | ListOf | Variants | Either
+
+
+@dataclass(frozen=True)
+class Language:
+    name: str                  # procedure, station, model
+    title: str
+    intro: str
+    root: Shape
+    doc_file: str              # docs/reference/<name>.md
+    schema_file: str           # docs/schemas/<name>.schema.json
+    examples: tuple[str, ...] = field(default_factory=tuple)   # shipped files to quote
+
+
+def _text() -> Scalar:
+    return Scalar("text")
+
+
+def _q(dimension: Dimension, minimum: float | None = None, *, above: float | None = None,
+       maximum: float | None = None) -> Scalar:
+    return Scalar("quantity", dimension, minimum=minimum, exclusive_minimum=above, maximum=maximum)
+
+
+def _duration(*, bare_seconds: bool = False, positive: bool = True) -> Scalar:
+    return Scalar("duration", DURATION, bare_seconds=bare_seconds,
+                  exclusive_minimum=0.0 if positive else None, minimum=None if positive else 0.0)
+
+
+def _choice(options: tuple[str, ...] | list[str]) -> Scalar:
+    return Scalar("choice", choices=tuple(options))
+
+
+def _int(minimum: int | None = None, maximum: int | None = None) -> Scalar:
+    return Scalar("integer", minimum=minimum, maximum=maximum)
+
+
+def _num(minimum: float | None = None, maximum: float | None = None, *,
+         above: float | None = None) -> Scalar:
+    return Scalar("number", minimum=minimum, maximum=maximum, exclusive_minimum=above)
+
+
+# -- station ---------------------------------------------------------------------------------
+
+
+def _identity(anchor: str) -> Section:
+    return Section(
+        anchor, anchor.replace("-", "."),
+        "The instrument as the lab's asset register knows it: printed in the report's and the "
+        "certificate's traceability. A calibration due before the run's date makes the "
+        "verdict BLOCKED unless `calibration_waiver` says why it may pass.",
+        (
+            Key("make", _text(), "manufacturer"),
+            Key("model", _text(), "model"),
+            Key("serial", Scalar("serial"), "serial number; a different serial reported by "
+                "the instrument itself blocks the verdict"),
+            Key("calibration_due", Scalar("date"), "YYYY-MM-DD", False),
+            Key("calibration_waiver", _text(), "why an overdue calibration may still PASS "
+                "(shown in the report)", False),
+        ))
+
+
+_LINK_KEYS = (
+    Key("timeout_s", _duration(bare_seconds=True), "per exchange", False, "1 s"),
+    Key("retries", _int(0, 20), "retries of a transient fault, with backoff", False, "3"),
+)
+
+_F4 = "applies to driver watlow_f4 only"
+
+STATION_CHAMBER = Section(
+    "chamber", "chamber",
+    "The temperature chamber. Drivers: `watlow_f4` (Watlow F4, Modbus RTU over a serial "
+    "line or a serial-over-TCP bridge: address `/dev/ttyUSB0`, `COM3` or "
+    "`socket://host:port`) and `watlow_f4t` (Watlow F4T, Modbus TCP: address `host:port`). "
+    "`sim` as the address: a simulated chamber started by `--sim`.",
+    (
+        Key("driver", _choice(sta.CHAMBER_DRIVERS), "which controller"),
+        Key("address", _text(), "where it is (see above), or `sim`"),
+        Key("unit_id", _int(1, 247), "Modbus unit (slave) id", False, "1"),
+        Key("limit_input", _int(1, 4), f"the digital input the limit controller trips (alarm "
+            f"source); {_F4}", False),
+        Key("baudrate", _int(1200, 115_200), f"serial speed; {_F4}", False, "9600"),
+        Key("parity", _choice(("N", "E", "O")), f"serial parity; {_F4}", False, "N"),
+        Key("stop_bits", _int(1, 2), f"serial stop bits; {_F4}", False, "1"),
+        Key("word_order", _choice(("low_first", "high_first")), "float word order; applies to "
+            "driver watlow_f4t only", False, "low_first"),
+        Key("identity", _identity("chamber-identity"), "asset identity"),
+        Key("limits", Section("chamber-limits", "chamber.limits", "What the chamber may safely "
+            "be asked; every procedure run on the station must stay inside.", (
+                Key("min_temp_c", _q(TEMPERATURE, -273.15), "lowest setpoint"),
+                Key("max_temp_c", _q(TEMPERATURE, -273.15), "highest setpoint"),
+                Key("max_ramp_c_per_min", _q(TEMPERATURE_RATE, above=0.0), "fastest ramp"),
+            )), "hard limits"),
+        Key("safe_state", Section("chamber-safe_state", "chamber.safe_state", "Where the "
+            "chamber is left after a fault, Ctrl-C or the end of a run.", (
+                Key("action", _choice(("setpoint", "standby")), "hold a setpoint, or standby"),
+                Key("setpoint_c", _q(TEMPERATURE), "the safe setpoint (action: setpoint only; "
+                    "inside the chamber limits)", False),
+            )), "safe state"),
+        *_LINK_KEYS,
+    ))
+
+STATION_TABLE = Section(
+    "table", "table",
+    "The rate table. Driver `acutrol3000` (ACUTROL3000 command language over a raw TCP "
+    "socket: address `TCPIP0::10.0.0.5::5025::SOCKET`, or a serial/GPIB VISA resource); "
+    "`sim` as the address: a simulated table started by `--sim`.",
+    (
+        Key("driver", _choice(sta.TABLE_DRIVERS), "which controller"),
+        Key("address", _text(), "a VISA resource string, or `sim`"),
+        Key("axis", _int(1, 8), "which axis of the controller", False, "1"),
+        Key("dialect", _choice(tuple(DIALECTS)), "how the controller answers", False,
+            DEFAULT_DIALECT),
+        Key("identity", _identity("table-identity"), "asset identity"),
+        Key("limits", Section("table-limits", "table.limits", "What the table may safely do.", (
+            Key("max_rate_dps", _q(RATE, above=0.0), "largest rate magnitude"),
+            Key("max_accel_dps2", _q(ACCELERATION, above=0.0), "largest acceleration"),
+        )), "hard limits"),
+        *_LINK_KEYS,
+    ))
+
+STATION_GYRO = Section(
+    "gyro", "gyro",
+    "The unit under test's output. Driver `stim300` (STIM300 datagrams over RS-422: "
+    "`/dev/ttyUSB0`, `COM3` or `socket://host:port`); `sim`: a simulated gyro on a "
+    "pseudo-terminal started by `--sim`.",
+    (
+        Key("driver", _choice(sta.GYRO_DRIVERS), "which datagram format"),
+        Key("port", _text(), "the serial port, or `sim`"),
+        Key("baudrate", _int(1200, 20_000_000), "serial speed", False, "921600"),
+        Key("sample_rate_hz", _q(FREQUENCY, above=0.0), "the gyro's output rate"),
+        Key("rate_lsb", _num(above=0.0), "output units per LSB of the datagram's rate field"),
+        Key("with_temperature", Scalar("boolean"), "datagrams carry temperatures", False, "true"),
+        Key("timeout_s", _duration(bare_seconds=True), "no datagram for this long is a fault",
+            False, "2 s"),
+        Key("axis", _choice(sta.GYRO_AXES), "which datagram axis is the unit under test (all "
+            "three are logged)", False, "x"),
+        Key("crlf", Scalar("boolean"), "datagrams end in CR LF (a STIM300 setting)", False,
+            "false"),
+    ))
+
+SIMULATION = Section(
+    "simulation", "simulation",
+    "What `--sim` and `gyrocal sim serve` start; ignored on real hardware. Needed when any "
+    "address is `sim`.",
+    (
+        Key("gyro_model", Scalar("path"), "the simulated gyro's model file (relative to this "
+            "file; see the model reference)"),
+        Key("seed", _int(0), "random seed of the simulated noise", False, "1"),
+        Key("chamber", Section("simulation-chamber", "simulation.chamber", "Chamber physics.", (
+            Key("ambient_c", _q(TEMPERATURE, -273.15), "room temperature"),
+            Key("tau_s", _duration(bare_seconds=True), "air time constant"),
+            Key("max_heat_c_per_min", _q(TEMPERATURE_RATE, above=0.0), "fastest heating"),
+            Key("max_cool_c_per_min", _q(TEMPERATURE_RATE, above=0.0), "fastest cooling"),
+            Key("noise_c", _num(0.0), "sensor noise, °C", False, "0"),
+        )), "chamber physics"),
+        Key("table", Section("simulation-table", "simulation.table", "Table physics.", (
+            Key("rate_noise_dps", _q(RATE, 0.0), "rate readback noise", False, "0"),
+        )), "table physics"),
+    ))
+
+NOTIFY = Section(
+    "notify", "notify[] (a target)",
+    "Who is told when something happens. Give exactly one of `url` (an apprise URL: "
+    "`mailto://host:25?to=…`, `json://host:port/path`, …) or `command` (a program and its "
+    "arguments, run with the event as JSON on standard input).",
+    (
+        Key("url", _text(), "an apprise URL", False),
+        Key("command", Scalar("text_list"), "a program and its arguments", False),
+        Key("on", ListOf(_choice(tuple(n.value for n in NotifyOn))), "which events",
+            False, "all of them"),
+    ))
+
+STATION_ROOT = Section(
+    "station", "top level",
+    "A station says with what a procedure is run: the lab, its chamber, rate table and "
+    "gyro interface, their addresses, identities and hard limits.",
+    (
+        Key("version", Scalar("integer", constant=sta.STATION_VERSION), "language version"),
+        Key("name", _text(), "shown in the report"),
+        Key("site", Section("site", "site", "The lab.", (
+            Key("name", _text(), "laboratory name (certificate)"),
+            Key("latitude_deg", _num(-90.0, 90.0), "sets the Earth-rate component removed "
+                "from the bias"),
+            Key("address", _text(), "postal address (certificate)", False),
+        )), "the lab"),
+        Key("chamber", STATION_CHAMBER, "temperature chamber"),
+        Key("table", STATION_TABLE, "rate table"),
+        Key("gyro", STATION_GYRO, "gyro interface"),
+        Key("simulation", SIMULATION, "simulated instruments", False),
+        Key("signing_key", Scalar("path"), "the station's Ed25519 private key (`gyrocal keys`); "
+            "runs are signed with it", False),
+        Key("notify", ListOf(NOTIFY, min_items=0), "notification targets", False),
+        Key("uncertainty", Section("uncertainty", "uncertainty", "Type B inputs of the "
+            "uncertainty budget, as ± half-widths of a rectangular distribution. A key left out "
+            "takes the default in reports/uncertainty.py and the report says it was assumed.", (
+                Key("table_rate_accuracy_ppm", _num(0.0), "rate accuracy of the table (its "
+                    "calibration certificate), ppm", False),
+                Key("chamber_temp_accuracy_c", _num(0.0), "chamber sensor plus uniformity, °C",
+                    False),
+                Key("latitude_accuracy_deg", _num(0.0), "site latitude, deg", False),
+                Key("axis_tilt_deg", _num(0.0), "input axis to the local vertical, deg", False),
+            )), "type B accuracies", False),
+    ))
+
+# -- procedure -----------------------------------------------------------------------------
+
+_SOAK_KEYS = (
+    Key("tolerance_c", _q(TEMPERATURE, above=0.0),
+        "the chamber is stable when it stays within ± this of the setpoint"),
+    Key("hold", _duration(), "how long it must stay within the tolerance"),
+    Key("max_wait", _duration(), "give up (a fault, exit 3) if the soak has not succeeded "
+        "after this long; must be at least `hold`"),
+)
+
+SOAK_DEFAULT = Section(
+    "defaults-soak", "defaults.soak",
+    "The soak criterion every temperature step uses unless it gives its own. All three "
+    "keys are needed here.",
+    _SOAK_KEYS)
+
+SOAK_STEP = Section(
+    "sequence-soak", "sequence[].soak",
+    "A soak criterion for one temperature step; a key left out comes from `defaults.soak`.",
+    tuple(Key(k.name, k.value, k.doc, required=False, default="defaults.soak." + k.name)
+          for k in _SOAK_KEYS))
+
+_COMMON_TEST_KEYS = (
+    Key("kind", _choice(proc.TEST_KINDS), "what the test measures (selects the keys below)"),
+    Key("repeats", _int(1, 100), "run the test this many times in a row", False, "1"),
+    Key("label", _text(), "a name shown in the plan and the report", False),
+)
+
+_HOLD_KEYS = (
+    *_COMMON_TEST_KEYS,
+    Key("duration", _duration(), "how long the table stays at rest while the gyro is logged"),
+    Key("settle", _duration(positive=False), "time at rest before logging starts (not logged)",
+        False, "defaults.settle, else 0 s"),
+)
+
+TEST_STATIC = Section(
+    "test-static", "test kind: static",
+    "The table at rest: the gyro's bias at this temperature (Earth rate removed by the "
+    "station latitude).", _HOLD_KEYS)
+
+TEST_ALLAN = Section(
+    "test-allan", "test kind: allan",
+    "A long static hold analysed with the Allan deviation: the noise terms Q, N, B, K, R "
+    "(and a Markov term when one shows). Hours, not minutes: B needs τ of ~1000 s and the "
+    "record should be ten times longer.", _HOLD_KEYS)
+
+SCHEDULE = Section(
+    "test-sf_sweep-schedule", "sf_sweep schedule",
+    "Rates generated instead of listed: `count` rates from `start_dps` to `stop_dps`, "
+    "evenly (linear) or geometrically (log) spaced, rounded to what a table command carries.",
+    (
+        Key("spacing", _choice(proc.SPACINGS), "linear or log spacing"),
+        Key("start_dps", _q(RATE, above=0.0), "the smallest rate"),
+        Key("stop_dps", _q(RATE, above=0.0), "the largest rate (at least start_dps)"),
+        Key("count", _int(1, proc.MAX_LIST), "how many rates"),
+    ))
+
+TEST_SWEEP = Section(
+    "test-sf_sweep", "test kind: sf_sweep",
+    "Scale factor: the table turns at +rate then −rate for each rate, and "
+    "SF = (V₊ − V₋) / 2Ω. Give the rates either as a list (`rates_dps`) or as a "
+    "`schedule`, not both.",
+    (
+        *_COMMON_TEST_KEYS,
+        Key("rates_dps", ListOf(_q(RATE, above=0.0)),
+            "rate magnitudes in order (positive; `directions` sets the signs); each at most "
+            "the procedure's and the station's table limit", False),
+        Key("schedule", SCHEDULE, "generated rates (instead of `rates_dps`)", False),
+        Key("directions", _choice(proc.DIRECTIONS), "which signs are dwelt at", False, "both"),
+        Key("dwell", _duration(), "logged time at each rate", False, "defaults.dwell"),
+        Key("settle", _duration(positive=False), "time after the table reaches a rate before "
+            "logging", False, "defaults.settle"),
+        Key("accel_dps2", _q(ACCELERATION, above=0.0), "table acceleration between rates",
+            False, "defaults.accel_dps2"),
+        Key("min_revolutions", _int(1, 1000), "round each dwell up to at least this many whole "
+            "table revolutions (cancels effects that repeat once a turn)", False),
+    ))
+
+TEMPERATURE_STEP = Section(
+    "sequence", "sequence[] (a temperature step)",
+    "One chamber setpoint: ramp to it, soak until stable, then run its tests in order.",
+    (
+        Key("setpoint_c", _q(TEMPERATURE, -273.15), "chamber setpoint, within the procedure's "
+            "and the station's chamber limits"),
+        Key("ramp_c_per_min", _q(TEMPERATURE_RATE, above=0.0), "how fast the setpoint is walked "
+            f"(at least {proc.MIN_RAMP_C_PER_MIN} °C/min)", False, "defaults.ramp_c_per_min"),
+        Key("soak", SOAK_STEP, "when the chamber counts as stable", False, "defaults.soak"),
+        Key("label", _text(), "a name shown in the plan and the report", False),
+        Key("tests", ListOf(Variants("kind", (("static", TEST_STATIC), ("sf_sweep", TEST_SWEEP),
+                                              ("allan", TEST_ALLAN))), min_items=0),
+            "what is measured at this temperature, in order (an empty list just soaks)", False),
+    ))
+
+ACCEPTANCE = Section(
+    "acceptance", "acceptance[] (a limit)",
+    "One pass/fail limit on a number of `report/results.json`. Give exactly one of `max` "
+    "or `min`. The metric must be one the sequence measures (a sweep for nonlinearity, "
+    "sweeps at two temperatures for the temperature sensitivity, …); the list of metrics "
+    "is in [the results reference](results.md#metrics).",
+    (
+        Key("name", _text(), "how the limit is shown in the report (unique)"),
+        Key("metric", _choice(tuple(METRICS)), "the results.json key path judged"),
+        Key("max", _num(), "the largest value that passes", False),
+        Key("min", _num(), "the smallest value that passes", False),
+        Key("unit", _text(), "the limit's unit, checked against the metric's own unit "
+            "(spelling-insensitive: `°/√h` = `deg/sqrt(h)`)", False),
+        Key("decision_rule", _choice(("simple", "guarded")), "`simple`: the value against the "
+            "limit; `guarded`: value ± U must lie inside the limit to PASS (ILAC-G8), outside "
+            "it to FAIL, otherwise CONDITIONAL", False, "simple"),
+    ))
+
+MOUNTING = Section(
+    "mountings", "mountings[] (a fixture face)",
+    "For a three-axis IMU in a hexahedron fixture: which IMU axis points up the table axis. "
+    "Every axis (x, y, z) must be up once. The plan gets a `remount` step per mounting, "
+    "where the run waits for `gyrocal confirm RUN_DIR`.",
+    (
+        Key("name", _text(), "letters, digits, - and _ (part of every step id, e.g. `MY`)"),
+        Key("up", _text(), "the IMU axis with its sign: `+x`, `-y`, `z`"),
+        Key("face", _text(), "the fixture face the operator is told to use", False),
+    ))
+
+_DEFAULTS = Section(
+    "defaults", "defaults",
+    "What temperature steps and tests inherit when they leave a key out. A key needed by a "
+    "step or test that is neither given there nor here is an error naming both places.",
+    (
+        Key("ramp_c_per_min", _q(TEMPERATURE_RATE, above=0.0), "chamber ramp rate", False),
+        Key("soak", SOAK_DEFAULT, "soak criterion", False),
+        Key("dwell", _duration(), "logged time at each rate of a sweep", False),
+        Key("settle", _duration(positive=False), "time before logging starts", False),
+        Key("accel_dps2", _q(ACCELERATION, above=0.0), "table acceleration", False),
+        Key("sample_rate_hz", _q(FREQUENCY, above=0.0), "logging rate; at most the gyro's "
+            "output rate (station `gyro.sample_rate_hz`)", False, "the station's gyro rate"),
+    ))
+
+PROCEDURE_ROOT = Section(
+    "procedure", "top level",
+    "A procedure says what to measure: at which temperatures, which rates, for how long, and "
+    "what passes. It names a station (with what) and may run on any station whose limits "
+    "contain its own.",
+    (
+        Key("version", Scalar("integer", constant=proc.PROCEDURE_VERSION), "language version"),
+        Key("name", _text(), "shown in the plan, the report and the certificate"),
+        Key("description", _text(), "free text", False),
+        Key("unit_under_test", Section(
+            "unit_under_test", "unit_under_test", "The gyro being calibrated. A unit is "
+            "identified by model and serial together (the runs database and `history` use both).",
+            (
+                Key("model", _text(), "the gyro's model"),
+                Key("serial", Scalar("serial"), "its serial number (digits are read as text)"),
+                Key("output_units", _choice(proc.OUTPUT_UNITS), "what the gyro outputs"),
+                Key("nominal_scale_factor", _num(above=0.0), "output units per deg/s, from "
+                    "the data sheet; a measured SF far from it makes the run INVALID"),
+            )), "the gyro being calibrated"),
+        Key("station", Either((Scalar("path"), STATION_ROOT)), "the station file, relative to this procedure (or a station mapping written "
+            "inline); `--station` on the command line overrides it"),
+        Key("safety", Section(
+            "safety", "safety", "The procedure's own hard limits; they must lie inside the "
+            "station's, and every setpoint, ramp, rate and acceleration is checked against both.",
+            (
+                Key("chamber", Section("safety-chamber", "safety.chamber", "Chamber limits.", (
+                    Key("min_temp_c", _q(TEMPERATURE, -273.15), "lowest setpoint"),
+                    Key("max_temp_c", _q(TEMPERATURE, -273.15), "highest setpoint"),
+                    Key("max_ramp_c_per_min", _q(TEMPERATURE_RATE, above=0.0), "fastest ramp"),
+                )), "chamber limits"),
+                Key("table", Section("safety-table", "safety.table", "Rate-table limits.", (
+                    Key("max_rate_dps", _q(RATE, above=0.0), "largest rate magnitude"),
+                    Key("max_accel_dps2", _q(ACCELERATION, above=0.0), "largest acceleration"),
+                )), "rate-table limits"),
+            )), "hard limits"),
+        Key("defaults", _DEFAULTS, "values inherited by steps and tests", False),
+        Key("data_quality", Section(
+            "data_quality", "data_quality", "When a logged step is good enough to keep.", (
+                Key("max_lost_frame_fraction", _num(0.0, 0.5), "lost + CRC-failed frames per "
+                    "logged step above which the step is repeated"),
+                Key("max_step_repeats", _int(0, 20), "how often a bad step is repeated before "
+                    "the run faults"),
+                Key("sf_tolerance_pct", _num(above=0.0, maximum=100.0), "how far (%) the "
+                    "measured SF may lie from `nominal_scale_factor` before the run is INVALID",
+                    False, "5"),
+            )), "data-quality thresholds"),
+        Key("sequence", ListOf(TEMPERATURE_STEP), "the temperature steps, in order"),
+        Key("acceptance", ListOf(ACCEPTANCE, min_items=0), "pass/fail limits", False),
+        Key("mountings", ListOf(MOUNTING), "fixture faces of a three-axis IMU calibration",
+            False),
+        Key("mounting_order", _choice(proc.MOUNTING_ORDERS), "`temperatures_inside`: every "
+            "temperature in one mounting, then remount; `mountings_inside`: every mounting at "
+            "each temperature (only with `mountings`)", False, "temperatures_inside"),
+        Key("max_duration", _duration(), "the longest the plan may take (at most 90 days)",
+            False, "14 d"),
+        Key("templates", Scalar("anything"), "free-form: a home for YAML anchors "
+            "(`&sweep`) reused elsewhere with `*sweep` or `<<: *sweep`", False),
+    ))
+
+# -- gyro model ------------------------------------------------------------------------------
+
+NOISE = Section(
+    "noise", "noise",
+    "IEEE Std 952 noise coefficients of the rate noise; a key left out is 0. Allan variance: "
+    "σ²(τ) = 3Q²/τ² + N²/τ + (2 ln2/π)·B² + K²τ/3 + R²τ²/2.",
+    tuple(Key(t.model_key, _num(0.0), f"{t.symbol}, {t.name}, {t.unit}", False, "0")
+          for t in NOISE_TERMS))
+
+
+def _effect_section(name: str) -> Section:
+    effect = EFFECTS[name]
+    keys = [Key("name", Scalar("choice", choices=(name,)), "the effect's catalogue name")]
+    for param in effect.params:
+        minimum = None if param.minimum == float("-inf") else param.minimum
+        value = _num(above=minimum) if param.minimum_exclusive else _num(minimum)
+        keys.append(Key(param.key, value, f"{param.description} ({param.unit})"))
+    return Section(f"effect-{name}", f"effect: {name}",
+                   f"{effect.cause}. `{effect.equation}`.", tuple(keys))
+
+
+EFFECT_VARIANTS = Variants("name", tuple((name, _effect_section(name)) for name in EFFECTS))
+
+_MODEL_NUMBERS = (
+    Key("reference_temp_c", _num(), "T0, the temperature the coefficients refer to", False, "0"),
+    Key("bias_dph", _num(), "bias at T0, deg/h", False, "0"),
+    Key("bias_tempco_dph_per_c", _num(), "bias change per °C from T0, deg/h/°C", False, "0"),
+    Key("sf_error_ppm", _num(), "scale-factor error at T0, ppm", False, "0"),
+    Key("sf_tempco_ppm_per_c", _num(), "scale-factor change per °C, ppm/°C", False, "0"),
+)
+
+MODEL_V1 = Section(
+    "model-v1", "version 1 (one axis)",
+    "A single-axis gyro: output = scale_factor · ω_ind with "
+    "ω_ind = (1 + 1e-6·s(T))·ω_t + NL(ω_t) + [b(T) + bias effects + w(t)] / 3600, "
+    "s(T) = sf_error_ppm + sf_tempco_ppm_per_c·ΔT, "
+    "b(T) = bias_dph + bias_tempco_dph_per_c·ΔT + earth_rate_dph, ΔT = T − reference_temp_c. "
+    "Every key but `version` and `scale_factor` may be left out (0, or no effect).",
+    (
+        Key("version", Scalar("integer", constant=1), "1"),
+        Key("name", _text(), "free text", False),
+        Key("output_units", _choice(MODEL_OUTPUT_UNITS), "informational", False, "deg/s"),
+        Key("scale_factor", _num(), "output units per deg/s (non-zero)"),
+        *_MODEL_NUMBERS,
+        Key("earth_rate_dph", _num(), "Earth-rate component along the input axis, deg/h "
+            "(15.041067·sin(latitude) for an axis pointing up)", False, "0"),
+        Key("noise", NOISE, "noise coefficients", False),
+        Key("effects", ListOf(EFFECT_VARIANTS, min_items=0), "catalogue effects, each at "
+            "most once", False),
+    ))
+
+MODEL_AXIS = Section(
+    "model-v2-axis", "axes.x / axes.y / axes.z",
+    "One axis of a version-2 model: the keys of a version-1 model without `version` and "
+    "without `earth_rate_dph` (an IMU's Earth rate is a vector set by the mounting and the "
+    "latitude). `output_units` and `reference_temp_c` default to the file's.",
+    tuple(k for k in MODEL_V1.keys if k.name not in ("version", "earth_rate_dph")))
+
+_MATRIX_PAIRS = tuple(f"{a}{b}" for a in AXES for b in AXES if a != b)
+
+MODEL_V2 = Section(
+    "model-v2", "version 2 (three-axis IMU)",
+    "Three single-axis models coupled by input-referred misalignment: axis i senses "
+    "E_ij (µrad) of the rate about axis j, E_ij(T) = misalignment_urad + "
+    "misalignment_tempco_urad_per_c·ΔT.",
+    (
+        Key("version", Scalar("integer", constant=2), "2"),
+        Key("name", _text(), "free text", False),
+        Key("output_units", _choice(MODEL_OUTPUT_UNITS), "informational", False, "deg/s"),
+        Key("reference_temp_c", _num(), "T0 of every axis", False, "0"),
+        Key("axes", Section("model-v2-axes", "axes", "The three axes, all required.", tuple(
+            Key(a, MODEL_AXIS, f"axis {a}") for a in AXES)), "the three axes"),
+        Key("misalignment_urad", Section("model-v2-misalignment", "misalignment_urad",
+            "Off-diagonal elements by row then column axis: " + ", ".join(_MATRIX_PAIRS)
+            + "; an element left out is 0.",
+            tuple(Key(p, _num(), f"E_{p}", False, "0") for p in _MATRIX_PAIRS)),
+            "E_ij at T0, µrad", False),
+        Key("misalignment_tempco_urad_per_c", Section(
+            "model-v2-misalignment-tempco", "misalignment_tempco_urad_per_c",
+            "Temperature coefficients of the same elements; an element left out is 0.", tuple(Key(p, _num(), f"E_{p} per °C", False, "0") for p in _MATRIX_PAIRS)),
+            "E_ij change per °C, µrad/°C", False),
+    ))
+
+PROCEDURE = Language(
+    "procedure", "Procedure file", "", PROCEDURE_ROOT,
+    "docs/reference/procedure.md", "docs/schemas/procedure.schema.json",
+    ("procedures/smoke.yaml",))
+STATION = Language(
+    "station", "Station file", "", STATION_ROOT,
+    "docs/reference/station.md", "docs/schemas/station.schema.json", ("stations/sim.yaml",))
+MODEL = Language(
+    "model", "Gyro model file", "", Either((MODEL_V1, MODEL_V2)),
+    "docs/reference/model.md", "docs/schemas/model.schema.json", ("gyro-models/nominal-fog.yaml",))
+LANGUAGES = (PROCEDURE, STATION, MODEL)
+
+#: what each acceptance metric needs from the sequence, in words (for the results reference)
+METRIC_NEEDS = {key: NEEDS_TEXT[metric.needs] for key, metric in METRICS.items()}
+
+
+def section_at(root: Shape, path: tuple[str | int, ...], data: object = None
+               ) -> tuple[Section | None, Key | None]:
+    """The section a key path lies in and the key itself (None where the path leaves the
+    description): how a validation error finds the part of the reference that explains it.
+    ``data`` (the loaded document) picks the variant: a test's ``kind``, a model's version."""
+    shape: Shape = root
+    section: Section | None = None
+    key: Key | None = None
+    for part in path:
+        shape = choose(shape, data)
+        if isinstance(shape, ListOf) and isinstance(part, int):
+            shape = shape.item
+        elif isinstance(shape, Section) and isinstance(part, str):
+            section, key = shape, shape.key(part)
+            if key is None:
+                return section, None
+            shape = key.value
+        else:
+            return section, key
+        data = _child(data, part)
+    return section, key
+
+
+def _child(data: object, part: str | int) -> object:
+    if isinstance(data, dict) and isinstance(part, str):
+        return data.get(part)
+    if isinstance(data, list) and isinstance(part, int) and 0 <= part < len(data):
+        return data[part]
+    return None
+
+
+def choose(shape: Shape, data: object) -> Shape:
+    """A Variants or Either resolved by the data it describes (its first option if none fits)."""
+    if isinstance(shape, Variants):
+        wanted = data.get(shape.discriminator) if isinstance(data, dict) else None
+        return next((s for name, s in shape.sections if name == wanted), shape.sections[0][1])
+    if isinstance(shape, Either):
+        for option in shape.options:
+            if isinstance(option, Section) and isinstance(data, dict):
+                version = option.key("version")
+                constant = version.value.constant if version and isinstance(
+                    version.value, Scalar) else None
+                if constant is None or data.get("version") == constant:
+                    return option
+            if isinstance(option, Scalar) and not isinstance(data, dict):
+                return option
+        return shape.options[0]
+    return shape
