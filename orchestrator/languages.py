@@ -403,7 +403,7 @@ ACCEPTANCE = Section(
     "One pass/fail limit on a number of `report/results.json`. Give exactly one of `max` "
     "or `min`. The metric must be one the sequence measures (a sweep for nonlinearity, "
     "sweeps at two temperatures for the temperature sensitivity, …); the list of metrics "
-    "is in [the results reference](results.md#metrics).",
+    "is in [the results reference](run-folder.md#metrics).",
     (
         Key("name", _text(), "how the limit is shown in the report (unique)"),
         Key("metric", _choice(tuple(METRICS)), "the results.json key path judged"),
