@@ -60,12 +60,22 @@ def _read_stats(path: Path, step_id: str) -> ChunkStats | None:
                       0.5 * (lo["table_rate_dps"] + hi["table_rate_dps"]))
 
 
+#: Chunks of one logged step follow each other within a sample period; a longer pause
+#: between chunks is time with nothing logged.
+UNLOGGED_GAP_S = 1.0
+
+
 def conditions(run_dir: Path, events: list[dict[str, Any]], plan: list[PlanStep]
                ) -> dict[str, list[float | None]]:
-    """Measured chamber °C and table °/s per chunk beside the plan's values for its step."""
+    """Measured chamber °C and table °/s per chunk beside the plan's values for its step.
+
+    Where nothing was logged (ramps, soaks, spin-ups between logged steps) a row of nulls
+    is put in, so the plot draws a gap instead of a line across time nobody measured (a
+    diagonal from -500 to +10 deg/s over an hour of soak reads as a table decelerating)."""
     by_step = {s.step_id: s for s in plan}
     out: dict[str, list[float | None]] = {"t_s": [], "chamber_c": [], "plan_c": [],
                                           "table_dps": [], "plan_dps": []}
+    last_end_s: float | None = None
     for event in events:
         if event.get("event") != "chunk_written" or "path" not in event:
             continue
@@ -74,6 +84,10 @@ def conditions(run_dir: Path, events: list[dict[str, Any]], plan: list[PlanStep]
         if stats is None:
             continue
         step = by_step.get(step_id)
+        if last_end_s is not None and stats.t_start_s - last_end_s > UNLOGGED_GAP_S:
+            for name, values in out.items():
+                values.append(0.5 * (last_end_s + stats.t_start_s) if name == "t_s" else None)
+        last_end_s = stats.t_end_s
         for t in (stats.t_start_s, stats.t_end_s):
             out["t_s"].append(t)
             out["chamber_c"].append(stats.chamber_c)

@@ -11,6 +11,7 @@ a browser test that skips is a check not made.
 from __future__ import annotations
 
 import os
+import re
 import threading
 from pathlib import Path
 from typing import Any
@@ -54,7 +55,11 @@ def test_live_page_shows_paused_then_follows_the_run_to_its_fault(
         timeline = browser.find_elements(By.CSS_SELECTOR, "#timeline div")
         assert len(timeline) == len(h.SMALL_PLAN)
         assert "paused" in browser.find_element(By.ID, "events").text
-        assert browser.find_element(By.ID, "eta").text != "--:--:--"
+        # time remaining is a labelled duration, not something that reads as a clock time
+        remaining = browser.find_element(By.ID, "remaining").text
+        assert remaining.startswith("remaining (procedure time) "), remaining
+        assert re.fullmatch(r"(\d+ h \d\d min \d\d s|\d+ min \d\d s|\d+ s)",
+                            browser.find_element(By.ID, "eta").text)
 
         (out / "PAUSE").unlink()                      # the operator lets it go on
         wait.until(lambda b: b.find_element(By.TAG_NAME, "body").get_attribute("data-state")
@@ -73,6 +78,13 @@ def test_live_page_shows_paused_then_follows_the_run_to_its_fault(
         done = browser.find_elements(By.CSS_SELECTOR, "#timeline div.done")
         assert len(done) == 7
         assert len(browser.find_elements(By.CSS_SELECTOR, "#signal canvas")) == 1
+        # nothing is logged during spin-ups, ramps and soaks: the table-rate plot has a gap
+        # (a null) between logged steps, never a line drawn across them
+        t_s, rate = browser.execute_script("return [plots.table.data[0], plots.table.data[1]];")
+        gaps = [i for i, v in enumerate(rate) if v is None]
+        assert gaps and all(0 < i < len(rate) - 1 for i in gaps)
+        assert all(rate[i - 1] is not None and rate[i + 1] is not None for i in gaps)
+        assert all(t_s[i + 1] - t_s[i - 1] > 1.0 for i in gaps)
         if os.environ.get("GYROCAL_SCREENSHOTS"):    # how docs/watch-page.png is made
             browser.save_screenshot(str(Path(os.environ["GYROCAL_SCREENSHOTS"]) / "watch-page.png"))
     finally:

@@ -5,11 +5,15 @@ const api = "api/snapshot" + (token ? "?token=" + encodeURIComponent(token) : ""
 const POLL_MS = 1000;
 const plots = {};
 
-function hms(s) {
-  if (s === null || s === undefined) return "--:--:--";
-  s = Math.max(0, Math.floor(s));
+// A duration in words: "1 h 02 min 05 s", never to be read as a clock time.
+function duration(s) {
+  if (s === null || s === undefined) return "–";
+  s = Math.max(0, Math.round(s));
+  const h = Math.floor(s / 3600), m = Math.floor((s % 3600) / 60), sec = s % 60;
   const p = (n) => String(n).padStart(2, "0");
-  return p(Math.floor(s / 3600)) + ":" + p(Math.floor((s % 3600) / 60)) + ":" + p(s % 60);
+  if (h) return h + " h " + p(m) + " min " + p(sec) + " s";
+  if (m) return m + " min " + p(sec) + " s";
+  return sec + " s";
 }
 
 function text(id, value) { document.getElementById(id).textContent = value; }
@@ -36,8 +40,8 @@ function render(doc) {
   document.getElementById("paused").className = s.paused ? "on" : "";
   text("step", s.current_index + "/" + s.step_count);
   text("current", s.current_step ? s.current_step : "");
-  text("eta", hms(s.eta_s));
-  text("age", hms(s.last_event_age_s));
+  text("eta", s.state === "done" ? "0 s" : duration(s.eta_s));
+  text("age", duration(s.last_event_age_s));
   text("stale", s.stale ? "STALE — controller alive but silent" : "");
   text("holder", s.lock ? "held by pid " + s.lock.pid + " on " + s.lock.host
                         : (s.live ? "controller running" : "no controller"));
@@ -52,7 +56,7 @@ function render(doc) {
     d.className = done.has(p.step_id) ? "done"
       : (p.step_id === s.current_step ? (faultSteps.has(p.step_id) && s.state !== "running"
                                          ? "faultstep" : "current") : "todo");
-    d.title = p.step_id + " (" + p.kind + ", " + hms(p.expected_s) + ")";
+    d.title = p.step_id + " (" + p.kind + ", " + duration(p.expected_s) + ")";
     return d;
   }));
 
