@@ -23,6 +23,7 @@ from pathlib import Path
 from urllib.parse import parse_qs, urlsplit
 
 from gyrocal.orchestrator.record.run_folder import RunFolderError
+from gyrocal.orchestrator.watch.outcome import REPORT, read_outcome
 from gyrocal.orchestrator.watch.samples import conditions, step_signal
 from gyrocal.orchestrator.watch.snapshot import read_events, read_snapshot
 
@@ -45,7 +46,7 @@ def page_data(run_dir: Path) -> dict:
     snap = read_snapshot(run_dir)
     events = read_events(run_dir)
     return {"snapshot": snap.to_json(), "conditions": conditions(run_dir, events, snap.plan),
-            "signal": step_signal(run_dir, events)}
+            "signal": step_signal(run_dir, events), "outcome": read_outcome(run_dir).to_json()}
 
 
 class WatchHandler(BaseHTTPRequestHandler):
@@ -87,6 +88,13 @@ class WatchHandler(BaseHTTPRequestHandler):
             except (RunFolderError, ValueError) as exc:
                 self._send(HTTPStatus.SERVICE_UNAVAILABLE, json.dumps(
                     {"error": str(exc)}).encode(), "application/json")
+            return
+        if url.path == "/" + REPORT:      # the finished run's report, linked from the page
+            report = self.run_dir / REPORT
+            if report.is_file():
+                self._send(HTTPStatus.OK, report.read_bytes(), _TYPES[".html"])
+            else:
+                self._send(HTTPStatus.NOT_FOUND, b"no report yet\n", "text/plain")
             return
         name = _FILES.get(url.path)
         if name is None:

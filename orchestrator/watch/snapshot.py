@@ -19,6 +19,7 @@ from typing import Any
 
 from gyrocal.orchestrator.locks import LockHolder, holder
 from gyrocal.orchestrator.record.run_folder import JOURNAL, MANIFEST, RunFolderError
+from gyrocal.orchestrator.watch.event_text import describe_event
 
 PLAN_FILE = "plan.json"
 
@@ -175,18 +176,10 @@ def _procedure_name(events: list[dict[str, Any]]) -> str:
 
 def _line(event: dict[str, Any]) -> EventLine:
     name = str(event.get("event", "?"))
-    skip = {"seq", "wall_time", "event", "prev_sha256", "step_id", "signature", "identity",
-            "inputs"}
-    detail = event.get("message") or ", ".join(
-        f"{k}={_short(v)}" for k, v in sorted(event.items()) if k not in skip)
+    detail = describe_event(event)
     return EventLine(int(event.get("seq", 0) or 0), float(event.get("wall_time", 0.0) or 0.0),
                      name, str(event.get("step_id") or event.get("before_step") or ""),
                      str(detail), name in FAULT_EVENTS)
-
-
-def _short(value: Any) -> str:
-    text = value if isinstance(value, str) else json.dumps(value, default=str, ensure_ascii=False)
-    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _num(value: Any) -> float | None:

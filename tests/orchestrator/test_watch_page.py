@@ -10,6 +10,7 @@ a browser test that skips is a check not made.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import threading
@@ -54,7 +55,17 @@ def test_live_page_shows_paused_then_follows_the_run_to_its_fault(
         assert not browser.find_element(By.ID, "faultbox").is_displayed()
         timeline = browser.find_elements(By.CSS_SELECTOR, "#timeline div")
         assert len(timeline) == len(h.SMALL_PLAN)
-        assert "paused" in browser.find_element(By.ID, "events").text
+        events = browser.find_element(By.ID, "events").text
+        assert "paused" in events
+        # the journal as readable lines: units from the key names, no hashes, no raw dicts
+        assert re.search(r"chamber -?\d+(\.\d+)? °C", events), events
+        assert re.search(r"table rate -?[\d.e-]+ deg/s", events), events
+        assert not re.search(r"[0-9a-f]{64}", events)
+        assert "{" not in events and "prev_sha256" not in events
+        # a dry run on simulated time has no clock-time end; the page says why
+        assert browser.find_element(By.ID, "ends").text == \
+            "expected end as fast as the machine allows (simulated time)"
+        assert not browser.find_element(By.ID, "verdictbox").is_displayed()
         # time remaining is a labelled duration, not something that reads as a clock time
         remaining = browser.find_element(By.ID, "remaining").text
         assert remaining.startswith("remaining (procedure time) "), remaining
@@ -78,6 +89,9 @@ def test_live_page_shows_paused_then_follows_the_run_to_its_fault(
         done = browser.find_elements(By.CSS_SELECTOR, "#timeline div.done")
         assert len(done) == 7
         assert len(browser.find_elements(By.CSS_SELECTOR, "#signal canvas")) == 1
+        events = browser.find_element(By.ID, "events").text
+        assert re.search(r"\d+ samples written \(attempt1-chunk\d+\.parquet\)", events), events
+        assert not re.search(r"[0-9a-f]{64}", events)
         # nothing is logged during spin-ups, ramps and soaks: the table-rate plot has a gap
         # (a null) between logged steps, never a line drawn across them
         t_s, rate = browser.execute_script("return [plots.table.data[0], plots.table.data[1]];")
@@ -87,6 +101,44 @@ def test_live_page_shows_paused_then_follows_the_run_to_its_fault(
         assert all(t_s[i + 1] - t_s[i - 1] > 1.0 for i in gaps)
         if os.environ.get("GYROCAL_SCREENSHOTS"):    # how docs/watch-page.png is made
             browser.save_screenshot(str(Path(os.environ["GYROCAL_SCREENSHOTS"]) / "watch-page.png"))
+    finally:
+        browser.quit()
+        server.stop()
+
+
+def test_a_finished_run_shows_its_verdict_and_links_its_report(h: Any, tmp_path: Path) -> None:
+    """"done" is not enough: the page shows the verdict the report reached, why, and a link
+    that opens the report itself (served read-only from the run folder)."""
+    out = tmp_path / "run"
+    code = main(["run", str(h.write_procedure(tmp_path)), "--sim", "--out", str(out),
+                 "--seed", "5"])
+    results = json.loads((out / "report" / "results.json").read_text())
+    verdict = results["verdict"]["overall"]
+    assert code == (0 if verdict == "PASS" else 1)
+    server = WatchServer(out).start()
+    browser = headless_chromium()
+    try:
+        browser.get(server.url)
+        wait = WebDriverWait(browser, PATIENCE_S, poll_frequency=0.2)
+        box = browser.find_element(By.ID, "verdictbox")
+        wait.until(lambda b: box.is_displayed())
+        assert browser.find_element(By.ID, "state").text == "done"
+        assert browser.find_element(By.ID, "verdict").text == verdict
+        assert verdict in box.get_attribute("class").split()
+        assert browser.find_element(By.ID, "eta").text == "0 s"
+        assert browser.find_element(By.ID, "end").text == "ended"
+        failed = [a["name"] for a in results["acceptance"] if a["pass"] is False]
+        detail = browser.find_element(By.ID, "verdict_detail").text
+        assert all(name in detail for name in failed)
+        link = browser.find_element(By.ID, "report_link")
+        assert link.text == "open the report" and link.is_displayed()
+        if os.environ.get("GYROCAL_SCREENSHOTS"):
+            browser.save_screenshot(str(Path(os.environ["GYROCAL_SCREENSHOTS"])
+                                        / "watch-page-done.png"))
+        link.click()
+        wait.until(lambda b: b.current_url.endswith("/report/report.html"))
+        assert "Engine fault test" in browser.page_source
+        assert verdict in browser.find_element(By.TAG_NAME, "body").text
     finally:
         browser.quit()
         server.stop()

@@ -46,6 +46,9 @@ function render(doc) {
   text("holder", s.lock ? "held by pid " + s.lock.pid + " on " + s.lock.host
                         : (s.live ? "controller running" : "no controller"));
 
+  text("end", expectedEnd(s, doc.outcome));
+  showOutcome(s, doc.outcome);
+
   const done = new Set(s.completed);
   const faultSteps = new Set(s.faults.map((f) => f.step_id));
   const total = s.plan.reduce((a, p) => a + p.expected_s, 0) || 1;
@@ -85,6 +88,33 @@ function render(doc) {
   plot("signal", ["gyro"], [doc.signal.t_s, doc.signal.gyro]);
   document.body.dataset.seq = s.events.length ? s.events[s.events.length - 1].seq : 0;
   document.body.dataset.state = s.state;
+}
+
+// When the run should end, as a clock time with its day, or why there is none.
+function expectedEnd(s, outcome) {
+  if (s.state === "done") return "ended";
+  if (s.eta_s === null || s.eta_s === undefined) return "–";
+  const speed = outcome ? outcome.speed : null;
+  if (speed === "max") return "as fast as the machine allows (simulated time)";
+  const factor = Number(speed) > 0 ? Number(speed) : 1;
+  if (s.state !== "running") return "– (not running)";
+  const end = new Date(Date.now() + (s.eta_s / factor) * 1000);
+  const p = (n) => String(n).padStart(2, "0");
+  return end.getFullYear() + "-" + p(end.getMonth() + 1) + "-" + p(end.getDate()) + " "
+    + p(end.getHours()) + ":" + p(end.getMinutes()) + " (this computer's time)";
+}
+
+function showOutcome(s, outcome) {
+  const box = document.getElementById("verdictbox");
+  if (!outcome || !outcome.verdict) { box.className = ""; return; }
+  box.className = "on " + outcome.verdict;
+  text("verdict", outcome.verdict);
+  const why = outcome.failed.length ? "failed: " + outcome.failed.join(", ")
+    : outcome.reasons.join("; ");
+  text("verdict_detail", why);
+  const link = document.getElementById("report_link");
+  link.style.display = outcome.report ? "" : "none";
+  if (outcome.report) link.href = outcome.report + (token ? "?token=" + encodeURIComponent(token) : "");
 }
 
 async function poll() {
