@@ -126,7 +126,7 @@ def test_a_finished_run_shows_its_verdict_and_links_its_report(h: Any, tmp_path:
         assert browser.find_element(By.ID, "verdict").text == verdict
         assert verdict in box.get_attribute("class").split()
         assert browser.find_element(By.ID, "eta").text == "0 s"
-        assert browser.find_element(By.ID, "end").text == "ended"
+        assert browser.find_element(By.ID, "end").text == "– (the run has ended)"
         failed = [a["name"] for a in results["acceptance"] if a["pass"] is False]
         detail = browser.find_element(By.ID, "verdict_detail").text
         assert all(name in detail for name in failed)

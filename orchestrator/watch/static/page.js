@@ -92,7 +92,7 @@ function render(doc) {
 
 // When the run should end, as a clock time with its day, or why there is none.
 function expectedEnd(s, outcome) {
-  if (s.state === "done") return "ended";
+  if (s.state === "done") return "– (the run has ended)";
   if (s.eta_s === null || s.eta_s === undefined) return "–";
   const speed = outcome ? outcome.speed : null;
   if (speed === "max") return "as fast as the machine allows (simulated time)";
