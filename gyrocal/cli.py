@@ -157,8 +157,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--db", default="runs.duckdb")
     r.set_defaults(func=_lazy("gyrocal.reports.runs.commands", "cmd_runs_list"))
 
-    p = sub.add_parser("history", help="one serial across its calibrations: table and trend plot")
+    p = sub.add_parser("history", help="one unit (serial, and model when several share it) "
+                       "across its calibrations: table and trend plot")
     p.add_argument("serial")
+    p.add_argument("--model", default=None,
+                   help="the unit's model, when units of several models share the serial")
     p.add_argument("--db", default="runs.duckdb")
     p.add_argument("--plot", default=None, help="PNG path (default history-SERIAL.png)")
     p.set_defaults(func=_lazy("gyrocal.reports.runs.commands", "cmd_history"))

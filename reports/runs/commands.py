@@ -40,15 +40,16 @@ def cmd_runs_list(args: argparse.Namespace) -> int:
 
 def cmd_history(args: argparse.Namespace) -> int:
     try:
-        metrics, runs = database.history(Path(args.db), args.serial)
+        model, metrics, runs = database.history(Path(args.db), args.serial, args.model)
     except database.RunsDatabaseError as exc:
         return _bad_input(exc)
     if not runs:
         return _bad_input(ValueError(f"{args.serial}: no calibrated runs in {args.db} "
                                      "(`gyrocal runs list` shows what is indexed)"))
     series = trends(metrics, runs)
-    print(history_table(args.serial, series))
-    plot = history_plot(args.serial, series, Path(args.plot or f"history-{args.serial}.png"))
+    unit = f"{model} {args.serial}".strip()
+    print(history_table(unit, series))
+    plot = history_plot(unit, series, Path(args.plot or f"history-{args.serial}.png"))
     print(f"trend plot: {plot}")
     drifted = sorted({name for name, points in series.items() for p in points if p.drift})
     print("drift beyond uncertainty: " + (", ".join(drifted) if drifted else "none"))

@@ -143,14 +143,27 @@ def list_runs(db_path: Path) -> list[tuple]:
         con.close()
 
 
-def history(db_path: Path, serial: str) -> tuple[list[str], list[dict[str, Any]]]:
-    """(metric names, one row per run of ``serial`` with value/u/U per metric), oldest first."""
+def history(db_path: Path, serial: str, model: str | None = None
+            ) -> tuple[str, list[str], list[dict[str, Any]]]:
+    """(the unit's model, metric names, one row per run with value/u/U per metric), oldest
+    first. A unit is its model and serial together: two gyros of different models may share
+    a serial, and one's calibrations are not the other's history. With several models for
+    ``serial`` and no ``model``, :class:`RunsDatabaseError` names them."""
     con = _open_existing(db_path)
     try:
+        models = [row[0] for row in con.execute(
+            "SELECT DISTINCT model FROM runs WHERE serial = ? AND has_results ORDER BY model",
+            [serial]).fetchall()]
+        if model is None and len(models) > 1:
+            raise RunsDatabaseError(
+                f"{serial} is the serial of {len(models)} units (models "
+                + ", ".join(repr(m) for m in models) + "); give --model MODEL")
+        model = model if model is not None else (models[0] if models else "")
         rows = con.execute("""
             SELECT r.run_id, r.started_at, m.metric, m.value, m.u, m.expanded_u
             FROM runs r JOIN metrics m USING (run_id)
-            WHERE r.serial = ? ORDER BY r.started_at, r.run_id""", [serial]).fetchall()
+            WHERE r.serial = ? AND r.model = ? ORDER BY r.started_at, r.run_id""",
+                           [serial, model]).fetchall()
     finally:
         con.close()
     runs: dict[str, dict[str, Any]] = {}
@@ -160,7 +173,7 @@ def history(db_path: Path, serial: str) -> tuple[list[str], list[dict[str, Any]]
         entry["values"][metric] = (value, u, U)
         if metric not in metrics:
             metrics.append(metric)
-    return metrics, list(runs.values())
+    return model, metrics, list(runs.values())
 
 
 def run_dir_of(db_path: Path, run: str) -> Path:

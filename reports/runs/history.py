@@ -18,7 +18,19 @@ COVERAGE_K = 2.0
 
 #: what the table and plot show, in this order (others stay in the database)
 SHOWN = ("sf", "sf_tempco_ppm_per_c", "bias_dph", "bias_tempco_dph_per_c",
-         "nonlinearity_rms_pct", "arw_deg_per_rth", "bias_instability_dph")
+         "nonlinearity_rms_pct", "asymmetry_ppm", "arw_deg_per_rth", "bias_instability_dph")
+
+#: how the plot labels each metric: words and the unit
+LABELS = {
+    "sf": "scale factor\n(output/(deg/s))",
+    "sf_tempco_ppm_per_c": "SF temp. coeff.\n(ppm/°C)",
+    "bias_dph": "bias at ref. temp.\n(deg/h)",
+    "bias_tempco_dph_per_c": "bias temp. coeff.\n(deg/h/°C)",
+    "nonlinearity_rms_pct": "SF nonlinearity\nRMS (%)",
+    "asymmetry_ppm": "SF asymmetry\n(ppm)",
+    "arw_deg_per_rth": "angle random walk\n(deg/√h)",
+    "bias_instability_dph": "bias instability\n(deg/h)",
+}
 
 
 @dataclass(frozen=True)
@@ -89,7 +101,7 @@ def history_plot(serial: str, series: dict[str, list[Point]], path: Path) -> Pat
     import matplotlib.pyplot as plt
 
     shown = {k: v for k, v in series.items() if v}
-    fig, axes = plt.subplots(len(shown), 1, figsize=(8, 1.9 * max(1, len(shown))), sharex=True,
+    fig, axes = plt.subplots(len(shown), 1, figsize=(8, 2.0 * max(1, len(shown))), sharex=True,
                              squeeze=False)
     for ax, (name, points) in zip(axes[:, 0], shown.items(), strict=True):
         x = list(range(1, len(points) + 1))
@@ -104,7 +116,7 @@ def history_plot(serial: str, series: dict[str, list[Point]], path: Path) -> Pat
         if points[0].U is not None:
             ax.axhspan(points[0].value - points[0].U, points[0].value + points[0].U,
                        color="#36c", alpha=0.08)
-        ax.set_ylabel(name, fontsize=7)
+        ax.set_ylabel(LABELS.get(name, name), fontsize=7)
         ax.tick_params(labelsize=7)
         ax.ticklabel_format(axis="y", useOffset=False, style="plain")
         ax.grid(alpha=0.3)

@@ -1,11 +1,18 @@
 """The numbers a run's results.json contributes to the lab's database, one owner for their names.
 
 Each metric is a path into results.json with its unit in its name. Its
-uncertainty is taken from what the report provides: the GUM keys ``u`` (and
-``U``, expanded) that the uncertainty work adds beside values — either a
-mapping ``{"value": …, "u": …, "U": …}`` in place of the number, or
-``<key>_u``/``<key>_U`` siblings — or, for the Allan terms, the fit's standard
-error. Where none exists the uncertainty is NULL, never a guess.
+uncertainty is taken from what the report provides: the report's
+``uncertainty`` section (keyed by the value's path: ``scale_factor_ls.sf``,
+``asymmetry_ppm``, ``allan.fit.N_deg_per_rth``, ``bias@25``), else a mapping
+``{"value": …, "u": …, "U": …}`` in place of the number, or ``<key>_u``/``<key>_U``
+siblings, or for the Allan terms the fit's standard error. Where none exists the
+uncertainty is NULL, never a guess.
+
+The headline ``bias_dph`` is the bias at the report's reference temperature (the one the
+scale factor and the temperature coefficients refer to): the static bias measured there,
+or interpolated linearly between the two temperatures around it, with u and U the same
+weighted sums of theirs (an upper bound whatever the correlation between the two). Outside
+the measured temperatures there is no headline bias: extrapolating one is a guess.
 """
 
 from __future__ import annotations
@@ -32,6 +39,7 @@ METRICS: dict[str, tuple[str, ...]] = {
     "sf_instability_pct": ("sf_temperature", "instability_pct"),
     "bias_tempco_dph_per_c": ("bias_temperature", "sensitivity_dph_per_c"),
     "nonlinearity_rms_pct": ("nonlinearity", "rms_pct"),
+    "nonlinearity_max_ppm_fs": ("nonlinearity", "max_ppm_fs"),
     "asymmetry_ppm": ("asymmetry_ppm",),
     # the noise terms under their model-file names (models/noise_terms.py)
     **{t.model_key: ("allan", "fit", t.fit_key) for t in NOISE_TERMS},
@@ -44,6 +52,15 @@ def _number(value: Any) -> float | None:
     return float(value)
 
 
+def _reported_u(results: dict[str, Any], path: tuple[str, ...]) -> tuple[float | None, float | None]:
+    """u and U from the report's ``uncertainty`` section, keyed by the value's path."""
+    section = results.get("uncertainty")
+    entry = section.get(".".join(path)) if isinstance(section, dict) else None
+    if not isinstance(entry, dict):
+        return None, None
+    return _number(entry.get("u")), _number(entry.get("U"))
+
+
 def metric_values(results: dict[str, Any]) -> list[MetricValue]:
     out = []
     for name, path in METRICS.items():
@@ -54,24 +71,49 @@ def metric_values(results: dict[str, Any]) -> list[MetricValue]:
             continue
         key = path[-1]
         raw = container.get(key)
-        u = U = None
+        u, U = _reported_u(results, path)  # noqa: N806 - GUM's symbol
         if isinstance(raw, dict):                       # {"value": …, "u": …, "U": …}
             value = _number(raw.get("value"))
-            u, U = _number(raw.get("u")), _number(raw.get("U"))
+            u = u if u is not None else _number(raw.get("u"))
+            U = U if U is not None else _number(raw.get("U"))  # noqa: N806
         else:
             value = _number(raw)
-            u, U = _number(container.get(f"{key}_u")), _number(container.get(f"{key}_U"))
+            u = u if u is not None else _number(container.get(f"{key}_u"))
+            U = U if U is not None else _number(container.get(f"{key}_U"))  # noqa: N806
         if value is None:
             continue
         if u is None and path[:2] == ("allan", "fit"):
             fit_u = (results["allan"].get("fit_uncertainty") or {}).get(key) or {}
             u = _number(fit_u.get("stderr"))
         out.append(MetricValue(name, value, u, U))
-    bias = results.get("bias")
-    if isinstance(bias, list):   # the bias at the first temperature (static), per date
-        for entry in bias[:1]:
-            value = _number(entry.get("bias_dph")) if isinstance(entry, dict) else None
-            if value is not None:
-                out.append(MetricValue("bias_dph", value, _number(entry.get("u")),
-                                       _number(entry.get("U"))))
+    headline = bias_at_reference(results)
+    if headline is not None:
+        out.append(headline)
     return out
+
+
+def bias_at_reference(results: dict[str, Any]) -> MetricValue | None:
+    """The static bias at the reference temperature (see the module's docstring)."""
+    reference = _number(results.get("reference_temp_c"))
+    entries = [e for e in results.get("bias") or [] if isinstance(e, dict)
+               and _number(e.get("temp_c")) is not None and _number(e.get("bias_dph")) is not None]
+    if reference is None or not entries:
+        return None
+    entries.sort(key=lambda e: e["temp_c"])
+    for entry in entries:
+        if abs(entry["temp_c"] - reference) < 1e-9:
+            return MetricValue("bias_dph", float(entry["bias_dph"]), _number(entry.get("u")),
+                               _number(entry.get("U")))
+    below = [e for e in entries if e["temp_c"] < reference]
+    above = [e for e in entries if e["temp_c"] > reference]
+    if not below or not above:
+        return None
+    lo, hi = below[-1], above[0]
+    w = (reference - lo["temp_c"]) / (hi["temp_c"] - lo["temp_c"])
+    value = (1 - w) * lo["bias_dph"] + w * hi["bias_dph"]
+
+    def weighted(key: str) -> float | None:
+        a, b = _number(lo.get(key)), _number(hi.get(key))
+        return None if a is None or b is None else (1 - w) * a + w * b
+
+    return MetricValue("bias_dph", value, weighted("u"), weighted("U"))

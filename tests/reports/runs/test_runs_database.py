@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 import matplotlib.image
@@ -72,7 +73,7 @@ def test_history_of_ten_runs_prints_the_table_and_writes_the_plot(lab: Path, cap
     lines = out.splitlines()
     header = next(i for i, line in enumerate(lines) if line.startswith("date (UTC)"))
     rows = lines[header + 1: header + 1 + RUNS]
-    assert f"history of {SERIAL}: {RUNS} calibrations" in out
+    assert f"history of Simulated FOG {SERIAL}: {RUNS} calibrations" in out
     for run_dir in sorted((lab / "runs").iterdir()):
         results = results_of(run_dir)
         row = next(r for r in rows if results["run"]["run_id"] in r)
@@ -83,8 +84,11 @@ def test_history_of_ten_runs_prints_the_table_and_writes_the_plot(lab: Path, cap
         arw = cells[names.index("arw_deg_per_rth")]
         n_fit = results["allan"]["fit"]["N_deg_per_rth"]
         assert float(arw.split()[0]) == pytest.approx(n_fit, rel=1e-5)
-        u = results["allan"]["fit_uncertainty"]["N_deg_per_rth"]["stderr"]
-        assert float(arw.split("±")[1].split()[0]) == pytest.approx(2 * u, rel=0.05)
+        big_u = results["uncertainty"]["allan.fit.N_deg_per_rth"]["U"]
+        assert float(arw.split("±")[1].split()[0]) == pytest.approx(big_u, rel=0.05)
+        # SF carries its expanded uncertainty too (it was NULL: history could never flag SF)
+        sf_u = results["uncertainty"]["scale_factor_ls.sf"]["U"]
+        assert float(sf.split("±")[1].split()[0]) == pytest.approx(sf_u, rel=0.05)
     dates = [r.split("|")[0].strip() for r in rows]
     assert dates == sorted(dates)
     image = matplotlib.image.imread(plot)
@@ -154,8 +158,10 @@ def test_compare_prints_both_runs_and_writes_overlays(lab: Path, tmp_path: Path,
     ra, rb = results_of(a), results_of(b)
     sf_line = next(line for line in out.splitlines() if line.startswith("sf "))
     cells = [c.strip() for c in sf_line.split("|")]
-    assert float(cells[1]) == pytest.approx(ra["scale_factor_ls"]["sf"], rel=1e-5)
-    assert float(cells[2]) == pytest.approx(rb["scale_factor_ls"]["sf"], rel=1e-5)
+    assert float(cells[1].split("±")[0]) == pytest.approx(ra["scale_factor_ls"]["sf"], rel=1e-5)
+    assert float(cells[2].split("±")[0]) == pytest.approx(rb["scale_factor_ls"]["sf"], rel=1e-5)
+    assert float(cells[1].split("±")[1]) == pytest.approx(
+        ra["uncertainty"]["scale_factor_ls.sf"]["U"], rel=0.05)
     assert float(cells[3]) == pytest.approx(rb["scale_factor_ls"]["sf"] - ra["scale_factor_ls"]["sf"],
                                             rel=1e-3, abs=1e-9)
     assert matplotlib.image.imread(plot).shape[1] > 800
@@ -168,3 +174,109 @@ def test_bad_runs_inputs_are_exit_2(tmp_path: Path, capsys) -> None:
     assert main(["compare", str(tmp_path), str(tmp_path), "--db",
                  str(tmp_path / "x.duckdb")]) == EXIT_BAD_INPUT
     assert "neither a run folder nor a run id" in capsys.readouterr().err
+
+
+def _copy_run(source: Path, target: Path, run_id: str, started_at: str,
+              edit: Callable[[dict], None]) -> None:
+    shutil.copytree(source, target)
+    manifest = json.loads((target / "manifest.json").read_text())
+    manifest["run_id"] = run_id
+    manifest["started_at"] = started_at
+    results = results_of(target)
+    edit(results)
+    manifest["unit_under_test"] = results["unit_under_test"]
+    (target / "manifest.json").write_text(json.dumps(manifest))
+    (target / "report" / "results.json").write_text(json.dumps(results))
+
+
+def test_every_metric_with_an_uncertainty_stores_it_and_bias_is_at_the_reference_temperature(
+        lab: Path, tmp_path: Path) -> None:
+    import duckdb
+
+    run = sorted((lab / "runs").iterdir())[0]
+    db = tmp_path / "one.duckdb"
+    assert main(["runs", "index", str(run), "--db", str(db)]) == EXIT_OK
+    con = duckdb.connect(str(db), read_only=True)
+    stored = {m: (v, u, big_u) for m, v, u, big_u in con.execute(
+        "SELECT metric, value, u, expanded_u FROM metrics").fetchall()}
+    con.close()
+    results = results_of(run)
+    budget = results["uncertainty"]
+    for metric, key in (("sf", "scale_factor_ls.sf"), ("asymmetry_ppm", "asymmetry_ppm"),
+                        ("sf_tempco_ppm_per_c", "sf_temperature.sensitivity_ppm_per_c"),
+                        ("bias_tempco_dph_per_c", "bias_temperature.sensitivity_dph_per_c"),
+                        ("nonlinearity_rms_pct", "nonlinearity.rms_pct"),
+                        ("nonlinearity_max_ppm_fs", "nonlinearity.max_ppm_fs")):
+        value, u, big_u = stored[metric]
+        assert (u, big_u) == (pytest.approx(budget[key]["u"]), pytest.approx(budget[key]["U"])), \
+            metric
+        assert big_u > 0
+    # the smoke procedure measures the bias at 23 and 27 °C; the reference temperature is 25 °C,
+    # half-way: the headline is their mean, not the bias at the first temperature
+    assert results["reference_temp_c"] == 25.0
+    at = {b["temp_c"]: b for b in results["bias"]}
+    assert sorted(at) == [23.0, 27.0]
+    value, u, big_u = stored["bias_dph"]
+    assert value == pytest.approx(0.5 * (at[23.0]["bias_dph"] + at[27.0]["bias_dph"]))
+    assert value != pytest.approx(at[23.0]["bias_dph"])
+    assert u == pytest.approx(0.5 * (at[23.0]["u"] + at[27.0]["u"]))
+    assert big_u == pytest.approx(0.5 * (at[23.0]["U"] + at[27.0]["U"]))
+
+
+def test_sf_drift_is_judged_against_its_uncertainty(lab: Path, tmp_path: Path, capsys) -> None:
+    """A 0.3 U change of SF is not a drift; 20 U is, flagged against √(U² + U₀²)."""
+    first = sorted((lab / "runs").iterdir())[0]
+    big_u = results_of(first)["uncertainty"]["scale_factor_ls.sf"]["U"]
+
+    def shifted(by: float) -> Callable[[dict], None]:
+        def edit(results: dict) -> None:
+            results["scale_factor_ls"]["sf"] += by
+            results["uncertainty"]["scale_factor_ls.sf"]["value"] += by
+        return edit
+
+    _copy_run(first, tmp_path / "runs" / "a", "sf-within", "2031-01-01T00:00:00+0000",
+              shifted(0.3 * big_u))
+    _copy_run(first, tmp_path / "runs" / "b", "sf-drifted", "2031-01-02T00:00:00+0000",
+              shifted(20 * big_u))
+    db = tmp_path / "sf.duckdb"
+    assert main(["runs", "index", str(first), str(tmp_path / "runs"), "--db", str(db)]) == 0
+    capsys.readouterr()
+    plot = tmp_path / "h.png"
+    assert main(["history", SERIAL, "--db", str(db), "--plot", str(plot)]) == 0
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    header = next(line for line in lines if line.startswith("date (UTC)"))
+    sf_column = [c.strip() for c in header.split("|")].index("sf")
+    within = next(line for line in lines if "sf-within" in line).split("|")[sf_column]
+    drifted = next(line for line in lines if "sf-drifted" in line).split("|")[sf_column]
+    assert "±" in within and not within.strip().endswith("*")
+    assert drifted.strip().endswith("*")
+    assert "drift beyond uncertainty: sf" in out
+    assert matplotlib.image.imread(plot).shape[0] > 300
+
+
+def test_a_unit_is_its_model_and_serial(lab: Path, tmp_path: Path, capsys) -> None:
+    """Another model with the same serial is another gyro, never more calibrations of this one."""
+    runs = sorted((lab / "runs").iterdir())[:2]
+
+    def other_model(results: dict) -> None:
+        results["unit_under_test"]["model"] = "Other FOG"
+
+    _copy_run(runs[0], tmp_path / "runs" / "other", "other-model", "2031-01-01T00:00:00+0000",
+              other_model)
+    db = tmp_path / "units.duckdb"
+    assert main(["runs", "index", *map(str, runs), str(tmp_path / "runs"), "--db", str(db)]) == 0
+    capsys.readouterr()
+    assert main(["history", SERIAL, "--db", str(db)]) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert f"{SERIAL} is the serial of 2 units" in err and "'Other FOG'" in err
+    assert "'Simulated FOG'" in err and "--model" in err
+    plot = str(tmp_path / "h.png")
+    assert main(["history", SERIAL, "--model", "Simulated FOG", "--db", str(db), "--plot",
+                 plot]) == 0
+    out = capsys.readouterr().out
+    assert f"history of Simulated FOG {SERIAL}: 2 calibrations" in out and "other-model" not in out
+    assert main(["history", SERIAL, "--model", "Other FOG", "--db", str(db), "--plot",
+                 plot]) == 0
+    out = capsys.readouterr().out
+    assert f"history of Other FOG {SERIAL}: 1 calibrations" in out and "other-model" in out
