@@ -45,8 +45,8 @@ th{background:#eee}.pass{color:#070;font-weight:bold}.fail{color:#b00;font-weigh
 <table><tr><th>Limit</th><th>Metric</th><th>Value ± U (95 %)</th><th>Limit</th><th>Decision rule (guard band)</th><th>Decision</th></tr>
 {% for a in r.acceptance %}
 <tr><td>{{ a.name }}</td><td><code>{{ a.metric }}</code></td>
-<td>{{ vu(a.value, a.U) }} {{ a.unit or "" }}</td><td>{{ a.kind }} {{ fmt(a.limit) }} {{ a.unit or "" }}</td>
-<td>{{ a.decision_rule or "simple" }}{% if a.guard_band %} ({{ fmt(a.guard_band) }} {{ a.unit or "" }}){% endif %}</td>
+{% set unit = unit_of(a) %}<td>{{ vu(a.value, a.U) }} {{ unit }}</td><td>{{ a.kind }} {{ fmt(a.limit) }} {{ unit }}</td>
+<td>{{ a.decision_rule or "simple" }}{% if a.guard_band %} ({{ fmt(a.guard_band) }} {{ unit }}){% endif %}</td>
 <td>{% set d = a.decision or ("PASS" if a["pass"] else "FAIL") %}<span class="{{ 'pass' if d == 'PASS' else 'fail' }}">{{ d }}</span></td></tr>
 {% else %}<tr><td colspan="6">no acceptance limits in the procedure</td></tr>{% endfor %}
 </table>
@@ -77,20 +77,21 @@ SF over temperature: {% if r.sf_temperature %}instability {{ vu(r.sf_temperature
 {% if r.allan %}
 <p>Hold {{ r.allan.step_id }} at {{ fmt(r.allan.temp_c) }} °C, {{ fmt(r.allan.duration_s) }} s at {{ fmt(r.allan.rate_hz) }} Hz; {{ r.allan.method }}.</p>
 <table><tr><th>Term</th><th>Value ± U (95 %)</th><th>k</th><th>68 % interval</th></tr>
-{% for name, unit in terms %}{% set au = (r.allan.uncertainty or {})[name] %}<tr><td>{{ name }}</td><td>{{ vu(r.allan.fit[name], au and au.U) }} {{ unit }}</td><td>{{ fmt(au and au.k, 3) if au else "—" }}</td>
-<td>{% set u = r.allan.fit_uncertainty[name] %}{{ fmt(u.lo) }} … {{ fmt(u.hi) }}</td></tr>{% endfor %}
-<tr><td>Markov (σ, T<sub>c</sub>)</td><td colspan="3">{% if r.allan.fit.markov %}{{ fmt(r.allan.fit.markov.sigma_dph) }} deg/h, {{ fmt(r.allan.fit.markov.tau_s) }} s{% else %}not significant{% endif %}</td></tr>
+{% for name, label, unit in terms %}{% set au = (r.allan.uncertainty or {})[name] %}<tr><td>{{ label }}</td><td>{{ vu(r.allan.fit[name], au and au.U) }} {{ unit }}</td><td>{{ fmt(au and au.k, 3) if au else "—" }}</td>
+<td>{% set u = r.allan.fit_uncertainty[name] %}{{ fmt(u.lo) }} … {{ fmt(u.hi) }} {{ unit }}</td></tr>{% endfor %}
+<tr><td>Markov (correlated bias: σ, T<sub>c</sub>)</td><td colspan="3">{% if r.allan.fit.markov %}{{ fmt(r.allan.fit.markov.sigma_dph) }} deg/h, {{ fmt(r.allan.fit.markov.tau_s) }} s{% else %}not significant{% endif %}</td></tr>
 </table>
 {% if plots.allan %}<img alt="Allan deviation" src="data:image/png;base64,{{ plots.allan }}">{% endif %}
 {% else %}<p>Not computed.</p>{% endif %}
 
 <h2>Compensation tables</h2>
 {% for what, t in r.compensation.tables.items() %}
-<h3>{{ what }}</h3>
+{% set label, cunit = compensation[what] if what in compensation else (what, "") %}
+<h3>{{ label }} ({{ cunit }})</h3>
 {% for kind, table in t.items() %}{% if table %}
-<p>{{ table.kind }}: in-sample RMS residual {{ fmt(table.residual_rms) }}, leave-one-out RMS {{ fmt(table.loo_residual_rms) }}, max {{ fmt(table.loo_residual_max) }}
+<p>{{ table.kind }}: in-sample RMS residual {{ fmt(table.residual_rms) }} {{ cunit }}, leave-one-out RMS {{ fmt(table.loo_residual_rms) }} {{ cunit }}, max {{ fmt(table.loo_residual_max) }} {{ cunit }}
 {% if table.coefficients %}; coefficients (highest power first) {% for c in table.coefficients %}{{ fmt(c, 7) }}{% if not loop.last %}, {% endif %}{% endfor %}{% endif %}</p>
-<table><tr><th>Temp (°C)</th><th>Value ± U (95 %)</th><th>k</th></tr>{% for p in table.points %}{% set tu = (table.uncertainty or [])[loop.index0] %}<tr><td>{{ fmt(p[0]) }}</td><td>{{ vu(p[1], tu and tu.U) }}</td><td>{{ fmt(tu and tu.k, 3) if tu else "—" }}</td></tr>{% endfor %}</table>
+<table><tr><th>Temp (°C)</th><th>Value ± U (95 %, {{ cunit }})</th><th>k</th></tr>{% for p in table.points %}{% set tu = (table.uncertainty or [])[loop.index0] %}<tr><td>{{ fmt(p[0]) }}</td><td>{{ vu(p[1], tu and tu.U) }}</td><td>{{ fmt(tu and tu.k, 3) if tu else "—" }}</td></tr>{% endfor %}</table>
 {% endif %}{% else %}{% endfor %}
 {% endfor %}
 
@@ -124,7 +125,7 @@ Scale factor S<sub>ii</sub>; misalignment E<sub>ij</sub> = S<sub>ij</sub>/S<sub>
 <p>{{ r.journal.event_count }} events; {{ r.journal.retries }} retries, {{ r.journal.faults }} faults, {{ r.journal.bad_steps }} bad (repeated) steps.</p>
 <table><tr><th>#</th><th>Event</th><th>Details</th></tr>
 {% for e in r.journal.events %}<tr><td>{{ e.seq }}</td><td>{{ e.event }}</td>
-<td>{% for k, v in e.items() if k not in ("seq", "event", "wall_time") %}{{ k }}={{ v }}; {% endfor %}</td></tr>
+<td>{{ e.step_id or "" }} {{ describe(e) }}</td></tr>
 {% else %}<tr><td colspan="3">no retries, faults or bad steps</td></tr>{% endfor %}</table>
 
 <h2>Notes</h2>

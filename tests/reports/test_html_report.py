@@ -94,3 +94,64 @@ def test_values_carry_their_expanded_uncertainty_and_the_decision(smoke_run):
     for name, entry in results["allan"]["uncertainty"].items():
         shown = "{} ± {}".format(*round_to_uncertainty(entry["value"], entry["U"]))
         assert f"<td>{shown} " in html, name
+
+
+def _visible_text(html: str) -> str:
+    return re.sub(r"<[^>]+>", " ", re.sub(r'src="data:[^"]+"', "", html))
+
+
+def test_rows_read_as_words_with_units(evil_run):
+    """No raw results keys as labels; every residual, value and limit carries its unit."""
+    from gyrocal.models.noise_terms import FIT_KEYS
+
+    html = (evil_run / "report" / "report.html").read_text()
+    text = _visible_text(html)
+    for label in ("Q — quantization noise", "N — angle random walk", "B — bias instability",
+                  "K — rate random walk", "R — rate ramp"):
+        assert label in text, label
+    for key in FIT_KEYS:
+        assert key not in text, key
+    assert "Bias over temperature (deg/h)" in text
+    # the Allan terms' 68 % intervals carry the term's unit
+    assert re.search(r"\S+ … \S+ deg/√h", text)
+
+
+def test_compensation_residuals_carry_their_units(evil_run):
+    """Two temperatures give no residuals; with three (tables made by the report's own
+    builder) every residual is printed with the table's unit."""
+    from gyrocal.reports.build import _comp_tables
+    from gyrocal.reports.html_report import render_html
+
+    results = json.loads((evil_run / "report" / "results.json").read_text())
+    notes: list[str] = []
+    results["compensation"]["tables"] = {
+        "bias_dph": _comp_tables([[-10.0, 1.2], [25.0, 2.0], [60.0, 3.5]], "bias", notes),
+        "sf": _comp_tables([[-10.0, 0.99990], [25.0, 1.0], [60.0, 1.00012]], "sf", notes)}
+    assert not notes
+    text = _visible_text(render_html(results))
+    assert re.search(r"in-sample RMS residual \S+ deg/h, leave-one-out RMS \S+ deg/h, "
+                     r"max \S+ deg/h", text), "bias compensation residuals without units"
+    assert re.search(r"in-sample RMS residual \S+ deg/s per deg/s, leave-one-out RMS \S+ "
+                     r"deg/s per deg/s", text)
+    assert "Scale factor over temperature (deg/s per deg/s)" in text
+    assert "Value ± U (95 %, deg/h)" in text
+
+
+def test_acceptance_values_and_limits_carry_the_metrics_unit_when_the_limit_names_none(evil_run):
+    from gyrocal.reports.html_report import render_html
+
+    results = json.loads((evil_run / "report" / "results.json").read_text())
+    for entry in results["acceptance"]:
+        entry["unit"] = None
+    text = _visible_text(render_html(results))
+    rows = [row for row in text.split("SF") if "nonlinearity.rms_pct" in row]
+    assert rows and re.search(r"max 1 %", text), text[:2000]
+    assert re.search(r"instability_pct\s+\S+ ± \S+ %\s+max 1 %", text)
+
+
+def test_plots_are_sized_to_read(evil_run):
+    html = (evil_run / "report" / "report.html").read_text()
+    for image in re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html):
+        png = base64.b64decode(image)
+        width, height = int.from_bytes(png[16:20], "big"), int.from_bytes(png[20:24], "big")
+        assert width >= 800 and height >= 450, (width, height)
