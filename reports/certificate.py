@@ -24,9 +24,11 @@ from reportlab.lib import colors
 from reportlab.lib.pagesizes import A4
 from reportlab.lib.styles import getSampleStyleSheet
 from reportlab.lib.units import mm
+from reportlab.pdfgen.canvas import Canvas
 from reportlab.platypus import Paragraph, SimpleDocTemplate, Spacer, Table, TableStyle
 
 from gyrocal.reports.gum import round_to_uncertainty
+from gyrocal.reports.labels import acceptance_unit
 
 CERTIFICATE_FILE = "report/certificate.pdf"
 
@@ -98,6 +100,35 @@ def _grid(rows: list[list[str]], widths: list[float], style) -> Table:
     return table
 
 
+def _numbered_canvas(number: str) -> type[Canvas]:
+    """A canvas that writes "Certificate N — page x of y" at the foot of every page.
+
+    ISO/IEC 17025 §7.8.2.1 c): each page identifies the certificate and says it is part of a
+    whole of known length. y is known only once the story is laid out, so pages are kept
+    and stamped when the document is saved.
+    """
+    class NumberedCanvas(Canvas):
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            super().__init__(*args, **kwargs)
+            self._pages: list[dict[str, Any]] = []
+
+        def showPage(self) -> None:  # noqa: N802 - reportlab's name
+            self._pages.append(dict(self.__dict__))
+            self._startPage()
+
+        def save(self) -> None:
+            total = len(self._pages)
+            for index, page in enumerate(self._pages, start=1):
+                self.__dict__.update(page)
+                self.setFont("Helvetica", 8)
+                self.drawString(18 * mm, 9 * mm, f"Calibration certificate {number}")
+                self.drawRightString(A4[0] - 18 * mm, 9 * mm, f"page {index} of {total}")
+                super().showPage()
+            super().save()
+
+    return NumberedCanvas
+
+
 def write_certificate(results: dict[str, Any], path: Path, number: str, customer: str,
                       approval: Approval) -> Path:
     """Renders the certificate PDF to ``path``; returns it."""
@@ -113,8 +144,9 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
     inputs = results.get("inputs") or {}
     story: list[Any] = [
         Paragraph("Calibration Certificate", styles["Title"]),
-        Paragraph(f"Certificate number <b>{_esc(number)}</b> — page 1 of the certificate; "
-                  "this certificate may not be reproduced other than in full.", body),
+        Paragraph(f"Certificate number <b>{_esc(number)}</b>; every page carries it and its "
+                  "page number; this certificate may not be reproduced other than in full.",
+                  body),
         Spacer(1, 4 * mm),
         _kv([("Laboratory", f"{site.get('name') or '—'}, {site.get('address') or 'address not declared'}"),
              ("Customer", customer),
@@ -152,11 +184,8 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
                if role != "gyro"], [25, 55, 55, 35], body),
         Paragraph("Decision rule and conformity", h2),
         _grid([["Limit", "Value ± U", "Limit", "Rule", "Guard band", "Decision"]] +
-              [[a["name"], " ± ".join(round_to_uncertainty(a.get("value"), a.get("U")))
-                if a.get("U") else _num(a.get("value"), 6), f"{a['kind']} {a['limit']:g}",
-                a.get("decision_rule", "simple"), _num(a.get("guard_band"), 3),
-                a.get("decision") or ("PASS" if a.get("pass") else "FAIL")]
-               for a in results.get("acceptance") or []], [45, 25, 25, 20, 25, 30], body),
+              [_conformity_row(a, results) for a in results.get("acceptance") or []],
+              [42, 32, 25, 18, 25, 28], body),
         Paragraph(f"Overall statement of conformity: <b>{_esc(verdict.get('overall'))}</b>. "
                   "simple rule: the value alone is compared with the limit; guarded rule "
                   "(ILAC-G8): conformity is stated only when value ± U lies within the limit. "
@@ -171,8 +200,20 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
     doc = SimpleDocTemplate(str(path), pagesize=A4, title=f"Calibration certificate {number}",
                             leftMargin=18 * mm, rightMargin=18 * mm, topMargin=15 * mm,
                             bottomMargin=15 * mm)
-    doc.build(story)
+    doc.build(story, canvasmaker=_numbered_canvas(number))
     return path
+
+
+def _conformity_row(entry: dict[str, Any], results: dict[str, Any]) -> list[str]:
+    """One limit: value ± U, the limit and the guard band, each with its unit."""
+    unit = acceptance_unit(entry, results)
+    suffix = f" {unit}" if unit else ""
+    value = (" ± ".join(round_to_uncertainty(entry.get("value"), entry.get("U")))
+             if entry.get("U") else _num(entry.get("value"), 6))
+    band = _num(entry.get("guard_band"), 3)
+    return [entry["name"], value + suffix, f"{entry['kind']} {entry['limit']:g}{suffix}",
+            entry.get("decision_rule", "simple"), band + (suffix if band != "—" else ""),
+            entry.get("decision") or ("PASS" if entry.get("pass") else "FAIL")]
 
 
 def _num(value: float | None, digits: int) -> str:

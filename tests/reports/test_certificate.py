@@ -52,3 +52,30 @@ def test_certificate_without_a_report_is_bad_input(tmp_path, capsys):
     (tmp_path / "manifest.json").write_text("{}")
     assert main(["certificate", str(tmp_path)]) == 2
     assert "results.json" in capsys.readouterr().err
+
+
+def test_every_page_names_the_certificate_and_counts_the_pages(smoke_run, tmp_path):
+    """ISO/IEC 17025 §7.8.2.1: each page identifies the certificate and its place in it."""
+    run = tmp_path / "run"
+    shutil.copytree(smoke_run, run)
+    assert main(["certificate", str(run), "--number", "GC-2026-0099"]) == 0
+    pages = PdfReader(run / "report" / "certificate.pdf").pages
+    assert len(pages) >= 2
+    for index, page in enumerate(pages, start=1):
+        text = " ".join(page.extract_text().split())
+        assert "Calibration certificate GC-2026-0099" in text, index
+        assert f"page {index} of {len(pages)}" in text, index
+
+
+def test_conformity_values_limits_and_guard_bands_carry_units(smoke_run, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(smoke_run, run)
+    assert main(["certificate", str(run)]) == 0
+    text = " ".join(" ".join(p.extract_text() for p in PdfReader(
+        run / "report" / "certificate.pdf").pages).split())
+    results = json.loads((run / "report" / "results.json").read_text())
+    assert results["acceptance"]
+    for entry in results["acceptance"]:
+        value, expanded = round_to_uncertainty(entry["value"], entry["U"])
+        assert f"{value} ± {expanded} %" in text, entry["name"]
+        assert f"{entry['kind']} {entry['limit']:g} %" in text, entry["name"]
