@@ -159,6 +159,10 @@ def _identity(anchor: str) -> Section:
             Key("calibration_due", Scalar("date"), "YYYY-MM-DD", False),
             Key("calibration_waiver", _text(), "why an overdue calibration may still PASS "
                 "(shown in the report)", False),
+            Key("calibration_certificate", Scalar("serial"), "the number of the instrument's "
+                "own calibration certificate (named in the traceability)", False),
+            Key("calibrated_by", _text(), "who issued that certificate (e.g. an accredited "
+                "laboratory)", False),
         ))
 
 

@@ -96,6 +96,10 @@ class AssetIdentity:
     calibration_due: dt.date | None
     #: why an overdue calibration may still give a PASS (shown in the report); None: it may not
     calibration_waiver: str | None = None
+    #: the certificate of the instrument's own calibration, and who issued it: the link in the
+    #: traceability chain the calibration certificate names (ISO/IEC 17025 §6.5, §7.8.4.1)
+    calibration_certificate: str | None = None
+    calibrated_by: str | None = None
 
     def calibration_overdue(self, on: dt.date) -> bool:
         return self.calibration_due is not None and on > self.calibration_due
@@ -319,6 +323,8 @@ def _identity(ctx: Context, parent: Fields) -> AssetIdentity:
         fields.take("serial", serial_number),
         fields.take("calibration_due", date, required=False),
         fields.take("calibration_waiver", text, required=False),
+        fields.take("calibration_certificate", serial_number, required=False),
+        fields.take("calibrated_by", text, required=False),
     )
     fields.finish()
     return identity

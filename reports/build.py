@@ -395,6 +395,8 @@ def _instruments(data: RunData, notes: list[str]) -> dict[str, Any]:
             "serial": identity.get("serial"), "calibration_due": due,
             "calibration_overdue": overdue,
             "calibration_waiver": identity.get("calibration_waiver"),
+            "calibration_certificate": identity.get("calibration_certificate"),
+            "calibrated_by": identity.get("calibrated_by"),
         }
     return out
 

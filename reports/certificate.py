@@ -175,13 +175,14 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
                   "400 simulated calibrations: docs/uncertainty-coverage.md. The budgets are "
                   "in results.json.", body),
         Paragraph("Traceability", h2),
-        _grid([["Role", "Instrument", "Serial (declared / reported)", "Calibration due"]] +
+        _grid([["Reference", "Instrument", "Serial (declared / reported)",
+                 "Its calibration certificate", "Calibration due"]] +
               [[role, f"{i.get('make')} {i.get('model')}",
-                f"{i.get('serial')} / {i.get('reported_serial') or '—'}",
+                f"{i.get('serial')} / {i.get('reported_serial') or '—'}", _traceable_to(i),
                 f"{i.get('calibration_due') or '—'}"
                 + (" OVERDUE" if i.get("calibration_overdue") else "")]
                for role, i in sorted((results.get("instruments") or {}).items())
-               if role != "gyro"], [25, 55, 55, 35], body),
+               if role != "gyro"], [20, 40, 40, 46, 28], body),
         Paragraph("Decision rule and conformity", h2),
         _grid([["Limit", "Value ± U", "Limit", "Rule", "Guard band", "Decision"]] +
               [_conformity_row(a, results) for a in results.get("acceptance") or []],
@@ -202,6 +203,14 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
                             bottomMargin=15 * mm)
     doc.build(story, canvasmaker=_numbered_canvas(number))
     return path
+
+
+def _traceable_to(instrument: dict[str, Any]) -> str:
+    """The reference instrument's own certificate and issuer, as the station declares them."""
+    number, issuer = instrument.get("calibration_certificate"), instrument.get("calibrated_by")
+    if not number and not issuer:
+        return "not declared in the station"
+    return " by ".join(str(x) for x in (number or "(number not declared)", issuer) if x)
 
 
 def _conformity_row(entry: dict[str, Any], results: dict[str, Any]) -> list[str]:

@@ -34,9 +34,10 @@ th{background:#eee}.pass{color:#070;font-weight:bold}.fail{color:#b00;font-weigh
 </table>
 
 <h2>Instruments</h2>
-<table><tr><th>Role</th><th>Make / model</th><th>Serial</th><th>Calibration due</th><th>Driver</th><th>Address</th><th>Identified as</th></tr>
+<table><tr><th>Role</th><th>Make / model</th><th>Serial</th><th>Calibration certificate</th><th>Calibration due</th><th>Driver</th><th>Address</th><th>Identified as</th></tr>
 {% for role, i in r.instruments.items() %}
 <tr{% if i.calibration_overdue %} class="warn"{% endif %}><td>{{ role }}</td><td>{{ i.make or "" }} {{ i.model or "—" }}</td><td>{{ i.serial or "—" }}</td>
+<td>{% if i.calibration_certificate or i.calibrated_by %}{{ i.calibration_certificate or "" }}{% if i.calibrated_by %} by {{ i.calibrated_by }}{% endif %}{% else %}—{% endif %}</td>
 <td>{{ i.calibration_due or "—" }}{% if i.calibration_overdue %} <span class="fail">OVERDUE</span>{% endif %}</td>
 <td>{{ i.driver or "—" }}</td><td><code>{{ i.address or "—" }}</code></td><td>{{ i.description or "—" }}</td></tr>
 {% endfor %}</table>

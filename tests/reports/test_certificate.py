@@ -79,3 +79,20 @@ def test_conformity_values_limits_and_guard_bands_carry_units(smoke_run, tmp_pat
         value, expanded = round_to_uncertainty(entry["value"], entry["U"])
         assert f"{value} ± {expanded} %" in text, entry["name"]
         assert f"{entry['kind']} {entry['limit']:g} %" in text, entry["name"]
+
+
+def test_traceability_names_each_reference_instruments_own_certificate(smoke_run, tmp_path):
+    """The chain: our result ← the table and chamber ← their certificates (station identity)."""
+    run = tmp_path / "run"
+    shutil.copytree(smoke_run, run)
+    assert main(["certificate", str(run)]) == 0
+    text = " ".join(" ".join(p.extract_text() for p in PdfReader(
+        run / "report" / "certificate.pdf").pages).split())
+    results = json.loads((run / "report" / "results.json").read_text())
+    for role in ("chamber", "table"):
+        instrument = results["instruments"][role]
+        assert instrument["calibration_certificate"] and instrument["calibrated_by"], role
+        assert (f"{instrument['calibration_certificate']} by {instrument['calibrated_by']}"
+                in text), role
+    html = (run / "report" / "report.html").read_text()
+    assert "SIM-RT-2026-004 by Sim calibration services" in html
