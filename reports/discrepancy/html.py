@@ -25,6 +25,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import PolyCollection  # noqa: E402
 
+from gyrocal.models.effects import EFFECTS  # noqa: E402
 from gyrocal.reports.allan import overlapping_adev  # noqa: E402
 from gyrocal.reports.discrepancy.gap import allan_taus_m  # noqa: E402
 from gyrocal.reports.discrepancy.workflow import DiscrepancyResult  # noqa: E402
@@ -36,7 +37,7 @@ _TEMPLATE = """<!doctype html>
 body { font-family: sans-serif; max-width: 1100px; margin: 2em auto; color: #222; }
 table { border-collapse: collapse; margin: 0.5em 0; }
 td, th { border: 1px solid #bbb; padding: 3px 8px; text-align: left; }
-pre { background: #f4f4f4; padding: 0.6em; overflow-x: auto; }
+pre { background: #f4f4f4; padding: 0.6em; white-space: pre-wrap; overflow-wrap: anywhere; }
 .verdict { font-size: 1.2em; padding: 0.5em; background: #eef; }
 img { max-width: 100%; }
 </style></head><body>
@@ -57,7 +58,7 @@ procedure's steps (blue: temperature ramps, grey: table moving). Segment means w
 <table><tr><th>effect</th><th>parameters</th><th>probability</th><th>score</th><th>threshold</th><th>look-alikes</th></tr>
 {% for f in found %}
 <tr><td>{{ f.name }}</td>
-<td>{% for k, v in f.parameters.items() %}{{ k }} = {{ "%.4g"|format(v) }}<br>{% endfor %}</td>
+<td>{% for k, v in f.parameters.items() %}{{ k }} = {{ "%.4g"|format(v) }} {{ param_unit(f.name, k) }}<br>{% endfor %}</td>
 <td>{{ "%.2f"|format(f.probability) }}</td><td>{{ "%.1f"|format(f.score) }}</td>
 <td>{{ "%.2f"|format(f.threshold) }}</td>
 <td>{% for a in f.look_alikes %}{{ a.name }} ({{ "%.2f"|format(a.probability) }})<br>{% endfor %}</td></tr>
@@ -81,8 +82,9 @@ effect-free data simulated from the refitted model and the noise model.</p>
 {% if unexplained %}<p><b>Unexplained remainder:</b> {{ where }}</p>{% endif %}
 
 <h2>3. The gap before and after</h2>
-<table><tr><th>metric</th><th>before</th><th>after</th><th>noise floor</th></tr>
-{% for name, m in metrics %}<tr><td>{{ name }}{% if name == primary %} (primary){% endif %}</td>
+<table><tr><th>metric</th><th>unit</th><th>before</th><th>after</th><th>noise floor</th></tr>
+{% for name, m in metrics %}{% set label, unit = labels.get(name, (name, "")) %}
+<tr><td>{{ label }} <code>{{ name }}</code>{% if name == primary %} (primary){% endif %}</td><td>{{ unit }}</td>
 <td>{{ "%.4g"|format(m.before) }}</td><td>{{ "%.4g"|format(m.after) }}</td>
 <td>{{ "%.4g"|format(m.noise_floor) }}</td></tr>{% endfor %}</table>
 <img src="data:image/png;base64,{{ fig_gap }}" alt="spectrum and Allan deviation">
@@ -90,6 +92,20 @@ effect-free data simulated from the refitted model and the noise model.</p>
 <ul>{% for n in notes %}<li>{{ n }}</li>{% endfor %}</ul>
 </body></html>
 """
+
+
+#: the gap metrics (gap.METRIC_NAMES) for people: what each measures, and its unit
+METRIC_LABELS = {
+    "g1_segment_mean": ("G1, mean of (segment mean / its standard error)²",
+                        "dimensionless, ≈ 1 when the model fits"),
+    "segment_mean_rms_dph": ("RMS of the segment means", "deg/h"),
+    "allan_mismatch": ("Allan mismatch, RMS over τ of ln(residual ADEV / noise-model ADEV)",
+                       "natural log of a ratio, 0 when they agree"),
+    "spectrum_peak": ("largest spectral line", "× the noise PSD"),
+}
+#: the unit in running text (the verdict line)
+METRIC_UNITS = {"g1_segment_mean": "", "segment_mean_rms_dph": " deg/h",
+                "allan_mismatch": " (ln ratio)", "spectrum_peak": " × noise PSD"}
 
 
 def _png(fig) -> str:
@@ -146,16 +162,20 @@ def _fig_inputs(result: DiscrepancyResult) -> str:
 
 
 def _fig_gap(result: DiscrepancyResult) -> str:
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    ax = axes[0]
-    for scan, label, colour in ((result.scan_before, "before", "C3"), (result.scan_after, "after", "C0")):
+    """Spectra before and after in panels of their own (drawn in one, the after trace hid
+    the before one), on the same axes so they compare; the Allan deviations beside them."""
+    fig = plt.figure(figsize=(11, 6.5))
+    grid = fig.add_gridspec(2, 2)
+    spectra = [fig.add_subplot(grid[0, 0])]
+    spectra.append(fig.add_subplot(grid[1, 0], sharex=spectra[0], sharey=spectra[0]))
+    for ax, scan, label, colour in ((spectra[0], result.scan_before, "before", "C3"),
+                                    (spectra[1], result.scan_after, "after", "C0")):
         if scan is not None:
             ax.semilogy(scan.f_hz, scan.ratio, lw=0.6, color=colour, label=label)
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("periodogram / noise PSD")
-    ax.set_title("residual spectrum (full rate)")
-    ax.legend()
-    ax = axes[1]
+        ax.set_ylabel("periodogram / noise PSD")
+        ax.set_title(f"residual spectrum {label} (full rate)")
+    spectra[1].set_xlabel("frequency (Hz)")
+    ax = fig.add_subplot(grid[:, 1])
     m = allan_taus_m(result.bins.n_bins)
     fs = 1.0 / result.bins.width_s
     for resid, label, colour in ((result.resid_before_bins, "residual before", "C3"),
@@ -172,6 +192,13 @@ def _fig_gap(result: DiscrepancyResult) -> str:
     return _png(fig)
 
 
+def _param_unit(effect: str, key: str) -> str:
+    """An effect parameter's unit, from the catalogue (models/effects.py)."""
+    definition = EFFECTS.get(effect)
+    param = next((p for p in definition.params if p.key == key), None) if definition else None
+    return param.unit if param is not None else ""
+
+
 def verdict(result: DiscrepancyResult) -> str:
     gap = result.metrics[result.primary]
     parts = []
@@ -182,8 +209,10 @@ def verdict(result: DiscrepancyResult) -> str:
                      else "No catalogue effect explains the disagreement.")
     if result.unexplained:
         parts.append("Structure remains that no catalogue effect explains: " + result.where + ".")
-    parts.append(f"Gap ({result.primary}): {gap.before:.3g} before, {gap.after:.3g} after, "
-                 f"noise floor {gap.noise_floor:.3g}.")
+    unit = METRIC_UNITS.get(result.primary, "")
+    label = METRIC_LABELS.get(result.primary, (result.primary, ""))[0]
+    parts.append(f"Gap ({label}): {gap.before:.3g}{unit} before, {gap.after:.3g}{unit} after, "
+                 f"noise floor {gap.noise_floor:.3g}{unit}.")
     return " ".join(parts)
 
 
@@ -199,7 +228,8 @@ def write_html(result: DiscrepancyResult, source: str, path: str | Path) -> Path
         model_name=result.input_model.name or "(unnamed model)", source=source,
         verdict=verdict(result), found=result.found, iterations=iterations, alpha=ALPHA,
         unexplained=result.unexplained, where=result.where, primary=result.primary,
-        metrics=list(result.metrics.items()), notes=result.notes,
+        metrics=list(result.metrics.items()), notes=result.notes, labels=METRIC_LABELS,
+        param_unit=_param_unit,
         fig_time=_fig_time(result), fig_inputs=_fig_inputs(result), fig_gap=_fig_gap(result),
     )
     path = Path(path)

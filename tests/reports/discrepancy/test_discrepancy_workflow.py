@@ -160,12 +160,40 @@ def test_cli_end_to_end_writes_the_three_files(files):
     assert updated.effect("temp_hysteresis")["dph"] == pytest.approx(found["parameters"]["dph"])
     html = (out / "discrepancy.html").read_text()
     assert "temp_hysteresis" in html and "data:image/png;base64," in html
+    _check_the_story_reads_right(html, document)
 
     bad = subprocess.run([str(gyrocal), "discrepancy", "--model", str(files / "nominal.yaml"),
                           "--measured", str(files / "nope.csv"), "--out", str(out)],
                          capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2
     assert "nope.csv" in bad.stderr + bad.stdout and "Traceback" not in bad.stderr
+
+
+def _check_the_story_reads_right(html: str, document: dict) -> None:
+    """Units on every gap metric and parameter; both spectra drawn; long text wraps."""
+    import base64
+    import io
+    import re
+
+    from gyrocal.reports.discrepancy.html import METRIC_LABELS
+
+    text = re.sub(r"<[^>]+>", " ", re.sub(r'src="data:[^"]+"', "", html))
+    text = " ".join(text.split())
+    for name in document["metrics"]:
+        label, unit = METRIC_LABELS[name]
+        assert f"{label} {name}" in text and unit in text, name
+    assert re.search(r"dph = \S+ deg/h", text), "the hysteresis amplitude without its unit"
+    primary = document["gap"]["metric"]
+    assert f"Gap ({METRIC_LABELS[primary][0]}):" in text
+    assert "white-space: pre-wrap" in html and "overflow-x: auto" not in html
+    # the gap figure: the spectrum before and after in panels of their own, then the ADEV
+    figures = re.findall(r'alt="spectrum and Allan deviation"', html)
+    assert len(figures) == 1
+    png = re.search(r'src="data:image/png;base64,([^"]+)" alt="spectrum and Allan deviation"',
+                    html).group(1)
+    import matplotlib.image
+    image = matplotlib.image.imread(io.BytesIO(base64.b64decode(png)), format="png")
+    assert image.shape[0] > image.shape[1] * 0.5   # two rows of spectra, not one squashed row
 
 
 @pytest.mark.timeout(60)
