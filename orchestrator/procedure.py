@@ -318,6 +318,7 @@ class _Parser:
         self.station: Station | None = None
         self.station_files: list[Path] = []
         self.safety: Safety | None = None
+        self.output_units: str | None = None   # the unit under test's, once read
         # defaults that were given but invalid: already reported, so a test that
         # inherits them is not also told the key is missing
         self.broken_defaults: set[str] = set()
@@ -335,6 +336,7 @@ class _Parser:
         name = fields.take("name", text)
         description = fields.take("description", text, required=False)
         uut = self.unit_under_test(fields)
+        self.output_units = uut.output_units
         self.station = self.load_station(fields)
         self.safety = self.safety_limits(fields)
         defaults = self.defaults(fields)
@@ -803,6 +805,9 @@ class _Parser:
             spec = METRICS[metric]
             if unit is not None and not units_match(unit, spec):
                 self.ctx.report(fields.child("unit"), f"{metric} is in {spec.unit}, not {unit}")
+            if unit is None:
+                # a limit given without its unit is in the metric's (the report prints it)
+                unit = spec.unit if spec.unit is not None else self.output_units
             if spec.needs not in measured and sequence:
                 self.ctx.report(fields.child("metric"),
                                 f"{metric} cannot be computed: it needs "

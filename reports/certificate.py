@@ -185,7 +185,7 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
                if role != "gyro"], [20, 40, 40, 46, 28], body),
         Paragraph("Decision rule and conformity", h2),
         _grid([["Limit", "Value ± U", "Limit", "Rule", "Guard band", "Decision"]] +
-              [_conformity_row(a, results) for a in results.get("acceptance") or []],
+              [_conformity_row(a) for a in results.get("acceptance") or []],
               [42, 32, 25, 18, 25, 28], body),
         Paragraph(f"Overall statement of conformity: <b>{_esc(verdict.get('overall'))}</b>. "
                   "simple rule: the value alone is compared with the limit; guarded rule "
@@ -213,9 +213,9 @@ def _traceable_to(instrument: dict[str, Any]) -> str:
     return " by ".join(str(x) for x in (number or "(number not declared)", issuer) if x)
 
 
-def _conformity_row(entry: dict[str, Any], results: dict[str, Any]) -> list[str]:
+def _conformity_row(entry: dict[str, Any]) -> list[str]:
     """One limit: value ± U, the limit and the guard band, each with its unit."""
-    unit = acceptance_unit(entry, results)
+    unit = acceptance_unit(entry)
     suffix = f" {unit}" if unit else ""
     value = (" ± ".join(round_to_uncertainty(entry.get("value"), entry.get("U")))
              if entry.get("U") else _num(entry.get("value"), 6))

@@ -11,7 +11,7 @@ from typing import Any
 
 import jinja2
 
-from gyrocal.orchestrator.watch.event_text import describe_event
+from gyrocal.orchestrator.record.event_text import describe_event
 from gyrocal.reports.gum import round_to_uncertainty
 from gyrocal.reports.labels import ALLAN_TERMS, acceptance_unit, compensation_labels
 from gyrocal.reports.plots import all_plots
@@ -48,6 +48,6 @@ def render_html(results: dict[str, Any]) -> str:
     acceptance = results.get("acceptance") or []
     return template.render(r=results, plots=all_plots(results), fmt=_fmt, vu=_value_and_u,
                            terms=ALLAN_TERMS, compensation=compensation_labels(results),
-                           unit_of=lambda a: acceptance_unit(a, results),
+                           unit_of=acceptance_unit,
                            describe=describe_event,
                            all_pass=all(a.get("pass") for a in acceptance))

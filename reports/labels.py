@@ -6,7 +6,6 @@ from __future__ import annotations
 from typing import Any
 
 from gyrocal.models.noise_terms import NOISE_TERMS
-from gyrocal.orchestrator.metrics import METRICS
 
 #: Allan rows: (results key, what a reader sees, unit)
 ALLAN_TERMS = tuple((t.fit_key, f"{t.symbol} — {t.name}", t.unit) for t in NOISE_TERMS)
@@ -27,12 +26,8 @@ def compensation_labels(results: dict[str, Any]) -> dict[str, tuple[str, str]]:
             for key, (label, unit) in COMPENSATION.items()}
 
 
-def acceptance_unit(entry: dict[str, Any], results: dict[str, Any]) -> str:
-    """The unit an acceptance value and limit are in: the procedure's, else the metric's."""
-    given = entry.get("unit")
-    if given:
-        return str(given)
-    spec = METRICS.get(str(entry.get("metric")))
-    if spec is None:
-        return ""
-    return spec.unit if spec.unit is not None else output_units(results)
+def acceptance_unit(entry: dict[str, Any]) -> str:
+    """The unit an acceptance value and limit are in. The procedure parser fills in the
+    metric's unit when a limit names none (orchestrator/procedure.py), so it is in every
+    plan; a run recorded before that shows none rather than a guess."""
+    return str(entry.get("unit") or "")

@@ -18,8 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from gyrocal.orchestrator.locks import LockHolder, holder
+from gyrocal.orchestrator.record.event_text import describe_event
 from gyrocal.orchestrator.record.run_folder import JOURNAL, MANIFEST, RunFolderError
-from gyrocal.orchestrator.watch.event_text import describe_event
 
 PLAN_FILE = "plan.json"
 

@@ -334,3 +334,16 @@ def test_plan_rates_are_exactly_what_the_table_demand_carries(tmp_path) -> None:
     for rate in generate_rates("log", 0.01, 0.09, 7) + generate_rates("linear", 1.0, 300.0, 11):
         wire = DEMAND_RATE.text(axis=1, rate_dps=rate).split(",")[1]
         assert float(wire) == rate, (rate, wire)
+
+
+def test_a_limit_without_a_unit_is_in_its_metrics_unit(folder):
+    """The report and the certificate print every value and limit with a unit: a limit given
+    bare takes the metric's own, or the gyro's output units for SF-line metrics."""
+    text = edit('  - {name: nonlinearity, metric: nonlinearity.rms_pct, max: 1.0, unit: "%"}\n',
+                "  - {name: nonlinearity, metric: nonlinearity.rms_pct, max: 1.0}\n"
+                "  - {name: SF, metric: scale_factor_ls.sf, min: 0.99}\n"
+                "  - {name: ARW, metric: allan.fit.N_deg_per_rth, max: 0.01, unit: deg/sqrt(h)}\n")
+    path = folder / "procedures" / "p.yaml"
+    path.write_text(text, encoding="utf-8")
+    units = {limit.name: limit.unit for limit in load_procedure(path).acceptance}
+    assert units == {"nonlinearity": "%", "SF": "deg/s", "ARW": "deg/sqrt(h)"}

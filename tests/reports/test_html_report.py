@@ -137,16 +137,13 @@ def test_compensation_residuals_carry_their_units(evil_run):
     assert "Value ± U (95 %, deg/h)" in text
 
 
-def test_acceptance_values_and_limits_carry_the_metrics_unit_when_the_limit_names_none(evil_run):
-    from gyrocal.reports.html_report import render_html
-
+def test_acceptance_values_and_limits_carry_their_unit(evil_run):
     results = json.loads((evil_run / "report" / "results.json").read_text())
+    text = " ".join(_visible_text((evil_run / "report" / "report.html").read_text()).split())
     for entry in results["acceptance"]:
-        entry["unit"] = None
-    text = _visible_text(render_html(results))
-    rows = [row for row in text.split("SF") if "nonlinearity.rms_pct" in row]
-    assert rows and re.search(r"max 1 %", text), text[:2000]
-    assert re.search(r"instability_pct\s+\S+ ± \S+ %\s+max 1 %", text)
+        assert entry["unit"] == "%"
+        assert re.search(rf"{re.escape(entry['metric'])} \S+ ± \S+ % max {entry['limit']:g} %",
+                         text), entry["name"]
 
 
 def test_plots_are_sized_to_read(evil_run):
