@@ -414,7 +414,9 @@ ACCEPTANCE = Section(
         Key("max", _num(), "the largest value that passes", False),
         Key("min", _num(), "the smallest value that passes", False),
         Key("unit", _text(), "the limit's unit, checked against the metric's own unit "
-            "(spelling-insensitive: `°/√h` = `deg/sqrt(h)`)", False),
+            "(spelling-insensitive: `°/√h` = `deg/sqrt(h)`); the report and the certificate "
+            "print it beside the value and the limit", False,
+            "the metric's unit (the gyro's output units for `scale_factor_ls.*`)"),
         Key("decision_rule", _choice(("simple", "guarded")), "`simple`: the value against the "
             "limit; `guarded`: value ± U must lie inside the limit to PASS (ILAC-G8), outside "
             "it to FAIL, otherwise CONDITIONAL", False, "simple"),
