@@ -18,6 +18,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from gyrocal.instruments.gyro.datagram_types import (
+    ACCELEROMETER_LSB_G,
+    DEFAULT_ACCELEROMETER_RANGE_G,
+    ID_RATE,
+    ID_RATE_TEMP,
+    NORMAL_MODE_TYPES,
+)
 from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
 from gyrocal.models.effects import EFFECTS
 from gyrocal.models.gyro_model import OUTPUT_UNITS as MODEL_OUTPUT_UNITS
@@ -45,7 +52,7 @@ class Scalar:
     """A leaf value. ``kind`` says how it is written; the other fields narrow it."""
 
     kind: str                       # text, serial, integer, number, boolean, date, choice,
-    #                                 quantity, duration, path, anything, text_list
+    #                                 int_choice, quantity, duration, path, anything, text_list
     dimension: Dimension | None = None
     choices: tuple[str, ...] = ()
     minimum: float | None = None
@@ -53,6 +60,8 @@ class Scalar:
     exclusive_minimum: float | None = None
     bare_seconds: bool = False      # a duration that also takes a bare number of seconds
     constant: int | None = None     # a version number
+    int_choices: tuple[int, ...] = ()   # kind int_choice: one of these whole numbers
+    hex_text: bool = False          # an int_choice also written as text ("0x94")
 
 
 @dataclass(frozen=True)
@@ -236,13 +245,23 @@ STATION_GYRO = Section(
         Key("baudrate", _int(1200, 20_000_000), "serial speed", False, "921600"),
         Key("sample_rate_hz", _q(FREQUENCY, above=0.0), "the gyro's output rate"),
         Key("rate_lsb", _num(above=0.0), "output units per LSB of the datagram's rate field"),
-        Key("with_temperature", Scalar("boolean"), "datagrams carry temperatures", False, "true"),
+        Key("with_temperature", Scalar("boolean"), "datagrams carry temperatures", False,
+            "from `datagram`, else true"),
         Key("timeout_s", _duration(bare_seconds=True), "no datagram for this long is a fault",
             False, "2 s"),
         Key("axis", _choice(sta.GYRO_AXES), "which datagram axis is the unit under test (all "
             "three are logged)", False, "x"),
         Key("crlf", Scalar("boolean"), "datagrams end in CR LF (a STIM300 setting)", False,
             "false"),
+        Key("datagram", Scalar("int_choice", int_choices=tuple(NORMAL_MODE_TYPES),
+                               hex_text=True),
+            "the normal-mode datagram the unit is configured for (STIM300 datasheet TS1524 "
+            "Table 5-21), checked against the stream at connect; must agree with "
+            "`with_temperature` when both are given", False,
+            f"0x{ID_RATE_TEMP:02X} (0x{ID_RATE:02X} with `with_temperature: false`)"),
+        Key("accelerometer_range_g", Scalar("int_choice", int_choices=tuple(ACCELEROMETER_LSB_G)),
+            "the unit's accelerometer range in g (sets the LSB when the datagram carries "
+            "acceleration)", False, str(DEFAULT_ACCELEROMETER_RANGE_G)),
     ))
 
 SIMULATION = Section(

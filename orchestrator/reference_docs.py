@@ -82,6 +82,12 @@ def _scalar_schema(value: Scalar) -> dict:
         return {"type": "string", "format": "date", "pattern": r"^\d{4}-\d{2}-\d{2}$"}
     if kind == "choice":
         return {"enum": list(value.choices)}
+    if kind == "int_choice":
+        numbers = {"enum": list(value.int_choices)}
+        if not value.hex_text:
+            return numbers
+        return {"anyOf": [numbers, {"type": "string",
+                                    "pattern": r"^\s*(0[xX][0-9a-fA-F]+|\d+)\s*$"}]}
     if kind == "text_list":
         return {"type": "array", "items": {"type": "string"}, "minItems": 1}
     if kind == "quantity":
@@ -192,6 +198,10 @@ def _scalar_text(value: Scalar) -> str:
             _range_text(value).replace("> 0", "> 0 s")
     if kind == "choice":
         return "one of " + ", ".join(f"`{c}`" for c in value.choices)
+    if kind == "int_choice":
+        shown = [f"`0x{c:02X}`" if value.hex_text else f"`{c}`" for c in value.int_choices]
+        return "one of " + ", ".join(shown) + (" (a number, or text such as `\"0x94\"`)"
+                                                if value.hex_text else "")
     return {"text": "text", "path": "file path (relative to this file)",
             "serial": "text (digits allowed)", "boolean": "`true` or `false`",
             "date": "date `YYYY-MM-DD`", "text_list": "list of text",
