@@ -520,6 +520,14 @@ def _provenance(data: RunData, notes: list[str]) -> dict[str, Any]:
     run["steps_done_at"] = (time.strftime("%Y-%m-%dT%H:%M:%S+0000",
                                           time.gmtime(float(done[-1]["wall_time"])))
                             if done else None)
+    # ... and the calibration began with its first step, not with connecting the instruments
+    first = next((e for e in data.events if e.get("event") == "step_started"
+                  and e.get("wall_time")), None)
+    run["steps_started_at"] = (time.strftime("%Y-%m-%dT%H:%M:%S+0000",
+                                             time.gmtime(float(first["wall_time"])))
+                               if first else None)
+    # the procedure's own length (the plan's ETA): on simulated time it is not the wall span
+    run["procedure_s"] = data.manifest.get("eta_s")
     return {
         "run": run,
         "procedure": plan.get("procedure"),

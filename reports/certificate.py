@@ -152,7 +152,7 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
              ("Customer", customer),
              ("Item calibrated", f"{uut.get('model')} serial {uut.get('serial')} "
                                  f"(output units {uut.get('output_units')})"),
-             ("Date of calibration", f"{run.get('started_at')} to {run.get('ended_at') or run.get('steps_done_at') or '—'}"),
+             ("Date of calibration", calibration_dates(run)),
              ("Date of issue", approval.date.isoformat()),
              ("Method", f"gyrocal procedure {procedure.get('name')!s} "
                         f"(file {procedure.get('file')}, SHA-256 "
@@ -203,6 +203,34 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
                             bottomMargin=15 * mm)
     doc.build(story, canvasmaker=_numbered_canvas(number))
     return path
+
+
+def calibration_dates(run: dict[str, Any]) -> str:
+    """From the first step to the last (not from connecting the instruments to writing the
+    report); a dry run says that its procedure ran on simulated time, and how long it is."""
+    start = run.get("steps_started_at") or run.get("started_at")
+    end = run.get("steps_done_at") or run.get("ended_at")
+    span = f"{_utc(start)} to {_utc(end)}" if end else f"from {_utc(start)} (not finished)"
+    if run.get("mode") != "sim":
+        return span
+    length = run.get("procedure_s")
+    procedure = f"{_hours_minutes(length)} of procedure " if isinstance(length, (int, float)) \
+        else "the procedure "
+    pace = "as fast as the machine allows" if run.get("speed") in (None, "max") \
+        else f"at {run.get('speed')}× real time"
+    return (f"{str(start)[:10]}: a dry run on simulated instruments, {procedure}on simulated "
+            f"time, {pace} ({span}); no physical unit was calibrated")
+
+
+def _utc(stamp: Any) -> str:
+    """``2026-11-24T09:05:27+0000`` -> ``2026-11-24 09:05:27 UTC``."""
+    text = str(stamp or "—")
+    return text[:19].replace("T", " ") + " UTC" if text.endswith("+0000") else text
+
+
+def _hours_minutes(seconds: float) -> str:
+    minutes = int(round(seconds / 60.0))
+    return f"{minutes // 60} h {minutes % 60:02d} min" if minutes >= 60 else f"{minutes} min"
 
 
 def _traceable_to(instrument: dict[str, Any]) -> str:

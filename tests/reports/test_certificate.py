@@ -96,3 +96,24 @@ def test_traceability_names_each_reference_instruments_own_certificate(smoke_run
                 in text), role
     html = (run / "report" / "report.html").read_text()
     assert "SIM-RT-2026-004 by Sim calibration services" in html
+
+
+def test_calibration_dates_come_from_the_steps_and_a_dry_run_says_so(smoke_run, tmp_path):
+    """A dry run's wall span is seconds; the certificate says the procedure ran on simulated
+    time, how long it is (the plan's ETA), and the span of its steps."""
+    run = tmp_path / "run"
+    shutil.copytree(smoke_run, run)
+    assert main(["certificate", str(run)]) == 0
+    text = " ".join(" ".join(p.extract_text() for p in PdfReader(
+        run / "report" / "certificate.pdf").pages).split())
+    results = json.loads((run / "report" / "results.json").read_text())
+    manifest = json.loads((run / "manifest.json").read_text())
+    journal = [json.loads(line) for line in (run / "journal.jsonl").read_text().splitlines()]
+    first_step = next(e for e in journal if e["event"] == "step_started")
+    assert results["run"]["steps_started_at"][:19] == __import__("time").strftime(
+        "%Y-%m-%dT%H:%M:%S", __import__("time").gmtime(first_step["wall_time"]))
+    minutes = round(manifest["eta_s"] / 60)
+    assert f"a dry run on simulated instruments, {minutes} min of procedure on simulated time" \
+        in text
+    assert "as fast as the machine allows" in text and "no physical unit was calibrated" in text
+    assert results["run"]["steps_started_at"][:19].replace("T", " ") + " UTC" in text
