@@ -76,8 +76,14 @@ class Acquisition:
         wall_s = 0.0 if isinstance(self.clock, SimClock) else block_s / self.clock.speed
         return wall_s + self.policy.read_timeout_margin_s
 
-    def record(self, step: PlanStep, attempt: int, rate_dps: float) -> StepResult:
-        """Log ``step.duration_s`` of gyro samples with chamber and table context, in chunks."""
+    def record(self, step: PlanStep, attempt: int, rate_dps: float,
+               at_rate_since_wall_s: float | None = None) -> StepResult:
+        """Log ``step.duration_s`` of gyro samples with chamber and table context, in chunks.
+
+        ``at_rate_since_wall_s``: when the table was confirmed at ``rate_dps``
+        (monotonic wall time); on a real clock, frames the gyro's counter shows
+        were sampled before it make the attempt implausible (stale data).
+        """
         fs = self.inst.sample_rate_hz
         n_total = int(round(step.duration_s * fs))
         chunk_n = max(1, int(self.policy.chunk_s * fs))
@@ -90,7 +96,7 @@ class Acquisition:
         plausible = None if isinstance(self.clock, SimClock) else StreamPlausibility(
             fs, speed=self.clock.speed)
         if plausible is not None:
-            plausible.start(time.monotonic())
+            plausible.start(time.monotonic(), since_wall_s=at_rate_since_wall_s)
         t0 = self.clock.now_s()
         angle_start = (t0, 0.0, self._safe_position())
         context_t = [t0]

@@ -8,6 +8,7 @@ interlock on the way. The ramp and soak steps are its executors.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -36,6 +37,9 @@ class Conditions:
         self.elapsed_s = elapsed_s
         self.chamber_c: float | None = None    # last chamber reading
         self.table_dps: float | None = None    # last table rate readback
+        # (rate, wall time) of the readback that confirmed the table at its present rate: a
+        # logged step's frames must have been sampled after it (instruments/gyro/plausibility.py)
+        self._at_rate: tuple[float, float] | None = None
 
     def ramp(self, step: PlanStep, journal_done: bool = True) -> None:
         """Move the chamber to the step's setpoint at the procedure's ramp rate.
@@ -116,7 +120,10 @@ class Conditions:
         table = self.inst.table
         current = table.read_rate_dps()
         if abs(current - rate_dps) <= self.rate_band(rate_dps):
+            if self._at_rate is None or abs(self._at_rate[0] - rate_dps) > self.rate_band(rate_dps):
+                self._at_rate = (rate_dps, time.monotonic())
             return
+        self._at_rate = None
         if not table.interlock_closed():
             raise RunFaultError("table: interlock open; refusing to command motion")
         self.machine.spin()
@@ -130,6 +137,7 @@ class Conditions:
             reading = table.read_rate_dps()
             self.table_dps = reading
             if abs(reading - rate_dps) <= self.rate_band(rate_dps):
+                self._at_rate = (rate_dps, time.monotonic())
                 break
             if self.clock.now_s() > deadline:
                 raise RunFaultError(f"table: did not reach {rate_dps:g} deg/s "
@@ -142,6 +150,15 @@ class Conditions:
             self.machine.settle()
             self.clock.sleep(settle_s)
         self.machine.settled()
+
+    def at_rate_since_wall_s(self) -> float | None:
+        """Wall (monotonic) time the table was last confirmed at its present rate, if known.
+
+        Kept while the table stays at that rate (a repeated attempt, a static
+        step after a static step), so frames the gyro sampled since then are
+        this rate's data; a new demand forgets it until the readback confirms.
+        """
+        return None if self._at_rate is None else self._at_rate[1]
 
     def rate_band(self, rate_dps: float) -> float:
         return self.policy.rate_tolerance_dps + 1e-3 * abs(rate_dps)

@@ -318,7 +318,8 @@ class RunEngine:
             self.conditions.set_table_rate(rate_dps, step.accel_dps2, settle_s)
             self.machine.log()
             try:
-                result = self.acquisition.record(step, attempt, rate_dps)
+                result = self.acquisition.record(step, attempt, rate_dps,
+                                                 self.conditions.at_rate_since_wall_s())
             except InstrumentError as exc:
                 if not (exc.transient and exc.instrument == self._gyro_name()) or attempt == attempts:
                     raise

@@ -10,11 +10,18 @@ frame holds). Time follows the shared clock:
 
 * ``RealClock`` (any speed): the stream starts at the current time; a block
   is written once the clock has reached its end time (paced like the real
-  instrument, ``speed`` times faster in wall time). A real unit never waits
-  for its reader: frames the reader did not take in time are lost in the
-  UART, so the writer never falls more than :data:`_REAL_LAG_BLOCKS` blocks
-  behind the clock — older frames are dropped (a counter gap), never
-  replayed late as if they were current.
+  instrument, ``speed`` times faster in wall time). A real unit sends each
+  frame as it samples it, so on a real clock a block spans at most
+  :data:`_REAL_BLOCK_WALL_S` of wall time: a 512-frame block (1 s of clock at
+  500 Hz) would hand the reader frames a second old the moment it flushed —
+  frames from before the table reached its rate, logged as the step's first
+  samples (issue 28: SF 1400-3000 ppm off). A real unit never waits for its
+  reader either: a frame more than :data:`_REAL_MAX_LAG_S` of clock time
+  older than the clock (a writer starved of CPU on a loaded host) is dropped
+  (a counter gap, which the reader counts), never sent late as if current.
+  That bound is half the shortest settle the procedures use, so frames the
+  reader gets after a step's flush were sampled after the table reached its
+  rate, and the reader's check (instruments/gyro/plausibility.py) can tell.
 * ``SimClock``: time moves as fast as the consumer reads. Before producing a
   block the writer jumps forward if someone else advanced the clock past it
   (those frames were never read by anybody, so they appear as a counter
@@ -68,7 +75,8 @@ FAULTS = ("corrupt_frames", "lose_frames", "garbage", "stall", "saturate")
 GyroSource = Callable[[np.ndarray], tuple[np.ndarray, "np.ndarray | None"]]
 
 _POLL_S = 0.05          # how often blocking waits look at the stop flag
-_REAL_LAG_BLOCKS = 2    # real clock: frames older than this many blocks behind the clock are dropped
+_REAL_BLOCK_WALL_S = 0.01      # real clock: a block spans at most this much wall time
+_REAL_MAX_LAG_S = 0.5          # real clock: frames older than this (clock s) behind the clock are dropped
 _EPS_FRAMES = 1e-6      # tolerance when converting clock time to a frame number
 
 
@@ -184,20 +192,30 @@ class SimulatedGyroPort:
             self._stop.wait(_POLL_S)
         return True
 
+    def _real_frames(self, wall_s: float) -> int:
+        """Frames of ``wall_s`` wall seconds on a real clock (at least one)."""
+        speed = self.clock.speed if isinstance(self.clock, RealClock) else 1.0
+        return max(1, int(wall_s * speed * self.sample_rate_hz))
+
+    def _max_lag_frames(self) -> int:
+        return max(1, int(_REAL_MAX_LAG_S * self.sample_rate_hz))
+
     def _produce_block(self) -> None:
         fs = self.sample_rate_hz
         k_now = math.floor(self.clock.now_s() * fs + _EPS_FRAMES)
         if isinstance(self.clock, SimClock):
             self.next_frame = max(self.next_frame, k_now)
+            n_frames = self.block_frames
         else:
-            self.next_frame = max(self.next_frame, k_now - _REAL_LAG_BLOCKS * self.block_frames)
+            self.next_frame = max(self.next_frame, k_now - self._max_lag_frames())
+            n_frames = min(self.block_frames, self._real_frames(_REAL_BLOCK_WALL_S))
         k0 = self.next_frame
-        k = np.arange(k0, k0 + self.block_frames, dtype=np.int64)
-        t_end_s = (k0 + self.block_frames) / fs
+        k = np.arange(k0, k0 + n_frames, dtype=np.int64)
+        t_end_s = (k0 + n_frames) / fs
         if not isinstance(self.clock, SimClock) and not self._wait_real_time(t_end_s):
             return
         data, n_garbage, k_first = self._encode_block(k)
-        self.next_frame = k0 + self.block_frames
+        self.next_frame = k0 + n_frames
         written = self._write_all(data, n_garbage, k_first)
         if written is None:
             return
@@ -271,8 +289,8 @@ class SimulatedGyroPort:
         """Blocking write into the master, with ``select`` so that stop() is prompt.
 
         Returns the number of frames written, None if stopped. On a real
-        clock, frames more than :data:`_REAL_LAG_BLOCKS` blocks older than
-        the clock are dropped (a real UART would have lost them). On a SimClock,
+        clock, frames more than :data:`_REAL_MAX_LAG_S` older than the clock
+        are dropped (a real unit would have sent them long ago). On a SimClock,
         frames whose time the clock has already passed are stale: while the
         writer waited for the reader, someone else moved time on (the
         orchestrator changed the table rate, settled, and flushed its input),
@@ -286,7 +304,7 @@ class SimulatedGyroPort:
         position = 0
         skipped = 0
         simulated = isinstance(self.clock, SimClock)
-        lag_frames = 0 if simulated else _REAL_LAG_BLOCKS * self.block_frames
+        lag_frames = 0 if simulated else self._max_lag_frames()
         while position < len(data):
             if self._stop.is_set():
                 return None
