@@ -50,7 +50,7 @@ from gyrocal.reports import bias as bias_mod
 from gyrocal.reports import compensation as comp
 from gyrocal.reports.allan_summary import allan_curve, curve_json, fit_curve, fit_uncertainty_json
 from gyrocal.reports.decision import instrument_blockers, overall_verdict
-from gyrocal.reports.dwell import Dwell, dwell_mean
+from gyrocal.reports.dwell import Dwell, SegmentDrift, dwell_mean, segment_drift
 from gyrocal.reports.gum import batch_mean_sem
 from gyrocal.reports.imu.section import imu_section
 from gyrocal.reports.results import evaluate_acceptance, finite_or_none, results_bytes
@@ -83,6 +83,8 @@ class StepSummary:
     #: type A standard uncertainty of ``output_mean`` (batch means) and its dof
     output_sem: float = math.nan
     sem_dof: float = math.nan
+    #: a rate dwell's worst part against the rest (sanity.py judges it)
+    drift: SegmentDrift | None = None
 
 
 @dataclass
@@ -220,6 +222,8 @@ def read_run(run_dir: Path, notes: list[str]) -> RunData:
         summary = StepSummary(step, mean, std, used, int(output.size),
                               _mean_or_none(columns["sensor_temp_c"]),
                               _mean_or_none(columns["chamber_temp_c"]), turns, sem, sem_dof)
+        if step.kind == StepKind.DWELL:
+            summary.drift = segment_drift(output)
         data.steps.append(summary)
         if step_id == longest:
             data.allan_step, data.allan_output = summary, output
@@ -542,7 +546,8 @@ def _provenance(data: RunData, notes: list[str]) -> dict[str, Any]:
                    "setpoint_c": s.step.setpoint_c, "rate_dps": s.step.rate_dps,
                    "output_mean": s.output_mean, "n_used": s.n_used, "n_logged": s.n_logged,
                    "revolutions_used": s.trimmed_to_revolutions,
-                   "sensor_temp_c": s.sensor_temp_c} for s in data.steps],
+                   "sensor_temp_c": s.sensor_temp_c,
+                   "drift": None if s.drift is None else s.drift.to_json()} for s in data.steps],
     }
 
 

@@ -85,3 +85,53 @@ def dwell_from_samples(temp_c: float, rate_dps: float, samples, fs_hz: float, se
     """Reduce raw samples to a :class:`Dwell` (see :func:`dwell_mean`)."""
     stats = dwell_mean(samples, fs_hz, settle_s, rate_dps, revolutions)
     return Dwell(temp_c, rate_dps, stats.mean, stats.std, stats.n_samples)
+
+
+@dataclass(frozen=True)
+class SegmentDrift:
+    """How far the worst part of a dwell strays from the rest of it, and what noise allows.
+
+    ``deviation`` and ``noise_limit`` are in output units; ``segment`` is the
+    0-based index of the worst of ``segments`` equal parts.
+    """
+
+    deviation: float
+    noise_limit: float
+    segment: int
+    segments: int
+
+    def to_json(self) -> dict:
+        return {"deviation": self.deviation, "noise_limit": self.noise_limit,
+                "segment": self.segment, "segments": self.segments}
+
+
+def segment_drift(samples, segments: int = 10, n_sigma: float = 8.0,
+                  min_per_segment: int = 10) -> SegmentDrift | None:
+    """Split a dwell into ``segments`` parts; the part whose mean strays farthest from the rest.
+
+    Why: a dwell's mean is only its rate's output if every part of it saw
+    that rate. Samples from before the table settled (issue 28: the end of
+    the table's ramp logged as a dwell's first samples) or a table that
+    wandered during the dwell show as one part far from the others, while
+    the mean of the whole would hide them in a biased scale factor. Each
+    part is compared with the mean of all the others; ``noise_limit`` is
+    ``n_sigma`` standard errors of that difference (white noise, from the
+    parts' own scatter). None if the dwell is too short to split.
+    """
+    data = np.asarray(samples, dtype=float)
+    if data.ndim != 1 or segments < 2 or data.size < segments * min_per_segment:
+        return None
+    parts = np.array_split(data, segments)
+    n = np.array([p.size for p in parts], dtype=float)
+    sums = np.array([p.sum() for p in parts])
+    var = np.array([p.var(ddof=1) for p in parts])
+    worst: SegmentDrift | None = None
+    for j in range(segments):
+        rest_n = n.sum() - n[j]
+        rest_mean = (sums.sum() - sums[j]) / rest_n
+        rest_var = (np.dot(var, n - 1) - var[j] * (n[j] - 1)) / (rest_n - segments + 1)
+        limit = n_sigma * math.sqrt(var[j] / n[j] + rest_var / rest_n)
+        drift = SegmentDrift(float(abs(sums[j] / n[j] - rest_mean)), float(limit), j, segments)
+        if worst is None or drift.deviation - drift.noise_limit > worst.deviation - worst.noise_limit:
+            worst = drift
+    return worst

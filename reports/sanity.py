@@ -11,7 +11,13 @@ report checks what physics demands of any gyro calibration:
 * every dwell's mean output has the sign of its commanded rate (× the nominal
   scale factor's sign) wherever the rate is large enough (≥ 1 deg/s) that no
   bias could flip it;
-* every bias is finite.
+* every bias is finite;
+* every dwell at ≥ 1 deg/s is steady: no tenth of it strays from the rest by
+  more than its noise allows (8 standard errors) plus
+  ``DRIFT_FLOOR_PPM`` of its mean output or ``DRIFT_FLOOR_DPH`` (× the
+  nominal scale factor), whichever is larger — room for the slow physics of
+  a real unit (bias instability, once-per-revolution terms), none for
+  samples taken while the table was not at the dwell's rate (issue 28).
 
 A failed check makes the verdict INVALID (exit 1, a red banner in the report
 naming the check).
@@ -27,6 +33,8 @@ from gyrocal.reports.decision import overall_verdict
 
 DEFAULT_SF_TOLERANCE_PCT = 5.0
 SIGN_CHECK_MIN_RATE_DPS = 1.0
+DRIFT_FLOOR_PPM = 100.0     # of the dwell's mean output
+DRIFT_FLOOR_DPH = 2.0       # deg/h, times the nominal scale factor
 
 
 @dataclass(frozen=True)
@@ -69,11 +77,31 @@ def check_physics(results: dict[str, Any], sf_tolerance_pct: float | None = None
     checks.append(SanityCheck("dwell signs follow the table", not flipped,
                               "every dwell's mean has its rate's sign" if not flipped else
                               "; ".join(flipped[:5])))
+    checks.append(_steady_dwells(results.get("steps") or [], nominal))
     bad_bias = [f"{b.get('temp_c')} °C: {b.get('bias_dph')!r}" for b in results.get("bias") or []
                 if not _finite(b.get("bias_dph"))]
     checks.append(SanityCheck("bias finite", not bad_bias,
                               "every bias is a finite number" if not bad_bias else "; ".join(bad_bias)))
     return checks
+
+
+def _steady_dwells(steps: list[dict[str, Any]], nominal: float) -> SanityCheck:
+    """No part of a rate dwell far from the rest (``segment_drift`` in reports/dwell.py)."""
+    unsteady = []
+    for s in steps:
+        drift = s.get("drift")
+        if s.get("kind") != "dwell" or not drift or abs(s.get("rate_dps") or 0) < SIGN_CHECK_MIN_RATE_DPS:
+            continue
+        mean = abs(s.get("output_mean") or 0.0)
+        floor = max(DRIFT_FLOOR_PPM * 1e-6 * mean, DRIFT_FLOOR_DPH / 3600.0 * abs(nominal))
+        if not (_finite(drift.get("deviation")) and drift["deviation"] <= drift["noise_limit"] + floor):
+            unsteady.append(
+                f"{s['step_id']}: part {drift['segment'] + 1} of {drift['segments']} is "
+                f"{drift['deviation'] / max(mean, 1e-300) * 1e6:.0f} ppm of the mean from the rest "
+                f"(noise and drift allow {(drift['noise_limit'] + floor) / max(mean, 1e-300) * 1e6:.0f})")
+    return SanityCheck("dwells steady", not unsteady,
+                       "no part of a dwell strays from the rest" if not unsteady else
+                       "; ".join(unsteady[:5]))
 
 
 def verdict(checks: list[SanityCheck], acceptance: list[dict[str, Any]]) -> dict[str, Any]:

@@ -7,16 +7,26 @@ computed SF ≈ 1e-6 against a true 1.0. Here the report must recover the
 simulated truth within 100 ppm, every logged step must be plausible in wall
 time (no ``gyro_implausible`` event), and each step must hold exactly its
 samples. These tests run in real time (≈ 16 s of procedure time each).
+
+Under load (issue 28) the same run at --speed 20 logged the end of the table's
+ramp as the first 80-90 samples of a dwell and still said PASS with SF
+1000-3000 ppm off; ``test_under_load_…`` loads the machine itself (CPU and I/O
+hogs, tests/support/load.py) and holds the contract that matters: a dwell
+holds only samples of its rate, and a PASS is never off by more than its U.
 """
 
 import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import pyarrow.parquet as pq
 import pytest
 
 from gyrocal.cli import EXIT_OK, main
+from gyrocal.errors import EXIT_FAULT
 from gyrocal.models.gyro_model import load_model
+from tests.support.load import machine_load
 from tests.support.sim_serve import served_station
 
 REPO = Path(__file__).resolve().parents[2]
@@ -65,12 +75,17 @@ def check_run(out: Path, h: Any, fs_hz: int = FS_HZ, lost_frames_allowed: bool =
         assert not bad
     done = [e for e in events if e["event"] == "step_completed" and ".sf." in e["step_id"]]
     assert len(done) == 2 and all(e["samples"] == DWELL_S * fs_hz for e in done)
-    model = load_model(REPO / "gyro-models" / "nominal-fog.yaml")
     results = json.loads((out / "report" / "results.json").read_text())
     [entry] = results["scale_factor"]
-    truth = 1.0 + 1e-6 * (model.sf_error_ppm + model.sf_tempco_ppm_per_c
-                          * (entry["sensor_temp_c"] - model.reference_temp_c))
+    truth = true_sf(entry["sensor_temp_c"])
     assert abs(entry["sf"] / truth - 1.0) < 100e-6, (entry["sf"], truth)
+
+
+def true_sf(sensor_temp_c: float) -> float:
+    """The simulated gyro's scale factor at its sensor temperature (its model file)."""
+    model = load_model(REPO / "gyro-models" / "nominal-fog.yaml")
+    return 1.0 + 1e-6 * (model.sf_error_ppm + model.sf_tempco_ppm_per_c
+                         * (sensor_temp_c - model.reference_temp_c))
 
 
 @pytest.mark.timeout(150)
@@ -89,8 +104,68 @@ def test_speed_20_in_process(h: Any, tmp_path: Path) -> None:
     # 500 Hz at 20x is 10,000 frames a wall second (2 kHz would be 40,000: frames lost on a
     # loaded CI machine); four repeats allowed for the frames such a machine may still lose
     # (with two, one of four runs on the 2-core dev machine failed right after another
-    # real-time test)
+    # real-time test). A host too busy to feed the stream within half a second of clock
+    # (25 ms wall) in five attempts gives up with exit 3 (issue 28): honest, never a PASS.
     procedure = short_procedure(tmp_path, REPO / "stations" / "sim.yaml", fs_hz=500, repeats=4)
     code = main(["run", str(procedure), "--sim", "--speed", "20", "--out", str(out)])
-    assert code == EXIT_OK
-    check_run(out, h, fs_hz=500, lost_frames_allowed=True)
+    check_never_wrong(out, h, code)
+    if code == EXIT_OK:
+        check_run(out, h, fs_hz=500, lost_frames_allowed=True)
+
+
+def off_rate_samples(out: Path, events: list[dict[str, Any]]) -> dict[str, int]:
+    """Per completed dwell, the samples farther than 0.05 deg/s from its rate.
+
+    The simulated gyro's noise at 500 Hz is 0.004 deg/s (1 σ) and its bias and SF
+    error together under 0.01 deg/s at 100 deg/s, so only a sample taken while
+    the table was still accelerating lies that far off.
+    """
+    off = {}
+    for e in events:
+        if e["event"] == "step_completed" and ".sf." in e["step_id"]:
+            rate_dps = 100.0 if ".sf.+" in e["step_id"] else -100.0
+            gyro = np.concatenate([pq.read_table(out / p, columns=["gyro"]).column("gyro")
+                                   .to_numpy() for p in e["chunks"]])
+            off[e["step_id"]] = int(np.count_nonzero(np.abs(gyro - rate_dps) > 0.05))
+    return off
+
+
+def check_never_wrong(out: Path, h: Any, code: int) -> None:
+    """The contract under any load: a dwell holds only samples of its rate, a step is
+    repeated only for lost or implausible frames, the run ends OK or gives up (exit 3) for
+    data quality, and a PASS is never off the true scale factor by more than its U."""
+    events = h.events(out)
+    completed = [e["step_id"] for e in events
+                 if e["event"] == "step_completed" and ".sf." in e["step_id"]]
+    assert off_rate_samples(out, events) == dict.fromkeys(completed, 0)
+    bad = [e["reason"] for e in events if e["event"] == "step_bad"]
+    assert all("lost" in r or "implausible" in r for r in bad), bad
+    assert code in (EXIT_OK, EXIT_FAULT), code
+    if code == EXIT_FAULT:
+        [fault] = [e for e in events if e["event"] == "fault"]
+        assert "no good attempt" in fault["message"], fault
+        assert not (out / "report" / "results.json").exists()
+        return
+    results = json.loads((out / "report" / "results.json").read_text())
+    [entry] = results["scale_factor"]
+    if results["verdict"]["overall"] == "PASS":
+        error = abs(entry["sf"] - true_sf(entry["sensor_temp_c"]))
+        assert error <= entry["U"], (entry["sf"], entry["U"], error)
+
+
+@pytest.mark.timeout(150)
+@pytest.mark.parametrize("speed", ["20", "5"])
+def test_under_load_a_dwell_holds_only_its_rate_and_never_passes_off_by_more_than_u(
+        h: Any, tmp_path: Path, speed: str) -> None:
+    """Two CPU hogs and an I/O hog for the run (bounded, ended by the test).
+
+    The run may lose frames and repeat a step, or give up with exit 3 (a
+    loaded host cannot always feed thousands of frames a wall second in time):
+    that is honest. What it may never do is log samples from before the table
+    was at rate, or say PASS with a scale factor off by more than its U.
+    """
+    out = tmp_path / "run"
+    procedure = short_procedure(tmp_path, REPO / "stations" / "sim.yaml", fs_hz=500, repeats=2)
+    with machine_load(cpu=2, io=1, max_s=100):
+        code = main(["run", str(procedure), "--sim", "--speed", speed, "--out", str(out)])
+    check_never_wrong(out, h, code)

@@ -89,3 +89,31 @@ def test_an_impossible_run_folder_is_invalid_in_the_report_and_the_exit_code(
     assert all(a["pass"] for a in saved["acceptance"])     # the limit alone would have passed
     html = (run / "report" / "report.html").read_text()
     assert 'class="invalid"' in html and "scale factor near nominal" in html
+
+
+def with_drift(deviation: float, noise_limit: float = 1e-4, mean: float = 10.0) -> dict:
+    base = results(mean=mean)
+    base["steps"][0]["drift"] = {"deviation": deviation, "noise_limit": noise_limit,
+                                 "segment": 0, "segments": 10}
+    return base
+
+
+def test_a_dwell_whose_first_tenth_strays_is_invalid() -> None:
+    """Issue 28: 80 samples of the table's ramp (84 → 99.8 deg/s) at the start of a 2500-sample
+    dwell at 100 deg/s put its first tenth 2.592 deg/s (26,000 ppm) below the rest."""
+    checks = check_physics(with_drift(2.592, noise_limit=0.002, mean=99.9))
+    result = verdict(checks, [{"pass": True}])
+    assert result["overall"] == "INVALID"
+    assert [c.name for c in checks if not c.ok] == ["dwells steady"]
+    assert "T01.sf.+10dps: part 1 of 10" in result["invalid_because"][0]
+
+
+def test_slow_physics_within_the_floor_keeps_a_dwell_steady() -> None:
+    # at 10 deg/s the floor is max(100 ppm × 10, 2 deg/h) = 0.001 deg/s, plus 0.0001 of noise
+    assert all(c.ok for c in check_physics(with_drift(0.0009)))
+    assert all(c.ok for c in check_physics(with_drift(0.0011)))
+    assert not all(c.ok for c in check_physics(with_drift(0.00115)))
+    # a tiny rate is not judged (its mean may be mostly bias)
+    tiny = results()
+    tiny["steps"][1]["drift"] = {"deviation": 1.0, "noise_limit": 0.0, "segment": 3, "segments": 10}
+    assert all(c.ok for c in check_physics(tiny))
