@@ -96,7 +96,9 @@ class Acquisition:
         plausible = None if isinstance(self.clock, SimClock) else StreamPlausibility(
             fs, speed=self.clock.speed)
         if plausible is not None:
-            plausible.start(time.monotonic(), since_wall_s=at_rate_since_wall_s)
+            flushed = time.monotonic()
+            plausible.start(flushed, since_wall_s=self._frames_since(
+                step, flushed, at_rate_since_wall_s, plausible.slack_s))
         t0 = self.clock.now_s()
         angle_start = (t0, 0.0, self._safe_position())
         context_t = [t0]
@@ -168,6 +170,20 @@ class Acquisition:
                 channels = []
                 pending_n = 0
         return result
+
+    def _frames_since(self, step: PlanStep, flushed_wall_s: float,
+                      at_rate_since_wall_s: float | None, slack_s: float) -> float | None:
+        """Earliest wall time a frame of this step may have been sampled at.
+
+        After the table's confirming readback (frames before it may be from its
+        acceleration), and at most the step's settle (plus the in-flight slack)
+        before the flush: a table long at its rate does not license frames a
+        minute old (a replayed buffer).
+        """
+        if at_rate_since_wall_s is None or isinstance(self.clock, SimClock):
+            return None
+        lookback_s = step.settle_s / self.clock.speed + slack_s
+        return max(at_rate_since_wall_s, flushed_wall_s - lookback_s)
 
     def _safe_position(self) -> float:
         return float(self.inst.table.read_position_deg())
