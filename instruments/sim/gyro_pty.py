@@ -13,15 +13,18 @@ frame holds). Time follows the shared clock:
   instrument, ``speed`` times faster in wall time). A real unit sends each
   frame as it samples it, so on a real clock a block spans at most
   :data:`_REAL_BLOCK_WALL_S` of wall time: a 512-frame block (1 s of clock at
-  500 Hz) would hand the reader frames a second old the moment it flushed —
-  frames from before the table reached its rate, logged as the step's first
-  samples (issue 28: SF 1400-3000 ppm off). A real unit never waits for its
-  reader either: a frame more than :data:`_REAL_MAX_LAG_S` of clock time
-  older than the clock (a writer starved of CPU on a loaded host) is dropped
-  (a counter gap, which the reader counts), never sent late as if current.
-  That bound is half the shortest settle the procedures use, so frames the
-  reader gets after a step's flush were sampled after the table reached its
-  rate, and the reader's check (instruments/gyro/plausibility.py) can tell.
+  500 Hz) would hand the reader frames a second old the moment it flushed.
+  A real unit never waits for its reader either: a frame more than
+  :data:`_REAL_MAX_LAG_S` of clock time older than the clock (a writer
+  starved of CPU on a loaded host for longer than a serial port's input
+  queue would hold) is dropped (a counter gap, which the reader counts).
+* Any clock: the reader's input flush is honoured as on a real serial port.
+  The master runs in packet mode (``TIOCPKT``), so the writer learns when
+  the reader flushes its input queue; a frame sampled before that moment
+  would have been in the flushed queue, so it is never written afterwards
+  (issue 28: a writer behind the clock on a loaded host handed the reader,
+  just after its flush, frames sampled while the table was still
+  accelerating — the first 80-90 samples of a dwell, SF 1000-3000 ppm off).
 * ``SimClock``: time moves as fast as the consumer reads. Before producing a
   block the writer jumps forward if someone else advanced the clock past it
   (those frames were never read by anybody, so they appear as a counter
@@ -48,9 +51,12 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import fcntl
 import math
 import os
 import select
+import struct
+import termios
 import threading
 import tty
 from collections.abc import Callable
@@ -76,7 +82,7 @@ GyroSource = Callable[[np.ndarray], tuple[np.ndarray, "np.ndarray | None"]]
 
 _POLL_S = 0.05          # how often blocking waits look at the stop flag
 _REAL_BLOCK_WALL_S = 0.01      # real clock: a block spans at most this much wall time
-_REAL_MAX_LAG_S = 0.5          # real clock: frames older than this (clock s) behind the clock are dropped
+_REAL_MAX_LAG_S = 2.0          # real clock: frames older than this (clock s) behind the clock are dropped
 _EPS_FRAMES = 1e-6      # tolerance when converting clock time to a frame number
 
 
@@ -128,6 +134,9 @@ class SimulatedGyroPort:
         self._master_fd, self._slave_fd = os.openpty()
         tty.setraw(self._slave_fd)
         os.set_blocking(self._master_fd, False)
+        # packet mode: the master reads a status byte when the reader flushes its input
+        fcntl.ioctl(self._master_fd, termios.TIOCPKT, struct.pack("i", 1))
+        self._flushed_k = -(2**62)      # frames before this one were flushed by the reader
         self.port_name = os.ttyname(self._slave_fd)
         self._closed = False
 
@@ -200,9 +209,25 @@ class SimulatedGyroPort:
     def _max_lag_frames(self) -> int:
         return max(1, int(_REAL_MAX_LAG_S * self.sample_rate_hz))
 
+    def _note_flush(self) -> int:
+        """Read the master's packet-mode status; the first frame not flushed by the reader.
+
+        A ``TIOCPKT_FLUSHREAD`` status means the reader discarded its input
+        queue: every frame sampled before now would have been discarded with
+        it, so none of them may be written after it.
+        """
+        readable, _, _ = select.select([self._master_fd], [], [], 0)
+        if readable:
+            with contextlib.suppress(BlockingIOError):
+                status = os.read(self._master_fd, 4096)
+                if status and status[0] & termios.TIOCPKT_FLUSHREAD:
+                    self._flushed_k = math.ceil(self.clock.now_s() * self.sample_rate_hz - _EPS_FRAMES)
+        return self._flushed_k
+
     def _produce_block(self) -> None:
         fs = self.sample_rate_hz
         k_now = math.floor(self.clock.now_s() * fs + _EPS_FRAMES)
+        self.next_frame = max(self.next_frame, self._note_flush())
         if isinstance(self.clock, SimClock):
             self.next_frame = max(self.next_frame, k_now)
             n_frames = self.block_frames
@@ -288,9 +313,11 @@ class SimulatedGyroPort:
     def _write_all(self, data: bytes, frames_from: int, k_first: int) -> int | None:
         """Blocking write into the master, with ``select`` so that stop() is prompt.
 
-        Returns the number of frames written, None if stopped. On a real
-        clock, frames more than :data:`_REAL_MAX_LAG_S` older than the clock
-        are dropped (a real unit would have sent them long ago). On a SimClock,
+        Returns the number of frames written, None if stopped. Frames sampled
+        before the reader's last input flush are never written (see
+        :meth:`_note_flush`). On a real clock, frames more than
+        :data:`_REAL_MAX_LAG_S` older than the clock are dropped (a real unit
+        would have sent them long ago). On a SimClock,
         frames whose time the clock has already passed are stale: while the
         writer waited for the reader, someone else moved time on (the
         orchestrator changed the table rate, settled, and flushed its input),
@@ -316,7 +343,8 @@ class SimulatedGyroPort:
                 offset = (position - frames_from) % length
                 if offset == 0:
                     k_now = math.ceil(self.clock.now_s() * self.sample_rate_hz - _EPS_FRAMES) - lag_frames
-                    keep_from = min(frames_from + max(0, k_now - k_first) * length, len(data))
+                    k_keep = max(k_now, self._note_flush())
+                    keep_from = min(frames_from + max(0, k_keep - k_first) * length, len(data))
                     if keep_from > position:
                         skipped += (keep_from - position) // length
                         position = keep_from

@@ -104,8 +104,8 @@ def test_speed_20_in_process(h: Any, tmp_path: Path) -> None:
     # 500 Hz at 20x is 10,000 frames a wall second (2 kHz would be 40,000: frames lost on a
     # loaded CI machine); four repeats allowed for the frames such a machine may still lose
     # (with two, one of four runs on the 2-core dev machine failed right after another
-    # real-time test). A host too busy to feed the stream within half a second of clock
-    # (25 ms wall) in five attempts gives up with exit 3 (issue 28): honest, never a PASS.
+    # real-time test). A host too busy to feed the stream within 2 s of clock (0.1 s wall)
+    # in five attempts gives up with exit 3 (issue 28): honest, never a PASS.
     procedure = short_procedure(tmp_path, REPO / "stations" / "sim.yaml", fs_hz=500, repeats=4)
     code = main(["run", str(procedure), "--sim", "--speed", "20", "--out", str(out)])
     check_never_wrong(out, h, code)

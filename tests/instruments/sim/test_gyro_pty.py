@@ -155,3 +155,44 @@ def test_source_without_temperature_is_reported_as_the_writer_error():
             time.sleep(0.01)
         assert isinstance(sim.error, ValueError)
         assert "no temperature" in str(sim.error)
+
+
+def test_frames_sampled_before_the_readers_flush_never_arrive_after_it():
+    """Issue 28: a writer that falls behind (starved of CPU on a loaded host) must not hand
+    the reader, after its flush, frames sampled before it. On a real serial port those frames
+    would have waited in the input queue and gone with the flush. Here the source stalls
+    0.4 s on frame k_s (sampled at k_s / fs); 0.15 s into the stall the reader flushes, so the
+    first frame it then reads must be at least 15 frames (at 100 Hz) after k_s."""
+    import termios
+
+    fs_hz = 100.0
+    stall, stalling, stalled_at = threading.Event(), threading.Event(), []
+
+    def stalling_source(t_s):
+        if stall.is_set():
+            stall.clear()
+            stalled_at.append(int(round(float(t_s[0]) * fs_hz)))
+            stalling.set()
+            time.sleep(0.4)
+        return source(t_s)
+
+    with SimulatedGyroPort(stalling_source, RealClock(), sample_rate_hz=fs_hz, lsb=LSB) as sim:
+        fd = os.open(sim.port_name, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        try:
+            time.sleep(0.1)
+            stall.set()
+            assert stalling.wait(2.0)
+            time.sleep(0.15)
+            termios.tcflush(fd, termios.TCIFLUSH)
+            data = bytearray()
+            deadline = time.monotonic() + 3.0
+            while len(data) < 18 * 6 and time.monotonic() < deadline:
+                ready, _, _ = select.select([fd], [], [], 0.1)
+                if ready:
+                    data += os.read(fd, 18 * 6 - len(data))
+        finally:
+            os.close(fd)
+    start = next(i for i in range(len(data) - 18) if data[i] == 0x90 == data[i + 18])
+    first_counter = data[start + 11]                   # 0x90: counter at offset 11
+    [k_s] = stalled_at
+    assert (first_counter - k_s) % 256 >= 15, (first_counter, k_s % 256)
