@@ -160,29 +160,31 @@ def test_source_without_temperature_is_reported_as_the_writer_error():
 def test_frames_sampled_before_the_readers_flush_never_arrive_after_it():
     """Issue 28: a writer that falls behind (starved of CPU on a loaded host) must not hand
     the reader, after its flush, frames sampled before it. On a real serial port those frames
-    would have waited in the input queue and gone with the flush. Here the source stalls
-    0.4 s on frame k_s (sampled at k_s / fs); 0.15 s into the stall the reader flushes, so the
-    first frame it then reads must be at least 15 frames (at 100 Hz) after k_s."""
+    would have waited in the input queue and gone with the flush. The source's rate is the
+    frame's own sample time (deg/s = s), so each frame says when it was sampled; the source
+    stalls 0.4 s on one frame and the reader flushes 0.15 s into the stall."""
     import termios
 
     fs_hz = 100.0
+    clock = RealClock()
     stall, stalling, stalled_at = threading.Event(), threading.Event(), []
 
-    def stalling_source(t_s):
+    def time_source(t_s):
         if stall.is_set():
             stall.clear()
-            stalled_at.append(int(round(float(t_s[0]) * fs_hz)))
+            stalled_at.append(float(t_s[0]))
             stalling.set()
             time.sleep(0.4)
-        return source(t_s)
+        return np.asarray(t_s, dtype=float).copy(), None
 
-    with SimulatedGyroPort(stalling_source, RealClock(), sample_rate_hz=fs_hz, lsb=LSB) as sim:
+    with SimulatedGyroPort(time_source, clock, sample_rate_hz=fs_hz, lsb=LSB) as sim:
         fd = os.open(sim.port_name, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
         try:
             time.sleep(0.1)
             stall.set()
             assert stalling.wait(2.0)
             time.sleep(0.15)
+            flushed_s = clock.now_s()
             termios.tcflush(fd, termios.TCIFLUSH)
             data = bytearray()
             deadline = time.monotonic() + 3.0
@@ -193,6 +195,8 @@ def test_frames_sampled_before_the_readers_flush_never_arrive_after_it():
         finally:
             os.close(fd)
     start = next(i for i in range(len(data) - 18) if data[i] == 0x90 == data[i + 18])
-    first_counter = data[start + 11]                   # 0x90: counter at offset 11
-    [k_s] = stalled_at
-    assert (first_counter - k_s) % 256 >= 15, (first_counter, k_s % 256)
+    # 0x90 (TS1524 Table 5-20): identifier, then the X rate as 24-bit two's complement
+    first_sampled_s = int.from_bytes(data[start + 1 : start + 4], "big", signed=True) * LSB
+    [stalled_s] = stalled_at
+    assert stalled_s < flushed_s - 0.1
+    assert first_sampled_s >= flushed_s - 1.0 / fs_hz, (stalled_s, flushed_s, first_sampled_s)
