@@ -310,6 +310,11 @@ def _resume_locked(args: argparse.Namespace, folder: RunFolder, held: contextlib
     plan = expand_plan(procedure)
     if [s.step_id for s in plan.steps] != manifest.get("steps"):
         raise BadInput(f"{folder.path}: the expanded plan differs from the one the run started with")
+    if not folder.journal_events():
+        # Cut before run_started fixed anything: the plan record may be missing or not yet
+        # in the manifest. It is written again, as run writes it (same inputs, checked above).
+        record = write_plan_record(folder.path, procedure, plan)
+        folder.update_manifest(plan_sha256=sha256_file(record))
     sim = manifest.get("mode") == "sim"
     speed = args.speed if args.speed is not None else manifest.get("speed")
     clock = _clock_for(speed, sim)

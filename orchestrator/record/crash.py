@@ -12,7 +12,9 @@ process exactly there. ``GYROCAL_CRASH_AT`` names the boundary:
 
 Unset (always, outside rehearsals) it costs one dictionary lookup per
 record. SIGKILL, not an exception: nothing of the process may run after it,
-exactly as after a power cut's software half.
+exactly as after a power cut's software half. ``GYROCAL_CRASH_SIGNAL``
+(``SIGINT``, ``SIGTERM``) sends that signal instead, at the same boundary:
+how the signal tests reach every phase of a run deterministically.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import os
 import signal
 
 CRASH_AT_ENV = "GYROCAL_CRASH_AT"
+CRASH_SIGNAL_ENV = "GYROCAL_CRASH_SIGNAL"
 
 _atomic_writes = 0
 
@@ -37,7 +40,8 @@ def _target() -> tuple[str, int] | None:
 
 
 def _die() -> None:
-    os.kill(os.getpid(), signal.SIGKILL)
+    name = os.environ.get(CRASH_SIGNAL_ENV) or "SIGKILL"
+    os.kill(os.getpid(), getattr(signal, name, signal.SIGKILL))
 
 
 def at_journal_line(when: str, seq: int) -> None:
