@@ -32,26 +32,18 @@ from gyrocal.orchestrator.record.crash import CRASH_AT_ENV
 from gyrocal.orchestrator.record.run_folder import RunFolder
 from gyrocal.orchestrator.signing import generate_key_pair
 from gyrocal.reports.verify import verify_run_folder
+from tests.support.fork_server import ForkServer
 from tests.support.short_run import SHORT_PLAN, short_procedure
 
 pytestmark = pytest.mark.timeout(400)
 
-def killed_run(procedure: Path, out: Path, crash_at: str) -> int:
-    """Fork a ``gyrocal run --sim`` that kills itself at ``crash_at``; returns its wait status."""
-    pid = os.fork()
-    if pid == 0:                                   # the child: never returns into pytest
-        code = 99
-        try:
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, 1)
-            os.dup2(devnull, 2)
-            os.environ[CRASH_AT_ENV] = crash_at
-            code = main(["run", str(procedure), "--sim", "--out", str(out), "--seed", "5",
-                         "--allow-outside-paths"])
-        finally:
-            os._exit(code)
-    _, status = os.waitpid(pid, 0)
-    return status
+def killed_run(server: ForkServer, procedure: Path, out: Path, crash_at: str,
+               env: dict[str, str] | None = None) -> int:
+    """A forked ``gyrocal run --sim`` that kills itself at ``crash_at``; returns its wait status."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return server.run(["run", str(procedure), "--sim", "--out", str(out), "--seed", "5",
+                       "--allow-outside-paths"], {CRASH_AT_ENV: crash_at, **(env or {})},
+                      out.parent / f"{out.name}.err")
 
 
 def step_data(run: Path) -> dict[str, tuple[int, float, float]]:
@@ -97,7 +89,7 @@ def test_kill_at_every_boundary_resumes_to_a_history_that_verifies(h, tmp_path, 
     procedure = short_procedure(h, tmp_path)
     reference = tmp_path / "ref" / "run"
     reference.parent.mkdir()
-    monkeypatch.setenv("GYROCAL_SIGNING_KEY", str(keys.private))
+    monkeypatch.setenv("GYROCAL_SIGNING_KEY", str(keys.private))   # run, resume: signed
     reference_run(procedure, reference)
     assert h.completed_ids(reference) == list(SHORT_PLAN)
     expected = step_data(reference)
@@ -105,45 +97,53 @@ def test_kill_at_every_boundary_resumes_to_a_history_that_verifies(h, tmp_path, 
     assert len(points) > 50, points
 
     outcomes: dict[str, int] = {"killed": 0, "orphans": 0, "closed_on_resume": 0, "no_folder": 0}
-    for point in points:
-        out = tmp_path / "k" / point.replace(":", "-")
-        status = killed_run(procedure, out, point)
-        assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, (point, status)
-        outcomes["killed"] += 1
-        capsys.readouterr()
-        if not (out / "manifest.json").is_file():
-            # Killed inside the very first write (the manifest's): no run folder exists yet,
-            # and resume says so (bad input, exit 2) instead of inventing one.
-            assert main(["resume", str(out)]) == EXIT_BAD_INPUT, point
-            assert "not a run folder" in capsys.readouterr().err
-            outcomes["no_folder"] += 1
-            continue
-        before = (out / "journal.jsonl").read_bytes() if (out / "journal.jsonl").exists() else b""
-        before = before[: before.rfind(b"\n") + 1]          # a torn tail is set aside, not kept
-        assert main(["resume", str(out)]) == EXIT_OK, (point, capsys.readouterr())
-        assert (out / "journal.jsonl").read_bytes().startswith(before), point
-        audit = verify_run_folder(out, public_key=keys.public)
-        assert audit.ok, (point, audit.failure)
-        assert h.completed_ids(out) == list(SHORT_PLAN), point         # each step once
-        got = step_data(out)
-        assert set(got) == set(expected), point
-        for step_id, (samples, mean, se) in expected.items():
-            assert got[step_id][0] == samples, (point, step_id)
-            assert abs(got[step_id][1] - mean) < 6 * np.hypot(se, got[step_id][2]), (point, step_id)
-        events = h.events(out)
-        orphans = [e for e in events if e["event"] == "orphan_set_aside"]
-        counted = {c for e in events if e["event"] == "step_completed" for c in e.get("chunks", [])}
-        for orphan in orphans:
-            assert (out / orphan["moved_to"]).is_file() and orphan["moved_to"].startswith("orphans/")
-            assert orphan["path"] not in counted and orphan["moved_to"] not in counted
-            assert any(orphan["moved_to"] in line for line in audit.orphans), point
-        assert not [p for p in out.rglob("*.tmp") if "orphans" not in p.parts], point
-        outcomes["orphans"] += bool(orphans)
-        outcomes["closed_on_resume"] += any(e.get("closed_by") == "resume" for e in events)
+    with ForkServer(h.REPO_ROOT) as server:
+        for point in points:
+            _kill_resume_verify(server, h, procedure, tmp_path / "k" / point.replace(":", "-"),
+                                point, keys, expected, outcomes, capsys)
     print("kill points:", len(points), outcomes)
     # the boundaries that matter were really hit: a chunk on disk before its line, a
     # temporary file, and a run cut between run_completed and run_closed
     assert outcomes["orphans"] >= 3 and outcomes["closed_on_resume"] >= 1
+
+
+def _kill_resume_verify(server, h, procedure, out, point, keys, expected, outcomes, capsys):
+    """One kill point: killed at ``point``, resumed, verified, compared with the reference."""
+    status = killed_run(server, procedure, out, point,
+                        {"GYROCAL_SIGNING_KEY": str(keys.private)})
+    assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, (
+        point, status, (out.parent / f"{out.name}.err").read_text())
+    outcomes["killed"] += 1
+    capsys.readouterr()
+    if not (out / "manifest.json").is_file():
+        # Killed inside the very first write (the manifest's): no run folder exists yet,
+        # and resume says so (bad input, exit 2) instead of inventing one.
+        assert main(["resume", str(out)]) == EXIT_BAD_INPUT, point
+        assert "not a run folder" in capsys.readouterr().err
+        outcomes["no_folder"] += 1
+        return
+    before = (out / "journal.jsonl").read_bytes() if (out / "journal.jsonl").exists() else b""
+    before = before[: before.rfind(b"\n") + 1]          # a torn tail is set aside, not kept
+    assert main(["resume", str(out)]) == EXIT_OK, (point, capsys.readouterr())
+    assert (out / "journal.jsonl").read_bytes().startswith(before), point
+    audit = verify_run_folder(out, public_key=keys.public)
+    assert audit.ok, (point, audit.failure)
+    assert h.completed_ids(out) == list(SHORT_PLAN), point         # each step once
+    got = step_data(out)
+    assert set(got) == set(expected), point
+    for step_id, (samples, mean, se) in expected.items():
+        assert got[step_id][0] == samples, (point, step_id)
+        assert abs(got[step_id][1] - mean) < 6 * np.hypot(se, got[step_id][2]), (point, step_id)
+    events = h.events(out)
+    orphans = [e for e in events if e["event"] == "orphan_set_aside"]
+    counted = {c for e in events if e["event"] == "step_completed" for c in e.get("chunks", [])}
+    for orphan in orphans:
+        assert (out / orphan["moved_to"]).is_file() and orphan["moved_to"].startswith("orphans/")
+        assert orphan["path"] not in counted and orphan["moved_to"] not in counted
+        assert any(orphan["moved_to"] in line for line in audit.orphans), point
+    assert not [p for p in out.rglob("*.tmp") if "orphans" not in p.parts], point
+    outcomes["orphans"] += bool(orphans)
+    outcomes["closed_on_resume"] += any(e.get("closed_by") == "resume" for e in events)
 
 
 def test_the_killed_chunk_is_named_and_never_counted(h, tmp_path, capsys):
@@ -154,7 +154,8 @@ def test_the_killed_chunk_is_named_and_never_counted(h, tmp_path, capsys):
                  "--allow-outside-paths"]) == EXIT_OK
     first_chunk = next(e for e in h.events(reference) if e["event"] == "chunk_written")
     out = tmp_path / "killed"
-    status = killed_run(procedure, out, f"before:{first_chunk['seq']}")
+    with ForkServer(h.REPO_ROOT) as server:
+        status = killed_run(server, procedure, out, f"before:{first_chunk['seq']}")
     assert os.WTERMSIG(status) == signal.SIGKILL
     assert (out / first_chunk["path"]).is_file()
     failed = verify_run_folder(out)

@@ -19,39 +19,20 @@ import pytest
 from gyrocal.cli import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_OK, main
 from gyrocal.orchestrator.record.crash import CRASH_AT_ENV, CRASH_SIGNAL_ENV
 from gyrocal.reports.verify import verify_run_folder
+from tests.support.fork_server import ForkServer
 from tests.support.short_run import SHORT_PLAN, short_procedure
 
 pytestmark = pytest.mark.timeout(400)
 
 
-def signalled_run(procedure: Path, out: Path, at: str, signal_name: str) -> tuple[int, str]:
-    """Fork a ``gyrocal run --sim`` that signals itself at ``at``; (exit code, its stderr)."""
+def signalled_run(server: ForkServer, procedure: Path, out: Path, at: str,
+                  signal_name: str) -> tuple[int, str]:
+    """A forked ``gyrocal run --sim`` that signals itself at ``at``; (exit code, its stderr)."""
     err_path = out.parent / f"{out.name}.err"
     out.parent.mkdir(parents=True, exist_ok=True)
-    pid = os.fork()
-    if pid == 0:
-        code = 99
-        try:
-            err = os.open(err_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, 1)
-            os.dup2(err, 2)
-            os.environ[CRASH_AT_ENV] = at
-            os.environ[CRASH_SIGNAL_ENV] = signal_name
-            import sys
-
-            sys.stderr = os.fdopen(2, "w", buffering=1)
-            sys.stdout = os.fdopen(1, "w", buffering=1)
-            code = main(["run", str(procedure), "--sim", "--out", str(out), "--seed", "5",
-                         "--allow-outside-paths"])
-        except BaseException:       # noqa: BLE001 - the child reports what escaped main()
-            import traceback
-
-            traceback.print_exc()
-            code = 98
-        finally:
-            os._exit(code)
-    _, status = os.waitpid(pid, 0)
+    status = server.run(["run", str(procedure), "--sim", "--out", str(out), "--seed", "5",
+                         "--allow-outside-paths"],
+                        {CRASH_AT_ENV: at, CRASH_SIGNAL_ENV: signal_name}, err_path)
     assert os.WIFEXITED(status), f"{at} {signal_name}: died by signal {os.WTERMSIG(status)}"
     return os.WEXITSTATUS(status), err_path.read_text()
 
@@ -71,20 +52,26 @@ def test_a_signal_at_every_phase_exits_3_quietly_and_resumes_to_a_verified_run(h
     points += [(f"after:{completed}", "SIGTERM" if completed % 2 else "SIGINT"),
                (f"after:{len(names)}", "SIGTERM" if len(names) % 2 else "SIGINT"),
                (f"before:{steps_done + 1}", "SIGINT"), (f"before:{steps_done + 1}", "SIGTERM")]
-    for at, name in points:
-        out = tmp_path / "s" / f"{at.replace(':', '-')}-{name}"
-        code, err = signalled_run(procedure, out, at, name)
-        assert code == EXIT_FAULT, (at, name, err)
-        assert "Traceback" not in err, (at, name, err)
-        capsys.readouterr()
-        assert main(["resume", str(out)]) == EXIT_OK, (at, name, capsys.readouterr())
-        audit = verify_run_folder(out)
-        assert audit.ok, (at, name, audit.failure)
-        assert h.completed_ids(out) == list(SHORT_PLAN), (at, name)
-        if at == f"after:{completed}":
-            # the close was finished before exiting: nothing for resume to close
-            assert "the run is closed first" in err and "complete and closed" in err
-            assert [e["event"] for e in h.events(out)].count("run_closed") == 1
+    with ForkServer(h.REPO_ROOT) as server:
+        for at, name in points:
+            _signal_resume_verify(server, h, procedure, tmp_path / "s" / f"{at.replace(':', '-')}"
+                                  f"-{name}", at, name, completed, capsys)
+
+
+def _signal_resume_verify(server, h, procedure, out, at, name, completed, capsys):
+    """One phase: signalled there, exit 3 without a traceback, resumed, verified."""
+    code, err = signalled_run(server, procedure, out, at, name)
+    assert code == EXIT_FAULT, (at, name, err)
+    assert "Traceback" not in err, (at, name, err)
+    capsys.readouterr()
+    assert main(["resume", str(out)]) == EXIT_OK, (at, name, capsys.readouterr())
+    audit = verify_run_folder(out)
+    assert audit.ok, (at, name, audit.failure)
+    assert h.completed_ids(out) == list(SHORT_PLAN), (at, name)
+    if at == f"after:{completed}":
+        # the close was finished before exiting: nothing for resume to close
+        assert "the run is closed first" in err and "complete and closed" in err
+        assert [e["event"] for e in h.events(out)].count("run_closed") == 1
 
 
 def test_a_completed_run_returns_the_rig_to_its_safe_state_and_reads_it_back(
