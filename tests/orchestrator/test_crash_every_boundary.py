@@ -172,3 +172,37 @@ def test_the_killed_chunk_is_named_and_never_counted(h, tmp_path, capsys):
     results = json.loads((out / "report" / "results.json").read_text())
     assert results["journal"]["chunks"] == len([e for e in h.events(out)
                                                 if e["event"] == "chunk_written"])
+
+
+@pytest.mark.parametrize("command", ["report", "certificate"])
+def test_a_killed_report_rebuild_or_certificate_resumes_to_a_verified_run(h, tmp_path, command,
+                                                                           monkeypatch, capsys):
+    """Every boundary of ``gyrocal report`` / ``certificate`` on a closed, signed run."""
+    import shutil
+
+    keys = generate_key_pair(tmp_path / "keys")
+    monkeypatch.setenv("GYROCAL_SIGNING_KEY", str(keys.private))
+    procedure = short_procedure(h, tmp_path)
+    closed = tmp_path / "closed"
+    assert main(["run", str(procedure), "--sim", "--out", str(closed), "--seed", "5",
+                 "--allow-outside-paths"]) == EXIT_OK
+    lines = len(h.events(closed))
+    # its atomic writes (results.json and report.html, or the PDF) and its two journal
+    # lines (report_written or certificate_written, then the seal), before and after each
+    points = [f"tmp:{n}" for n in (1, 2)] + [f"{when}:{lines + k}" for k in (1, 2)
+                                              for when in ("before", "after")]
+    env = {"GYROCAL_SIGNING_KEY": str(keys.private)}
+    with ForkServer(h.REPO_ROOT) as server:
+        for point in points:
+            run = tmp_path / point.replace(":", "-")
+            shutil.copytree(closed, run)
+            status = server.run([command, str(run)], {CRASH_AT_ENV: point, **env},
+                                tmp_path / f"{point}.err")
+            killed = os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL
+            assert killed or (command == "certificate" and point == "tmp:2"), (point, status)
+            capsys.readouterr()
+            assert main(["resume", str(run)]) == EXIT_OK, (point, capsys.readouterr())
+            assert "run already complete" in capsys.readouterr().out
+            audit = verify_run_folder(run, public_key=keys.public)
+            assert audit.ok, (point, audit.failure)
+            assert not [p for p in run.rglob("*.tmp") if "orphans" not in p.parts], point
