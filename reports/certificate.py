@@ -27,6 +27,7 @@ from reportlab.lib.units import mm
 from reportlab.platypus import Paragraph, SimpleDocTemplate, Spacer, Table, TableStyle
 
 from gyrocal.orchestrator.record.atomic import write_atomic
+from gyrocal.orchestrator.signing import Signer
 from gyrocal.reports.gum import round_to_uncertainty
 
 CERTIFICATE_FILE = "report/certificate.pdf"
@@ -235,7 +236,8 @@ def _signature(results: dict[str, Any]) -> str:
 
 
 def certify_run(run_dir: Path, *, customer: str, approval: Approval, number: str | None = None,
-                out: Path | None = None, signer: Any = None) -> tuple[Path, str, str | None]:
+                out: Path | None = None, signer: Signer | None = None
+                ) -> tuple[Path, str, str | None]:
     """Write the certificate of the run in ``run_dir`` from its report/results.json.
 
     Returns (PDF path, certificate number, overall verdict). The number defaults to

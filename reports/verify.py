@@ -15,12 +15,17 @@ follows from the samples. In order, first failure wins:
    seed, software); the manifest must agree with them (it is mutable run
    state, so it is checked against the journal, not trusted);
 4. **samples**: every journaled chunk on disk with its hash, every chunk on
-   disk journaled, every completed step's chunks journaled;
+   disk journaled, every completed step's chunks journaled; the manifest's
+   instrument identities are the journal's ``instrument_identified``;
 5. **the report**: every file of ``report/`` recorded by the last
    ``report_written`` with its hash; the report's own signature block (over
    the chain head that ``report_written`` chains to and the numbers); and the
    report's numbers recomputed from the samples (a report that does not
    follow from the data fails);
+   then every certificate (``certificate_written``) and every file set aside
+   in ``orphans/`` after a crash (``orphan_set_aside``) on disk with its
+   hash — named in the account, never counted — and no file in the folder
+   that no event records (a planted ``journal.torn``, a stray chunk);
 6. **the seals**: the journal's last line is a ``sealed`` event whose Ed25519
    signature covers the chain head. With ``--key`` (the station's public key
    from QA's records) every seal must verify with it: a history recomputed by
