@@ -414,7 +414,7 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
             if signer is not None and not journal.closed:
                 signer.seal(journal, manifest["run_id"], reason="controller exit")
             folder.close()
-    if closing.received:
+    if closing.received and code != EXIT_FAULT:   # a faulted run has said how to resume
         print(f"gyrocal: stopped by signal {closing.received[0]} while the run was being closed; "
               f"its record is complete and closed ({folder.path}); exit {EXIT_FAULT} as for "
               "any interrupt", file=sys.stderr)

@@ -108,6 +108,7 @@ class RunEngine:
         self.before_step = before_step      # e.g. a dry run's planned fault injections
         self._step_id: str | None = None    # the plan step being executed (for fault events)
         self._attempts_before: dict[str, int] = {}  # step_id → last attempt journaled by earlier sessions
+        self._closing_from: int | None = None  # len(gate.deferred) when the close began
         self._t_run_start = self.clock.now_s()
         self.conditions = Conditions(instruments, self.clock, self.machine, self.journal,
                                      self.progress, policy, elapsed_s=self._elapsed)
@@ -367,6 +368,7 @@ class RunEngine:
         self.machine.report()
         if self.on_finished is not None:
             self.on_finished()
+        self._closing_from = len(self._gate.deferred)
         self._gate.shield_for_good()
         self.machine.finish()
         ended_at = _now_text()
@@ -375,8 +377,11 @@ class RunEngine:
 
     @property
     def deferred_signals(self) -> list[int]:
-        """Signals acknowledged while the run was being closed (the caller exits 3 for them)."""
-        return list(self._gate.deferred)
+        """Signals acknowledged while the run was being closed (the caller exits 3 for them);
+        not those a fault's safing deferred (that run already ends in exit 3)."""
+        if self._closing_from is None:
+            return []
+        return list(self._gate.deferred[self._closing_from:])
 
     def _return_safe(self) -> None:
         """A completed run leaves the rig as ``plan`` promises: table stopped, chamber at the
