@@ -287,6 +287,8 @@ def cmd_resume(args: argparse.Namespace) -> int:
 
 def _resume_locked(args: argparse.Namespace, folder: RunFolder, held: contextlib.ExitStack) -> int:
     manifest = folder.read_manifest()
+    if (folder.path / "journal.jsonl").exists():
+        folder.open_journal()     # a torn last line (power cut) is set aside and journaled first
     if args.speed not in (None, "1", "1.0") and manifest.get("mode") != "sim":
         # The rule run applies: real chambers and tables live in real time.
         raise BadInput(f"--speed {args.speed}: only --sim runs can change the clock; "

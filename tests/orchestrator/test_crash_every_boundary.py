@@ -206,3 +206,24 @@ def test_a_killed_report_rebuild_or_certificate_resumes_to_a_verified_run(h, tmp
             audit = verify_run_folder(run, public_key=keys.public)
             assert audit.ok, (point, audit.failure)
             assert not [p for p in run.rglob("*.tmp") if "orphans" not in p.parts], point
+
+
+def test_a_power_cut_mid_line_resumes_and_verify_expects_the_torn_tail(h, tmp_path, capsys):
+    """A torn last line (the one thing SIGKILL cannot make: a write cut by the power)."""
+    procedure = short_procedure(h, tmp_path)
+    out = tmp_path / "run"
+    with ForkServer(h.REPO_ROOT) as server:
+        status = killed_run(server, procedure, out, "after:12")
+    assert os.WTERMSIG(status) == signal.SIGKILL
+    with open(out / "journal.jsonl", "ab") as journal:
+        journal.write(b'{"event":"step_completed","step_id":"T01.sf')     # cut mid-line
+    assert main(["resume", str(out)]) == EXIT_OK
+    events = h.events(out)
+    torn = [e for e in events if e["event"] == "torn_tail_set_aside"]
+    assert len(torn) == 1 and torn[0]["seq"] == 13          # named right after the last whole line
+    assert h.completed_ids(out) == list(SHORT_PLAN)
+    audit = verify_run_folder(out)
+    assert audit.ok, audit.failure
+    assert "torn journal tail → journal.torn" in audit.orphans
+    (out / "journal.torn").write_bytes(b"edited\n")
+    assert "journal.torn" in verify_run_folder(out).failure
