@@ -132,6 +132,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="name of the person authorising the certificate")
     p.add_argument("--role", default="(role not stated)", help="their role, e.g. Quality manager")
     p.add_argument("--out", default=None, help="PDF path (default RUN_DIR/report/certificate.pdf)")
+    p.add_argument("--signing-key", default=None,
+                   help="seal the certificate's journal line (as for report)")
     p.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_certificate"))
 
     p = sub.add_parser("verify", help="audit: completeness, every hash, the numbers, the signature")

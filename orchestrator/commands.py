@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import getpass
+import json
 import logging
 import os
 import sys
@@ -25,6 +26,7 @@ from gyrocal.instruments.factory import Instruments, open_instruments
 from gyrocal.models.clock import RealClock, SimClock, make_clock
 from gyrocal.orchestrator.doc_links import with_doc_links
 from gyrocal.orchestrator.engine import EnginePolicy, RunEngine
+from gyrocal.orchestrator.interrupts import ClosingSignals
 from gyrocal.orchestrator.locks import FileLock, instrument_locks, run_folder_lock
 from gyrocal.orchestrator.notify import Notifier
 from gyrocal.orchestrator.plan import Plan, expand_plan, format_plan
@@ -34,11 +36,13 @@ from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.record.journal import JournalEvent, sha256_file
 from gyrocal.orchestrator.record.plan_record import write_plan_record
 from gyrocal.orchestrator.record.run_folder import IDENTITY_KEYS, RunFolder, new_run_id
+from gyrocal.orchestrator.record.strays import set_aside
 from gyrocal.orchestrator.remount import (
     FileConfirmOperator,
     SimulatedFixtureOperator,
     write_confirmation,
 )
+from gyrocal.orchestrator.run_close import close_completed, steps_completed_run
 from gyrocal.orchestrator.run_errors import RunFaultError
 from gyrocal.orchestrator.signing import (
     KeyPairFiles,
@@ -288,9 +292,14 @@ def cmd_resume(args: argparse.Namespace) -> int:
 
 def _resume_locked(args: argparse.Namespace, folder: RunFolder, held: contextlib.ExitStack) -> int:
     manifest = folder.read_manifest()
-    if manifest.get("state") == "done":
-        print(f"{folder.path}: run already complete; nothing to resume")
-        return EXIT_OK
+    if (folder.path / "journal.jsonl").exists():
+        folder.open_journal()     # a torn last line (power cut) is set aside and journaled first
+    if args.speed not in (None, "1", "1.0") and manifest.get("mode") != "sim":
+        # The rule run applies: real chambers and tables live in real time.
+        raise BadInput(f"--speed {args.speed}: only --sim runs can change the clock; "
+                       "real instruments run at --speed 1")
+    if steps_completed_run(folder.journal_events()):
+        return _close_completed(args, folder)
     inputs = manifest["inputs"]
     for role, entry in inputs.items():
         source = Path(entry["source"])
@@ -308,6 +317,11 @@ def _resume_locked(args: argparse.Namespace, folder: RunFolder, held: contextlib
     plan = expand_plan(procedure)
     if [s.step_id for s in plan.steps] != manifest.get("steps"):
         raise BadInput(f"{folder.path}: the expanded plan differs from the one the run started with")
+    if not folder.journal_events():
+        # Cut before run_started fixed anything: the plan record may be missing or not yet
+        # in the manifest. It is written again, as run writes it (same inputs, checked above).
+        record = write_plan_record(folder.path, procedure, plan)
+        folder.update_manifest(plan_sha256=sha256_file(record))
     sim = manifest.get("mode") == "sim"
     speed = args.speed if args.speed is not None else manifest.get("speed")
     clock = _clock_for(speed, sim)
@@ -322,6 +336,21 @@ def _resume_locked(args: argparse.Namespace, folder: RunFolder, held: contextlib
     signer = run_signer(getattr(args, "signing_key", None), procedure.station.signing_key)
     return _execute(folder, procedure, plan, clock, sim, seed, signer=signer,
                     on_sim_started=args.on_sim_started)
+
+
+def _close_completed(args: argparse.Namespace, folder: RunFolder) -> int:
+    """Every step is recorded: close the run, or repair a closed run's tail (run_close.py)."""
+    signer = report_signer(folder.path, getattr(args, "signing_key", None))
+
+    def build(run: RunFolder, journal) -> dict[str, Any]:
+        from gyrocal.reports.build import build_report
+
+        return build_report(run.path, journal=journal, signer=signer)
+
+    repair = close_completed(folder, signer, build)
+    print(f"{folder.path}: run already complete; " + "; ".join(repair.lines()))
+    results = folder.path / "report" / "results.json"
+    return print_verdict(json.loads(results.read_text())) if results.is_file() else EXIT_OK
 
 
 def _operator() -> str:
@@ -381,13 +410,23 @@ def _execute(folder: RunFolder, procedure: Procedure, plan: Plan, clock, sim: bo
                        plan_sha256=manifest.get("plan_sha256"),
                        identity={key: manifest.get(key) for key in IDENTITY_KEYS},
                        signing_key=None if signer is None else signer.fingerprint)
-    try:
-        return _execute_journaled(folder, journal, procedure, plan, clock, sim, seed, fault_plan,
-                                  signer, on_sim_started)
-    finally:
-        if signer is not None and not journal.closed:
-            signer.seal(journal, manifest["run_id"], reason="controller exit")
-        folder.close()
+    # What a crash left between a file's write and its journal line: set aside, named.
+    set_aside(folder.path, journal, folder.journal_events(), manifest)
+    closing = ClosingSignals()
+    with closing.installed():
+        try:
+            code = _execute_journaled(folder, journal, procedure, plan, clock, sim, seed,
+                                      fault_plan, signer, on_sim_started, closing)
+        finally:
+            if signer is not None and not journal.closed:
+                signer.seal(journal, manifest["run_id"], reason="controller exit")
+            folder.close()
+    if closing.received and code != EXIT_FAULT:   # a faulted run has said how to resume
+        print(f"gyrocal: stopped by signal {closing.received[0]} while the run was being closed; "
+              f"its record is complete and closed ({folder.path}); exit {EXIT_FAULT} as for "
+              "any interrupt", file=sys.stderr)
+        return EXIT_FAULT
+    return code
 
 
 def print_verdict(results: dict[str, Any]) -> int:
@@ -416,7 +455,8 @@ def _run_label(manifest: dict[str, Any], procedure: Procedure) -> str:
 def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: Plan, clock,
                        sim: bool, seed: int | None, fault_plan=None,
                        signer: Signer | None = None,
-                       on_sim_started: SimStarted | None = None) -> int:
+                       on_sim_started: SimStarted | None = None,
+                       closing: ClosingSignals | None = None) -> int:
 
     def on_retry(role: str, attempt: int, exc: InstrumentError) -> None:
         journal.append(JournalEvent.RETRY, instrument=role, attempt=attempt, command=exc.command,
@@ -443,7 +483,13 @@ def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: P
                                before_step=before_step,
                                operator=_fixture_operator(procedure, folder, simulated),
                                mountings={m.name: m.up for m in procedure.mountings})
-            engine.run()
+            if closing is not None:
+                closing.arm()      # from here until the seal, a signal waits for the close
+            try:
+                engine.run()
+            finally:
+                if closing is not None:
+                    closing.received.extend(engine.deferred_signals)
         journal.append(JournalEvent.RUN_CLOSED, outcome="completed")
     except RunFaultError as exc:
         print(f"gyrocal: fault: {exc}", file=sys.stderr)
@@ -512,17 +558,17 @@ def cmd_demo(args: argparse.Namespace) -> int:
         signing_key=str(keys.private), on_sim_started=None, allow_outside_paths=False))
     if code == EXIT_FAULT:
         return code
-    audit = verify_run_folder(out / "smoke", public_key=keys.public)
     print(f"report: {out / 'smoke' / 'report' / 'report.html'}")
-    if code != EXIT_FAULT:
-        import datetime as dt
+    import datetime as dt
 
-        from gyrocal.reports.certificate import Approval, certify_run
+    from gyrocal.reports.certificate import Approval, certify_run
 
-        certificate, number, _ = certify_run(
-            out / "smoke", customer="Demo customer",
-            approval=Approval("Demo approver", "Quality manager", dt.date.today()))
-        print(f"certificate {number}: {certificate}")
+    # Certified first, verified last (below): the certificate is part of the audited history.
+    certificate, number, _ = certify_run(
+        out / "smoke", customer="Demo customer",
+        approval=Approval("Demo approver", "Quality manager", dt.date.today()),
+        signer=signer_from(keys.private))
+    print(f"certificate {number}: {certificate} (SIMULATED — not a calibration)")
 
     station = root / "stations" / "sim-hidden-effect.yaml"
     nominal = root / "gyro-models" / "nominal-fog.yaml"
@@ -546,7 +592,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     print(f"story: {out / 'discrepancy' / 'discrepancy.html'}")
 
     print(f"\n== audit: gyrocal verify RUN_DIR --key {keys.public} ==")
-    audits = [audit, verify_run_folder(out / "hidden-effect", public_key=keys.public)]
+    audits = [verify_run_folder(out / each, public_key=keys.public)
+              for each in ("smoke", "hidden-effect")]
     for each in audits:
         print(each.summary() if each.ok else f"{each.run_dir}: FAILED: {each.failure}")
     if not all(each.ok for each in audits):

@@ -108,6 +108,7 @@ class RunEngine:
         self.before_step = before_step      # e.g. a dry run's planned fault injections
         self._step_id: str | None = None    # the plan step being executed (for fault events)
         self._attempts_before: dict[str, int] = {}  # step_id → last attempt journaled by earlier sessions
+        self._closing_from: int | None = None  # len(gate.deferred) when the close began
         self._t_run_start = self.clock.now_s()
         self.conditions = Conditions(instruments, self.clock, self.machine, self.journal,
                                      self.progress, policy, elapsed_s=self._elapsed)
@@ -354,15 +355,46 @@ class RunEngine:
 
     # -- the end -----------------------------------------------------------------------------
     def _finish(self) -> None:
+        """After the last step: the station's safe state (read back), the report, the close.
+
+        The report is interruptible (Ctrl-C there is an interrupted run: exit 3,
+        and ``resume`` builds it again); once it is recorded nothing is left to
+        stop, so from ``run_completed`` on a signal is acknowledged and the run
+        closes first (``deferred_signals`` tells the caller it came).
+        """
         self.conditions.set_table_rate(0.0)
+        self._return_safe()
         self.machine.analyse()
         self.journal.append(JournalEvent.STEPS_DONE, steps=len(self.steps))
         self.machine.report()
         if self.on_finished is not None:
             self.on_finished()
+        self._closing_from = len(self._gate.deferred)
+        self._gate.shield_for_good()
         self.machine.finish()
-        self.journal.append(JournalEvent.RUN_COMPLETED)
-        self.folder.update_manifest(state="done", ended_at=_now_text())
+        ended_at = _now_text()
+        self.journal.append(JournalEvent.RUN_COMPLETED, ended_at=ended_at)
+        self.folder.update_manifest(state="done", ended_at=ended_at)
+
+    @property
+    def deferred_signals(self) -> list[int]:
+        """Signals acknowledged while the run was being closed (the caller exits 3 for them);
+        not those a fault's safing deferred (that run already ends in exit 3)."""
+        if self._closing_from is None:
+            return []
+        return list(self._gate.deferred[self._closing_from:])
+
+    def _return_safe(self) -> None:
+        """A completed run leaves the rig as ``plan`` promises: table stopped, chamber at the
+        station's safe setpoint, each confirmed by read-back and journaled (``returned_safe``)."""
+        policy = SafePolicy(self.policy.safe_setpoint_c, self.policy.chamber_retries,
+                            self.policy.table_retries)
+        outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock)
+        for action in outcome.actions:
+            print(f"gyrocal: returned to the safe state: {action.text}", file=sys.stderr)
+        self.journal.append(JournalEvent.RETURNED_SAFE, **outcome.journal_fields())
+        if not outcome.confirmed:
+            raise RunFaultError(f"after the last step: {outcome.summary()}")
 
     def _go_safe(self, kind: str, message: str, **fields: Any) -> SafeOutcome:
         """Safe state, verified (``safe_state.py``): table stopped, chamber at its safe setpoint.

@@ -32,6 +32,8 @@ InstrumentT = TypeVar("InstrumentT", Chamber, RateTable)
 
 SHIELD_NOTICE = (b"gyrocal: interrupt received while making the instruments safe; "
                  b"it waits until the safe state is done\n")
+CLOSING_NOTICE = (b"gyrocal: interrupt received after the last step was recorded; the run is "
+                  b"closed first (a moment), then gyrocal exits\n")
 
 
 class InterruptGate:
@@ -41,12 +43,13 @@ class InterruptGate:
         self._depth = 0
         self._pending: int | None = None
         self._shielded = False
+        self._notice = SHIELD_NOTICE
         self.deferred: list[int] = []    # signals that arrived while shielded
 
     def _handler(self, signum: int, frame: object) -> None:
         if self._shielded:
             self.deferred.append(signum)
-            os.write(2, SHIELD_NOTICE)   # async-signal-safe, unlike print() into a busy stream
+            os.write(2, self._notice)    # async-signal-safe, unlike print() into a busy stream
             return
         if self._depth:
             self._pending = signum
@@ -76,6 +79,13 @@ class InterruptGate:
             self._shielded = False
             self._pending = None
 
+    def shield_for_good(self) -> None:
+        """From here on nothing is left to interrupt (the run is being closed): a signal is
+        acknowledged and kept in ``deferred``; the caller exits with the signal's code after."""
+        self._shielded = True
+        self._pending = None
+        self._notice = CLOSING_NOTICE
+
     @contextmanager
     def installed(self, journal: Any) -> Iterator[None]:
         """Handle SIGINT/SIGTERM and hold them during ``journal.append`` (main thread only)."""
@@ -96,6 +106,41 @@ class InterruptGate:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
             del journal.append
+
+
+class ClosingSignals:
+    """SIGINT/SIGTERM while a controller closes its run: raised at once until :meth:`arm`, then
+    acknowledged and kept, so the few journal lines that close a run are never cut off.
+
+    The engine's gate handles signals while it runs; this one holds the handlers
+    around it, so the instant between the engine's return and the closing line
+    has an owner too (a signal there used to end in a traceback or in -15).
+    """
+
+    def __init__(self) -> None:
+        self.armed = False
+        self.received: list[int] = []
+
+    def _handler(self, signum: int, frame: object) -> None:
+        if not self.armed:
+            raise KeyboardInterrupt(f"signal {signum}")
+        self.received.append(signum)
+        os.write(2, CLOSING_NOTICE)
+
+    def arm(self) -> None:
+        self.armed = True
+
+    @contextmanager
+    def installed(self) -> Iterator[ClosingSignals]:
+        if threading.current_thread() is not threading.main_thread():
+            yield self
+            return
+        previous = {sig: signal.signal(sig, self._handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield self
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
 
 
 class _Gated(Generic[InstrumentT]):

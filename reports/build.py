@@ -43,8 +43,13 @@ from gyrocal.orchestrator.record.atomic import write_bytes_atomic
 from gyrocal.orchestrator.record.journal import Journal, JournalEvent, sha256_bytes
 from gyrocal.orchestrator.record.logged_steps import HOLD_KINDS, completed_attempts, longest_hold
 from gyrocal.orchestrator.record.plan_record import PLAN_RECORD, PlanRecord, RecordedStep
-from gyrocal.orchestrator.record.run_folder import RunFolder, RunFolderError
+from gyrocal.orchestrator.record.run_folder import (
+    RunFolder,
+    RunFolderError,
+    identified_instruments,
+)
 from gyrocal.orchestrator.record.step_kind import StepKind
+from gyrocal.orchestrator.record.strays import set_aside
 from gyrocal.orchestrator.signing import Signer
 from gyrocal.reports import bias as bias_mod
 from gyrocal.reports import compensation as comp
@@ -374,10 +379,16 @@ def _journal_summary(events: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+def _recorded_identity(data: RunData) -> dict[str, Any]:
+    started = next((e for e in data.events if e.get("event") == "run_started"), {})
+    identity = started.get("identity")
+    return identity if isinstance(identity, dict) else dict(data.manifest)
+
+
 def _instruments(data: RunData, notes: list[str]) -> dict[str, Any]:
     planned = ((data.plan.get("station") or {}).get("instruments")) or {}
-    identified = data.manifest.get("instruments") or {}
-    run_date = str(data.manifest.get("started_at") or "")[:10]
+    identified = identified_instruments(data.events)     # the journal's, not the manifest's
+    run_date = str(_recorded_identity(data).get("started_at") or "")[:10]
     out = {}
     uut = data.plan.get("unit_under_test") or {}
     for role in sorted(set(planned) | set(identified)):
@@ -514,9 +525,17 @@ def _provenance(data: RunData, notes: list[str]) -> dict[str, Any]:
     """Who, what, where and with what: run, procedure, station, instruments, inputs, journal."""
     plan, manifest = data.plan, data.manifest
     station = plan.get("station") or {}
-    run = {key: manifest.get(key) for key in
-           ("run_id", "operator", "started_at", "ended_at", "mode", "seed", "speed",
-            "state", "software", "station_name", "plan_sha256")}
+    # Who, when and how: as run_started fixed them (signed), never the mutable manifest's copy.
+    identity = _recorded_identity(data)
+    run = {key: identity.get(key, manifest.get(key)) for key in
+           ("run_id", "operator", "started_at", "mode", "seed", "speed", "software",
+            "station_name")}
+    started = next((e for e in data.events if e.get("event") == "run_started"), {})
+    run["plan_sha256"] = started.get("plan_sha256", manifest.get("plan_sha256"))
+    completed = [e for e in data.events if e.get("event") == "run_completed"]
+    run["ended_at"] = completed[-1].get("ended_at") if completed else None
+    run["state"] = "done" if completed else str(manifest.get("state") or "running")
+    run["simulated"] = run.get("mode") == "sim"
     # The report of a run is built when its last step is done, before the run closes (the
     # report's hash goes into the closing line), so ended_at is not known yet: the time the
     # steps were done is, and it is what a certificate's "date of calibration" means.
@@ -563,18 +582,26 @@ def build_report(run_dir: str | Path, journal: Journal | None = None,
     rebuilt report is as authenticated as the run. With ``signer`` the report
     itself carries a signature over the chain head and its own numbers.
     """
+    if journal is not None:
+        return _build(Path(run_dir), journal, signer)
+    folder = RunFolder.open(Path(run_dir))
+    with Journal(folder.path / "journal.jsonl") as own:
+        # What a rebuild cut short left behind (a temporary file, a report file never
+        # recorded) is set aside and named before anything is written.
+        set_aside(folder.path, own, folder.journal_events(), folder.read_manifest())
+        results = _build(folder.path, own, signer)
+        if signer is not None:
+            signer.seal(own, str(results.get("run", {}).get("run_id") or ""),
+                        reason="report rebuilt")
+    return results
+
+
+def _build(run_dir: Path, journal: Journal, signer: Signer | None) -> dict[str, Any]:
     notes: list[str] = []
-    data = read_run(Path(run_dir), notes)
+    data = read_run(run_dir, notes)
     results = finite_or_none(compute_results(data, notes))
     results["report_built_at"] = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
-    root = data.folder.path
-    if journal is not None:
-        _write_report(data, results, journal, signer)
-    else:
-        with Journal(root / "journal.jsonl") as own:
-            _write_report(data, results, own, signer)
-            if signer is not None:
-                signer.seal(own, data.manifest.get("run_id", ""), reason="report rebuilt")
+    _write_report(data, results, journal, signer)
     return results
 
 

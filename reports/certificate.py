@@ -27,10 +27,14 @@ from reportlab.lib.units import mm
 from reportlab.pdfgen.canvas import Canvas
 from reportlab.platypus import Paragraph, SimpleDocTemplate, Spacer, Table, TableStyle
 
+from gyrocal.orchestrator.record.atomic import write_atomic
+from gyrocal.orchestrator.signing import Signer
 from gyrocal.reports.gum import round_to_uncertainty
 from gyrocal.reports.labels import acceptance_unit
 
 CERTIFICATE_FILE = "report/certificate.pdf"
+#: The title of a simulated run's certificate (and the watermark on each of its pages).
+SIMULATED_TITLE = "SIMULATED — not a calibration"
 
 
 @dataclass(frozen=True)
@@ -142,8 +146,14 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
     procedure = results.get("procedure") or {}
     verdict = results.get("verdict") or {}
     inputs = results.get("inputs") or {}
+    simulated = is_simulated(results)
+    heading = ([Paragraph(SIMULATED_TITLE, styles["Title"]),
+                Paragraph("Calibration certificate layout, from a dry run against simulated "
+                          "instruments: no instrument was calibrated and no value below "
+                          "describes a real unit.", body)]
+               if simulated else [Paragraph("Calibration Certificate", styles["Title"])])
     story: list[Any] = [
-        Paragraph("Calibration Certificate", styles["Title"]),
+        *heading,
         Paragraph(f"Certificate number <b>{_esc(number)}</b>; every page carries it and its "
                   "page number; this certificate may not be reproduced other than in full.",
                   body),
@@ -197,12 +207,44 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
              ("Run signature", _signature(results)),
              ("Signature", "\n\n______________________________")], body),
     ]
+    title = f"{SIMULATED_TITLE}: {number}" if simulated else f"Calibration certificate {number}"
+
+    def render(target: Path) -> None:
+        doc = SimpleDocTemplate(str(target), pagesize=A4, title=title,
+                                leftMargin=18 * mm, rightMargin=18 * mm, topMargin=15 * mm,
+                                bottomMargin=15 * mm)
+        decorate = _watermark if simulated else _no_decoration
+        doc.build(story, onFirstPage=decorate, onLaterPages=decorate,
+                  canvasmaker=_numbered_canvas(number))
+
+    # Atomic: a kill mid-render leaves a temporary file (set aside later), never half a PDF.
     path.parent.mkdir(parents=True, exist_ok=True)
-    doc = SimpleDocTemplate(str(path), pagesize=A4, title=f"Calibration certificate {number}",
-                            leftMargin=18 * mm, rightMargin=18 * mm, topMargin=15 * mm,
-                            bottomMargin=15 * mm)
-    doc.build(story, canvasmaker=_numbered_canvas(number))
+    write_atomic(path, render, mode=0o644)
     return path
+
+
+def is_simulated(results: dict[str, Any]) -> bool:
+    """A dry run (simulated instruments), by the mode run_started fixed."""
+    run = results.get("run") or {}
+    return bool(run.get("simulated")) or run.get("mode") == "sim"
+
+
+def _watermark(canvas: Any, doc: Any) -> None:
+    """Across every page of a simulated run's certificate, so no page can pass for a real one."""
+    canvas.saveState()
+    canvas.setFillColor(colors.Color(0.85, 0.2, 0.2, alpha=0.25))
+    canvas.setFont("Helvetica-Bold", 64)
+    width, height = A4
+    canvas.translate(width / 2, height / 2)
+    canvas.rotate(45)
+    canvas.drawCentredString(0, 0, "SIMULATED")
+    canvas.setFont("Helvetica-Bold", 20)
+    canvas.drawCentredString(0, -40, "not a calibration")
+    canvas.restoreState()
+
+
+def _no_decoration(canvas: Any, doc: Any) -> None:
+    return None
 
 
 def calibration_dates(run: dict[str, Any]) -> str:
@@ -274,15 +316,21 @@ def _signature(results: dict[str, Any]) -> str:
 
 
 def certify_run(run_dir: Path, *, customer: str, approval: Approval, number: str | None = None,
-                out: Path | None = None) -> tuple[Path, str, str | None]:
+                out: Path | None = None, signer: Signer | None = None
+                ) -> tuple[Path, str, str | None]:
     """Write the certificate of the run in ``run_dir`` from its report/results.json.
 
     Returns (PDF path, certificate number, overall verdict). The number defaults to
-    ``GC-<run id>``; the PDF is readable by the group (a QA office reads it).
+    ``GC-<run id>``; the PDF is readable by the group (a QA office reads it). The
+    certificate joins the run's history: a ``certificate_written`` event records its
+    number, its SHA-256 and the results it was made from, sealed with ``signer`` like
+    a report rebuild, so ``verify`` accounts for it. The caller holds the folder's lock.
     """
     import json
 
-    from gyrocal.orchestrator.record.run_folder import RunFolderError
+    from gyrocal.orchestrator.record.journal import Journal, JournalEvent, sha256_file
+    from gyrocal.orchestrator.record.run_folder import JOURNAL, RunFolder, RunFolderError
+    from gyrocal.orchestrator.record.strays import set_aside
     from gyrocal.reports.build import RESULTS_FILE
 
     source = run_dir / RESULTS_FILE
@@ -292,9 +340,20 @@ def certify_run(run_dir: Path, *, customer: str, approval: Approval, number: str
         results = json.loads(source.read_text())
     except json.JSONDecodeError as exc:
         raise RunFolderError(f"{source}: not valid JSON: {exc}") from None
+    folder = RunFolder.open(run_dir)
     run_id = (results.get("run") or {}).get("run_id") or run_dir.name
     number = number or f"GC-{run_id}"
     path = out if out is not None else run_dir / CERTIFICATE_FILE
-    write_certificate(results, path, number, customer, approval)
-    path.chmod(0o644)
+    with Journal(folder.path / JOURNAL) as journal:
+        set_aside(folder.path, journal, folder.journal_events(), folder.read_manifest())
+        write_certificate(results, path, number, customer, approval)
+        inside = path.resolve().is_relative_to(folder.path.resolve())
+        journal.append(JournalEvent.CERTIFICATE_WRITTEN, number=number,
+                       path=str(path.resolve().relative_to(folder.path.resolve()) if inside
+                                else path.resolve()),
+                       in_run_folder=inside, sha256=sha256_file(path),
+                       results_sha256=sha256_file(source), simulated=is_simulated(results),
+                       customer=customer, approved_by=approval.name)
+        if signer is not None:
+            signer.seal(journal, str(run_id), reason="certificate written")
     return path, number, (results.get("verdict") or {}).get("overall")

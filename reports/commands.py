@@ -41,13 +41,24 @@ def cmd_certificate(args: argparse.Namespace) -> int:
     """``gyrocal certificate RUN_DIR``: report/certificate.pdf from report/results.json."""
     import datetime as dt
 
+    from gyrocal.orchestrator.commands import report_signer
+    from gyrocal.orchestrator.locks import run_folder_lock
     from gyrocal.reports.certificate import Approval, certify_run
 
     approval = Approval(args.approved_by, args.role, dt.date.today())
-    path, number, overall = certify_run(
-        Path(args.run_dir), customer=args.customer, approval=approval, number=args.number,
-        out=Path(args.out) if args.out else None)
-    print(f"certificate {number}: {path}")
+    run_dir = Path(args.run_dir)
+    if not (run_dir / "report" / "results.json").is_file():
+        from gyrocal.orchestrator.record.run_folder import RunFolderError
+
+        raise RunFolderError(f"{run_dir / 'report' / 'results.json'}: missing; run "
+                             f"`gyrocal report {run_dir}` first")
+    # The folder's lock, as for a report rebuild: the certificate joins the journal.
+    with run_folder_lock(run_dir):
+        path, number, overall = certify_run(
+            run_dir, customer=args.customer, approval=approval, number=args.number,
+            out=Path(args.out) if args.out else None,
+            signer=report_signer(run_dir, getattr(args, "signing_key", None)))
+    print(f"certificate {number}: {path} (recorded in {run_dir / 'journal.jsonl'})")
     print(f"  statement of conformity: {overall}")
     return EXIT_OK
 

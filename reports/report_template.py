@@ -5,14 +5,15 @@ Every value is rendered through autoescape; nothing from the run is marked safe.
 
 REPORT_TEMPLATE = """<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
-<title>Calibration report — {{ r.unit_under_test.model }} {{ r.unit_under_test.serial }}</title>
+<title>{% if r.run and (r.run.simulated or r.run.mode == "sim") %}SIMULATED — {% endif %}Calibration report — {{ r.unit_under_test.model }} {{ r.unit_under_test.serial }}</title>
 <style>
 body{font-family:sans-serif;max-width:60em;margin:1em auto;color:#222}
 table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #bbb;padding:2px 6px;font-size:90%}
 th{background:#eee}.pass{color:#070;font-weight:bold}.fail{color:#b00;font-weight:bold}
-.warn{background:#fdd}.invalid{background:#b00;color:#fff;padding:.5em 1em;margin:.5em 0}code{font-size:85%}img{max-width:100%}
+.simulated{border:3px dashed #a60;background:#fff4e0;color:#a60;padding:.5em 1em;margin:.5em 0}.warn{background:#fdd}.invalid{background:#b00;color:#fff;padding:.5em 1em;margin:.5em 0}code{font-size:85%}img{max-width:100%}
 </style></head><body>
-<h1>Gyro calibration report</h1>
+{% if r.run and (r.run.simulated or r.run.mode == "sim") %}<div class="simulated" id="simulated-banner"><b>SIMULATED — not a calibration.</b> This run drove simulated instruments (a dry run); no unit was calibrated and its numbers describe a simulation.</div>{% endif %}
+<h1>{% if r.run and (r.run.simulated or r.run.mode == "sim") %}SIMULATED — {% endif %}Gyro calibration report</h1>
 {% set overall = r.verdict.overall if r.verdict else ("PASS" if all_pass else "FAIL") %}
 {% if overall == "INVALID" %}<div class="invalid"><b>INVALID</b> — the numbers are not physically possible, so no limit was judged:
 <ul>{% for reason in r.verdict.invalid_because %}<li>{{ reason }}</li>{% endfor %}</ul></div>{% endif %}

@@ -15,12 +15,17 @@ follows from the samples. In order, first failure wins:
    seed, software); the manifest must agree with them (it is mutable run
    state, so it is checked against the journal, not trusted);
 4. **samples**: every journaled chunk on disk with its hash, every chunk on
-   disk journaled, every completed step's chunks journaled;
+   disk journaled, every completed step's chunks journaled; the manifest's
+   instrument identities are the journal's ``instrument_identified``;
 5. **the report**: every file of ``report/`` recorded by the last
    ``report_written`` with its hash; the report's own signature block (over
    the chain head that ``report_written`` chains to and the numbers); and the
    report's numbers recomputed from the samples (a report that does not
    follow from the data fails);
+   then every certificate (``certificate_written``) and every file set aside
+   in ``orphans/`` after a crash (``orphan_set_aside``) on disk with its
+   hash — named in the account, never counted — and no file in the folder
+   that no event records (a planted ``journal.torn``, a stray chunk);
 6. **the seals**: the journal's last line is a ``sealed`` event whose Ed25519
    signature covers the chain head. With ``--key`` (the station's public key
    from QA's records) every seal must verify with it: a history recomputed by
@@ -49,7 +54,14 @@ from gyrocal.orchestrator.record.journal import (
     sha256_file,
 )
 from gyrocal.orchestrator.record.plan_record import PLAN_RECORD
-from gyrocal.orchestrator.record.run_folder import IDENTITY_KEYS, JOURNAL, SAMPLES, RunFolder
+from gyrocal.orchestrator.record.run_folder import (
+    IDENTITY_KEYS,
+    JOURNAL,
+    SAMPLES,
+    RunFolder,
+    identified_instruments,
+)
+from gyrocal.orchestrator.record.strays import files_on_disk, unrecorded
 from gyrocal.orchestrator.signing import (
     SEAL_EVENT,
     fingerprint,
@@ -59,8 +71,10 @@ from gyrocal.orchestrator.signing import (
 )
 from gyrocal.reports.results import finite_or_none, results_bytes
 
-#: Events a finished run may still gain after ``run_closed``: report rebuilds and their seals.
-AFTER_CLOSE = ("report_written", SEAL_EVENT)
+#: Events a finished run may still gain after ``run_closed``: report rebuilds, certificates,
+#: what a cut-off session left set aside, and their seals.
+AFTER_CLOSE = ("report_written", "certificate_written", "orphan_set_aside",
+               "torn_tail_set_aside", SEAL_EVENT)
 #: results.json keys that are numbers computed from the samples (interfaces.md).
 RECOMPUTED_KEYS = ("unit_under_test", "scale_factor", "scale_factor_ls", "nonlinearity",
                    "asymmetry_ppm", "sf_temperature", "bias", "bias_temperature", "allan",
@@ -78,6 +92,10 @@ class VerifyResult:
     checked: dict[str, int] = field(default_factory=dict)
     unchecked: list[str] = field(default_factory=list)
     authenticity: str = ""
+    #: "path sha256 number" of each certificate the history records (latest per path)
+    certificates: list[str] = field(default_factory=list)
+    #: files a crash left unrecorded, set aside in orphans/ and never counted
+    orphans: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -86,8 +104,11 @@ class VerifyResult:
     def summary(self) -> str:
         counts = ", ".join(f"{n} {what}" for what, n in self.checked.items())
         extra = f" (not checked: {'; '.join(self.unchecked)})" if self.unchecked else ""
-        return (f"{self.run_dir}: OK — complete, every hash matches, the numbers follow from the "
-                f"samples: {counts}{extra}\n  {self.authenticity}")
+        lines = [f"{self.run_dir}: OK — complete, every hash matches, the numbers follow from "
+                 f"the samples: {counts}{extra}"]
+        lines += [f"  certificate {c}" for c in self.certificates]
+        lines += [f"  set aside, never counted: {o}" for o in self.orphans]
+        return "\n".join([*lines, f"  {self.authenticity}"])
 
 
 class _Mismatch(Exception):
@@ -120,9 +141,11 @@ def verify_run_folder(run_dir: str | Path, public_key: str | Path | None = None,
         key = load_public_key(Path(public_key)) if public_key is not None else None
         events = _journal(folder, result)
         started = _shape(folder, events, result)
-        _inputs_and_identity(folder, started, result)
+        _inputs_and_identity(folder, started, events, result)
         _samples(folder, events, result)
         _report(folder, events, result, recompute, key)
+        _set_aside_and_certificates(folder, events, result)
+        _nothing_unrecorded(folder, events, result)
         _seals(events, key, result)
         if ledger is not None:
             _ledger(folder, events, Path(ledger), result)
@@ -185,8 +208,8 @@ def _shape(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResult
     return first
 
 
-def _inputs_and_identity(folder: RunFolder, started: dict[str, Any], result: VerifyResult
-                         ) -> None:
+def _inputs_and_identity(folder: RunFolder, started: dict[str, Any],
+                         events: list[dict[str, Any]], result: VerifyResult) -> None:
     root = folder.path
     where = f"{JOURNAL}:1 run_started"
     try:
@@ -220,6 +243,64 @@ def _inputs_and_identity(folder: RunFolder, started: dict[str, Any], result: Ver
             raise _Mismatch(f"{root / 'manifest.json'}: {key} is {manifest.get(key)!r}, "
                             f"{where} recorded {identity.get(key)!r}")
     result.checked["identity fields"] = len(IDENTITY_KEYS)
+    _instrument_identities(root, manifest, events, result)
+
+
+def _instrument_identities(root: Path, manifest: dict[str, Any], events: list[dict[str, Any]],
+                           result: VerifyResult) -> None:
+    """The manifest's instruments are the ones the journal's instrument_identified recorded."""
+    journaled = identified_instruments(events)
+    listed = manifest.get("instruments") or {}
+    if not isinstance(listed, dict):
+        raise _Mismatch(f"{root / 'manifest.json'}: instruments is not a JSON object")
+    for role in sorted(set(listed) | set(journaled)):
+        if listed.get(role) != journaled.get(role):
+            raise _Mismatch(f"{root / 'manifest.json'}: instruments.{role} is "
+                            f"{listed.get(role)!r}, the journal's instrument_identified "
+                            f"recorded {journaled.get(role)!r}")
+    result.checked["instrument identities"] = len(journaled)
+
+
+def _set_aside_and_certificates(folder: RunFolder, events: list[dict[str, Any]],
+                                result: VerifyResult) -> None:
+    """Set-aside files and certificates: on disk with the hash their event recorded."""
+    root = folder.path
+    certificates: dict[str, tuple[int, dict[str, Any]]] = {}
+    for line, event in enumerate(events, start=1):
+        name = event.get("event")
+        where = f"{JOURNAL}:{line} {name}"
+        if name == "orphan_set_aside":
+            _check_file(root / str(event.get("moved_to", "")), event.get("sha256"), where)
+            result.orphans.append(f"{event.get('path')} → {event.get('moved_to')} "
+                                  f"({event.get('reason')})")
+        elif name == "torn_tail_set_aside":
+            result.orphans.append(f"torn journal tail → {event.get('path')}")
+        elif name == "certificate_written":
+            certificates[str(event.get("path"))] = (line, event)
+    torn = [(i, e) for i, e in enumerate(events, start=1) if e.get("event") == "torn_tail_set_aside"]
+    if torn:
+        line, event = torn[-1]
+        _check_file(root / str(event.get("path", "")), event.get("torn_sha256"),
+                    f"{JOURNAL}:{line} torn_tail_set_aside")
+    for path, (line, event) in sorted(certificates.items()):
+        if event.get("in_run_folder"):
+            _check_file(root / path, event.get("sha256"), f"{JOURNAL}:{line} certificate_written")
+        result.certificates.append(f"{event.get('number')}: {path} SHA-256 {event.get('sha256')}"
+                                   + ("" if event.get("in_run_folder") else " (outside the run "
+                                      "folder: not checked)"))
+    result.checked["certificates"] = len(certificates)
+
+
+def _nothing_unrecorded(folder: RunFolder, events: list[dict[str, Any]],
+                        result: VerifyResult) -> None:
+    """Every file in the run folder is one the history records (strays.py has the list)."""
+    strays = unrecorded(folder.path, events, folder.read_manifest())
+    if strays:
+        first = strays[0]
+        raise _Mismatch(f"{folder.path / first.path}: in the run folder but recorded by no "
+                        f"journal event ({first.reason}; {len(strays)} such file(s)); "
+                        f"`gyrocal resume {folder.path}` sets what a crash left aside")
+    result.checked["files accounted for"] = len(files_on_disk(folder.path))
 
 
 def _samples(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResult) -> None:
@@ -256,7 +337,9 @@ def _report(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResul
     for rel, digest in files.items():
         _check_file(root / rel, digest, f"{JOURNAL}:{line} report_written")
     present = {str(p.relative_to(root)) for p in (root / "report").rglob("*") if p.is_file()}
-    extra = sorted(present - set(files))
+    certified = {str(e.get("path")) for e in events
+                 if e.get("event") == "certificate_written" and e.get("in_run_folder")}
+    extra = sorted(present - set(files) - certified)
     if extra:
         raise _Mismatch(f"{root / extra[0]}: in report/ but not recorded by {JOURNAL}:{line} "
                         "report_written")

@@ -11,6 +11,8 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+from gyrocal.orchestrator.record.crash import at_atomic_write
+
 
 def fsync_dir(path: Path) -> None:
     fd = os.open(path, os.O_RDONLY)
@@ -19,6 +21,10 @@ def fsync_dir(path: Path) -> None:
     finally:
         os.close(fd)
 
+
+#: Temporary files of atomic writes are named ``.NAME.XXXX.tmp`` beside their target; a kill
+#: between write and rename leaves one behind (the next controller sets it aside).
+TMP_PREFIX, TMP_SUFFIX = ".", ".tmp"
 
 #: Run files (manifest, chunks, plan, report) are records a QA group reads: readable by the
 #: group, written by the owner only. ``mkstemp`` alone would leave them 0600.
@@ -29,7 +35,7 @@ def write_atomic(path: Path, writer: Callable[[Path], None], mode: int = RECORD_
     """Call ``writer(tmp_path)`` then move the result to ``path`` atomically."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    fd, tmp_name = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.name}.", suffix=TMP_SUFFIX, dir=path.parent)
     os.fchmod(fd, mode)
     os.close(fd)
     tmp = Path(tmp_name)
@@ -37,6 +43,7 @@ def write_atomic(path: Path, writer: Callable[[Path], None], mode: int = RECORD_
         writer(tmp)
         with open(tmp, "rb") as handle:
             os.fsync(handle.fileno())
+        at_atomic_write()
         os.replace(tmp, path)
         fsync_dir(path.parent)
     except BaseException:

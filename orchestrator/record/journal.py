@@ -21,7 +21,11 @@ from enum import Enum
 from pathlib import Path
 from typing import Any
 
+from gyrocal.orchestrator.record.crash import at_journal_line
+
 GENESIS_SHA256 = "0" * 64
+#: Where a torn last line is kept (beside the journal), and its journal event's fields.
+TORN_FILE = "journal.torn"
 
 
 class JournalEvent(str, Enum):
@@ -61,6 +65,15 @@ class JournalEvent(str, Enum):
     RUN_CLOSED = "run_closed"
     NOTIFIED = "notified"
     SEALED = "sealed"
+    #: a completed run's return to the station's safe state, read back (before steps_done)
+    RETURNED_SAFE = "returned_safe"
+    #: a file on disk the history never recorded (a chunk or temporary file a crash left
+    #: between its write and its journal line), moved to ``orphans/`` and named here
+    ORPHAN_SET_ASIDE = "orphan_set_aside"
+    #: a torn last line (a write cut by a crash) moved to ``journal.torn``
+    TORN_TAIL_SET_ASIDE = "torn_tail_set_aside"
+    #: a calibration certificate written from the report, with its SHA-256
+    CERTIFICATE_WRITTEN = "certificate_written"
 
     def __str__(self) -> str:     # the name as written in the file (Python 3.10 has no StrEnum)
         return self.value
@@ -127,25 +140,36 @@ class Journal:
         self.count = 0
         #: Called with each event after it is durably written (e.g. notifications).
         self.listeners: list[Callable[[dict[str, Any]], None]] = []
+        #: the torn tail set aside on opening, journaled as soon as the chain has a first line
+        self._torn: dict[str, Any] | None = None
         if self.path.exists():
             self._recover()
         self._handle = open(self.path, "ab", buffering=0)  # noqa: SIM115 - held for the run
+        if self._torn is not None and self.count:
+            self._journal_torn()
 
     def _recover(self) -> None:
         data = self.path.read_bytes()
         cut = data.rfind(b"\n") + 1
         if cut < len(data):
             # A torn tail: keep its bytes for the auditor, then truncate to the last full line.
-            torn_path = self.path.with_suffix(".torn")
+            torn_path = self.path.parent / TORN_FILE
             with open(torn_path, "ab") as torn:
                 torn.write(data[cut:] + b"\n")
                 os.fsync(torn.fileno())
             with open(self.path, "r+b") as handle:
                 handle.truncate(cut)
                 os.fsync(handle.fileno())
+            self._torn = {"path": TORN_FILE, "bytes": len(data) - cut,
+                          "torn_sha256": sha256_file(torn_path)}
         for entry in read_journal(self.path):
             self._last_sha256 = sha256_bytes(entry.raw)
             self.count = entry.line_no
+
+    def _journal_torn(self) -> None:
+        """Name the set-aside tail in the history, so verify expects ``journal.torn`` and its hash."""
+        torn, self._torn = self._torn, None
+        self.append(JournalEvent.TORN_TAIL_SET_ASIDE, **(torn or {}))
 
     @property
     def last_sha256(self) -> str:
@@ -155,14 +179,20 @@ class Journal:
         """Write one event durably and return it as written."""
         event = {"seq": self.count + 1, "wall_time": time.time(), "event": str(name), **fields}
         event["prev_sha256"] = self._last_sha256
-        raw = _encode(event)
+        self._write(_encode(event))
+        for listener in self.listeners:
+            listener(event)
+        if self._torn is not None:     # the tail torn before the first line could chain
+            self._journal_torn()
+        return event
+
+    def _write(self, raw: bytes) -> None:
+        at_journal_line("before", self.count + 1)
         self._handle.write(raw)
         os.fsync(self._handle.fileno())
         self._last_sha256 = sha256_bytes(raw)
         self.count += 1
-        for listener in self.listeners:
-            listener(event)
-        return event
+        at_journal_line("after", self.count)
 
     def append_signed(self, name: JournalEvent | str, sign, /, **fields: Any) -> dict[str, Any]:
         """Append an event whose ``signature`` field is ``sign(event)`` over its other fields.
@@ -173,11 +203,7 @@ class Journal:
         event = {"seq": self.count + 1, "wall_time": time.time(), "event": str(name), **fields}
         event["prev_sha256"] = self._last_sha256
         event["signature"] = sign(event)
-        raw = _encode(event)
-        self._handle.write(raw)
-        os.fsync(self._handle.fileno())
-        self._last_sha256 = sha256_bytes(raw)
-        self.count += 1
+        self._write(_encode(event))
         return event
 
     @property

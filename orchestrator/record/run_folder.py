@@ -59,9 +59,24 @@ SAMPLE_FLAG_GYRO_FLAGGED = 0x01
 SAMPLE_FLAGS = {"gyro_flagged": SAMPLE_FLAG_GYRO_FLAGGED}
 
 
-#: Manifest fields that say whose run this is; journaled in run_started so an edit shows.
+#: Manifest fields that say whose run this is, and when and how fast it ran; journaled in
+#: run_started so an edit shows (the report and the certificate read them).
 IDENTITY_KEYS = ("run_id", "operator", "unit_under_test", "station_name", "mode", "seed",
-                 "software")
+                 "software", "started_at", "speed")
+
+
+def identified_instruments(events: list[dict[str, Any]]) -> dict[str, dict[str, str]]:
+    """role → driver, address, description, from the latest ``instrument_identified`` events.
+
+    The journal is where the identities are recorded (and signed); the manifest's
+    copy is for readers that do not walk the journal, and verify checks it agrees.
+    """
+    found: dict[str, dict[str, str]] = {}
+    for event in events:
+        if event.get("event") == "instrument_identified" and event.get("role"):
+            found[str(event["role"])] = {key: event.get(key)
+                                         for key in ("driver", "address", "description")}
+    return found
 
 
 class RunFolderError(Exception):

@@ -69,6 +69,8 @@ class RunSnapshot:
     completed: list[str] = field(default_factory=list)
     events: list[EventLine] = field(default_factory=list)
     faults: list[EventLine] = field(default_factory=list)
+    #: a dry run against simulated instruments (run_started's ``sim``): never a calibration
+    simulated: bool = False
 
     @property
     def paused(self) -> bool:
@@ -155,7 +157,16 @@ def read_snapshot(run_dir: Path, *, now: float | None = None, last_events: int =
         last_event_age_s=last_age, stale=stale, lock=lock,
         last_fault=manifest.get("last_fault") or (faults[-1].detail if faults else None),
         plan=plan, completed=done, events=lines[-last_events:], faults=faults[-last_events:],
+        simulated=_simulated(events, manifest),
     )
+
+
+def _simulated(events: list[dict[str, Any]], manifest: dict[str, Any]) -> bool:
+    """As run_started recorded it (signed history); the manifest's mode before the first line."""
+    for event in events:
+        if event.get("event") == "run_started":
+            return bool(event.get("sim"))
+    return manifest.get("mode") == "sim"
 
 
 def _paused_in_journal(events: list[dict[str, Any]]) -> bool:

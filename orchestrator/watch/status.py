@@ -15,6 +15,9 @@ from pathlib import Path
 from gyrocal.orchestrator.engine import PAUSE_FILE
 from gyrocal.orchestrator.watch.snapshot import RunSnapshot, hms, read_snapshot
 
+#: How every view of a dry run says what it is (status, the live page, the report's banner).
+SIMULATED_TEXT = "SIMULATED run: simulated instruments, not a calibration"
+
 _STATE_TEXT = {
     "interrupted": "interrupted (process gone; resumable)",
     "faulted": "faulted (instruments safe; resumable)",
@@ -25,7 +28,10 @@ def status_text(snap: RunSnapshot) -> str:
     state = _STATE_TEXT.get(snap.state, snap.state)
     if snap.paused:
         state = f"PAUSED (delete {Path(snap.run_dir) / PAUSE_FILE} to go on)"
-    lines = [f"run {snap.run_id}  {snap.run_dir}",
+    lines = [f"run {snap.run_id}  {snap.run_dir}"]
+    if snap.simulated:
+        lines.append(f"  {SIMULATED_TEXT}")
+    lines += [
              f"  state: {snap.state}" + ("" if state == snap.state else f" — {state}"),
              f"  unit: {snap.serial or '-'}  procedure: {snap.procedure or '-'}"]
     nxt = f"; next: {snap.current_step}" if snap.current_step else ""

@@ -1,5 +1,6 @@
 """The README's main command, end to end: the smoke dry run, its audit, and the discrepancy act."""
 
+import hashlib
 import json
 from pathlib import Path
 
@@ -16,15 +17,20 @@ def test_demo_runs_the_smoke_procedure_and_names_the_hidden_effect(tmp_path, cap
     assert main(["demo", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "every hash matches" in out
-    assert "authentic: 1 seal(s) verified with the given key" in out
-    # The demo ends with the audit of both runs: OK, with the signature status.
-    tail = out.strip().splitlines()[-4:]
+    # The demo ends with the audit of both runs — after certifying the first (issue 28: the
+    # certificate is part of the audited history): OK, the certificate's hash, the seals.
+    tail = out.strip().splitlines()[-5:]
     assert tail[0].startswith(str(tmp_path / "smoke")) and ": OK" in tail[0]
-    assert tail[2].startswith(str(tmp_path / "hidden-effect")) and ": OK" in tail[2]
-    assert all("authentic: 1 seal(s) verified" in line for line in (tail[1], tail[3]))
     results = json.loads((tmp_path / "smoke" / "report" / "results.json").read_text())
-    assert all(item["pass"] for item in results["acceptance"])
     certificate = tmp_path / "smoke" / "report" / "certificate.pdf"     # issue 11
+    digest = hashlib.sha256(certificate.read_bytes()).hexdigest()
+    assert tail[1] == (f"  certificate GC-{results['run']['run_id']}: report/certificate.pdf "
+                       f"SHA-256 {digest}")
+    assert "authentic: 2 seal(s) verified with the given key" in tail[2]   # run, certificate
+    assert tail[3].startswith(str(tmp_path / "hidden-effect")) and ": OK" in tail[3]
+    assert "authentic: 1 seal(s) verified" in tail[4]
+    assert out.index("certificate GC-") < out.index("== audit:")
+    assert all(item["pass"] for item in results["acceptance"])
     assert certificate.read_bytes()[:5] == b"%PDF-"
     assert f"certificate GC-{results['run']['run_id']}: {certificate}" in out
 

@@ -1,3 +1,4 @@
+import hashlib
 import json
 
 import pytest
@@ -40,7 +41,12 @@ def test_reopening_after_a_torn_write_keeps_the_tail_aside_and_continues_the_cha
     with open(path, "ab") as handle:
         handle.write(b'{"event":"half')
     with Journal(path) as journal:
-        assert journal.count == 2
+        # the set-aside tail is named in the history at once, with the torn file's hash
+        assert journal.count == 3
         journal.append("c")
-    assert [e.event["event"] for e in read_journal(path)] == ["a", "b", "c"]
-    assert b'{"event":"half' in (tmp_path / "journal.torn").read_bytes()
+    events = [e.event for e in read_journal(path)]
+    assert [e["event"] for e in events] == ["a", "b", "torn_tail_set_aside", "c"]
+    torn = tmp_path / "journal.torn"
+    assert b'{"event":"half' in torn.read_bytes()
+    assert events[2]["path"] == "journal.torn" and events[2]["bytes"] == len(b'{"event":"half')
+    assert events[2]["torn_sha256"] == hashlib.sha256(torn.read_bytes()).hexdigest()

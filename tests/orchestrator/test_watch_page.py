@@ -53,6 +53,9 @@ def test_live_page_shows_paused_then_follows_the_run_to_its_fault(
         assert browser.find_element(By.ID, "step").text == f"1/{len(h.SMALL_PLAN)}"
         assert browser.find_element(By.ID, "current").text == "T01.ramp"
         assert not browser.find_element(By.ID, "faultbox").is_displayed()
+        # a dry run says so on the page (issue 28), from run_started's sim flag
+        banner = browser.find_element(By.ID, "simulated")
+        assert banner.is_displayed() and "SIMULATED run" in banner.text
         timeline = browser.find_elements(By.CSS_SELECTOR, "#timeline div")
         assert len(timeline) == len(h.SMALL_PLAN)
         events = browser.find_element(By.ID, "events").text

@@ -6,6 +6,7 @@ import json
 import shutil
 import stat
 
+import numpy as np
 import pytest
 from pypdf import PdfReader
 
@@ -117,3 +118,49 @@ def test_calibration_dates_come_from_the_steps_and_a_dry_run_says_so(smoke_run, 
         in text
     assert "as fast as the machine allows" in text and "no physical unit was calibrated" in text
     assert results["run"]["steps_started_at"][:19].replace("T", " ") + " UTC" in text
+
+
+def test_a_certified_run_still_verifies_and_verify_names_the_certificate(smoke_run, tmp_path,
+                                                                         capsys):
+    """issue 28: the certificate joins the history; verify passes after it and gives its hash."""
+    import hashlib
+
+    run = tmp_path / "run"
+    shutil.copytree(smoke_run, run)
+    assert main(["verify", str(run)]) == 0
+    assert main(["certificate", str(run), "--number", "GC-TEST-1"]) == 0
+    events = [json.loads(line) for line in (run / "journal.jsonl").read_text().splitlines()]
+    written = events[-1]
+    digest = hashlib.sha256((run / "report" / "certificate.pdf").read_bytes()).hexdigest()
+    assert written["event"] == "certificate_written" and written["sha256"] == digest
+    assert written["number"] == "GC-TEST-1" and written["simulated"] is True
+    capsys.readouterr()
+    assert main(["verify", str(run)]) == 0
+    assert f"certificate GC-TEST-1: report/certificate.pdf SHA-256 {digest}" in \
+        capsys.readouterr().out
+    (run / "report" / "certificate.pdf").write_bytes(b"%PDF-1.4 forged\n")
+    assert main(["verify", str(run)]) == 1
+    assert "certificate.pdf" in capsys.readouterr().err
+
+
+def test_a_simulated_certificate_cannot_pass_for_a_real_one(smoke_run, tmp_path):
+    """Title and a watermark on every page say SIMULATED — not a calibration (issue 28)."""
+    import pypdfium2 as pdfium
+
+    run = tmp_path / "run"
+    shutil.copytree(smoke_run, run)
+    assert main(["certificate", str(run)]) == 0
+    pdf = run / "report" / "certificate.pdf"
+    reader = PdfReader(pdf)
+    assert reader.metadata.title.startswith("SIMULATED — not a calibration")
+    pages = [" ".join(page.extract_text().split()) for page in reader.pages]
+    assert len(pages) >= 2
+    assert "SIMULATED — not a calibration" in pages[0]
+    for number, text in enumerate(pages, start=1):       # the watermark, page by page
+        assert "SIMULATED" in text and "not a calibration" in text, number
+    # and it is drawn, not only text: the watermark's colour is on every rendered page
+    document = pdfium.PdfDocument(pdf)
+    for index in range(len(document)):
+        image = np.asarray(document[index].render(scale=0.5).to_pil().convert("RGB"), dtype=float)
+        reddish = (image[..., 0] - image[..., 2] > 25) & (image[..., 0] > 200)
+        assert reddish.mean() > 0.002, f"page {index + 1}: no watermark drawn"

@@ -55,6 +55,9 @@ def signed_run(tmp_path_factory, keys) -> Path:
     assert code == 0
     events = _events(out)
     assert any(e["event"] == "retry" for e in events)
+    # certified, as QA would receive it: the certificate is part of the signed history
+    assert main(["certificate", str(out), "--signing-key", str(keys.private)]) == 0
+    assert _events(out)[-2]["event"] == "certificate_written"
     return out
 
 
@@ -438,10 +441,75 @@ def t_json_array_line(run):
     _journal(run).write_bytes(b"".join(lines))
 
 
+# -- issue 28: what the report, the certificate and status read, and files nobody recorded ----
+
+def t_instrument_identity_changed_in_manifest(run):
+    _edit_json(_manifest(run), lambda m: m["instruments"]["table"].update(
+        description="ACUTRONIC,ACUTROL3000,REAL-0001,2.0"))
+
+
+def t_instrument_address_changed_in_manifest(run):
+    _edit_json(_manifest(run), lambda m: m["instruments"]["chamber"].update(
+        address="socket://10.0.0.7:502"))
+
+
+def t_start_time_moved_in_manifest(run):
+    _edit_json(_manifest(run), lambda m: m.update(started_at="2026-01-02T03:04:05+0000"))
+
+
+def t_clock_speed_changed_in_manifest(run):
+    _edit_json(_manifest(run), lambda m: m.update(speed="1"))
+
+
+def t_torn_journal_planted(run):
+    (run / "journal.torn").write_bytes(b'{"event":"fault","message":"none of this happened"\n')
+
+
+def t_stray_file_beside_the_journal(run):
+    (run / "notes.txt").write_text("calibrated by hand\n")
+
+
+def t_orphan_planted_without_its_event(run):
+    target = run / "orphans" / "samples" / "T01.static" / "attempt1-chunk00000.parquet"
+    target.parent.mkdir(parents=True)
+    shutil.copyfile(_first_chunk(run), target)
+
+
+def t_chunk_moved_to_orphans(run):
+    chunk = _first_chunk(run)
+    target = run / "orphans" / chunk.relative_to(run)
+    target.parent.mkdir(parents=True)
+    chunk.rename(target)
+
+
+def t_certificate_pdf_edited(run):
+    path = run / "report" / "certificate.pdf"
+    path.write_bytes(path.read_bytes().replace(b"SIMULATED", b"CALIBRATE"))
+
+
+def t_certificate_deleted(run):
+    (run / "report" / "certificate.pdf").unlink()
+
+
+def t_certificate_replaced_event_rehashed_and_rechained(run):
+    path = run / "report" / "certificate.pdf"
+    path.write_bytes(path.read_bytes() + b"%% forged\n")
+    events = _events(run)
+    for e in events:
+        if e["event"] == "certificate_written":
+            e["sha256"] = _sha(path)
+    _write_rechained(run, events)
+
+
+def t_certificate_event_stripped_and_resigned(run):
+    _resign(run, [e for e in _events(run) if e["event"] != "certificate_written"], ATTACKER)
+
+
 CASES = {name[2:]: (fn, "always") for name, fn in list(globals().items())
          if name.startswith("t_") and callable(fn)}
 for _name in ("retry_events_stripped_and_resigned", "operator_changed_everywhere_and_resigned",
-              "limits_loosened_everywhere_and_resigned", "seals_and_key_name_stripped_and_rechained"):
+              "limits_loosened_everywhere_and_resigned", "seals_and_key_name_stripped_and_rechained",
+              "certificate_event_stripped_and_resigned"):
     CASES[_name] = (CASES[_name][0], "key")
 FAULT_CASES = {"fault_events_stripped_and_rechained": "always",
                "fault_events_stripped_and_resigned": "key"}
@@ -462,6 +530,9 @@ def test_untouched_run_verifies_with_and_without_the_key(signed_run, keys, capsy
     assert main(["verify", str(signed_run), "--key", str(keys.public)]) == 0
     out = capsys.readouterr().out
     assert "authentic" in out and keys.fingerprint in out and "numbers recomputed" in out
+    certificate = _events(signed_run)[-2]
+    assert (f"certificate {certificate['number']}: report/certificate.pdf SHA-256 "
+            f"{_sha(signed_run / 'report' / 'certificate.pdf')}") in out
     assert main(["verify", str(signed_run)]) == 0
     assert "integrity only, not authenticity" in capsys.readouterr().out
 
@@ -572,14 +643,15 @@ def test_every_seal_is_in_the_station_ledger(signed_run, faulted_then_resumed_ru
     ledger = keys.private.with_name("station.ledger.jsonl")
     assert ledger.stat().st_mode & 0o777 == 0o600
     lines = [json.loads(line) for line in ledger.read_text().splitlines()]
-    # The smoke run seals once; the faulted run once per session (run, resume).
+    # The smoke run seals twice (the run, then its certificate); the faulted run once per
+    # session (run, resume).
     by_run = {}
     for line in lines:
         by_run.setdefault(line["run_dir"], []).append(line)
-    assert len(by_run[str(signed_run.resolve())]) == 1
+    assert len(by_run[str(signed_run.resolve())]) == 2
     assert len(by_run[str(faulted_then_resumed_run.resolve())]) == 2
     last = _journal(signed_run).read_bytes().splitlines(keepends=True)[-1]
-    assert by_run[str(signed_run.resolve())][0]["chain_head"] == hashlib.sha256(last).hexdigest()
+    assert by_run[str(signed_run.resolve())][-1]["chain_head"] == hashlib.sha256(last).hexdigest()
     assert main(["verify", str(signed_run), "--key", str(keys.public), "--ledger",
                  str(ledger)]) == 0
     assert "ledger line" in capsys.readouterr().out

@@ -37,6 +37,7 @@ function render(doc) {
   text("serial", s.serial ? "(" + s.serial + ")" : "");
   const st = document.getElementById("state");
   st.textContent = s.state; st.className = "big " + s.state;
+  document.getElementById("simulated").className = s.simulated ? "on" : "";
   document.getElementById("paused").className = s.paused ? "on" : "";
   text("step", s.current_index + "/" + s.step_count);
   text("current", s.current_step ? s.current_step : "");
