@@ -455,7 +455,9 @@ def run_folder_doc() -> str:
 | `{SAMPLES}/` | gyro samples per logged step, as Parquet chunks whose hashes are journaled |
 | `report/results.json` | the numbers (keys below) |
 | `report/report.html` | the human report with its plots |
-| `report/certificate.pdf` | written by `gyrocal certificate` |
+| `report/certificate.pdf` | written by `gyrocal certificate` and recorded in the journal (`certificate_written`, with its SHA-256); a dry run's is titled "SIMULATED — not a calibration" |
+| `orphans/` | files a killed run left that the journal never recorded (a half-written chunk, a temporary file), set aside by the next `resume`, `report` or `certificate` with an `orphan_set_aside` event; kept, never counted |
+| `journal.torn` | a journal line cut by a power loss, set aside with a `torn_tail_set_aside` event |
 | `PAUSE` | created by the operator: the run holds before its next step |
 
 Sample columns: {samples}; when the gyro gives them also {optional}. Units are in the names
@@ -469,6 +471,7 @@ Every number is in the unit its key names. The keys every report has:
 
 | key | what |
 |---|---|
+| `run` | `mode` (`sim` or `station`), `simulated` (true for a dry run), `seed`, start and end times, `steps_started_at`, `steps_done_at`, `procedure_s` |
 | `unit_under_test` | `model`, `serial` |
 | `scale_factor[]` | per temperature: `temp_c`, `sf`, `sf_plus`, `sf_minus` (output units per deg/s) |
 | `scale_factor_ls` | least-squares fit at the reference temperature: `sf`, `bias` |
