@@ -27,7 +27,13 @@ from gyrocal.models.clock import RealClock, SimClock, make_clock
 from gyrocal.orchestrator.doc_links import with_doc_links
 from gyrocal.orchestrator.engine import EnginePolicy, RunEngine
 from gyrocal.orchestrator.interrupts import ClosingSignals
-from gyrocal.orchestrator.locks import FileLock, instrument_locks, run_folder_lock
+from gyrocal.orchestrator.locks import (
+    FileLock,
+    LockBusyError,
+    identity_locks,
+    instrument_locks,
+    run_folder_lock,
+)
 from gyrocal.orchestrator.notify import Notifier
 from gyrocal.orchestrator.plan import Plan, expand_plan, format_plan
 from gyrocal.orchestrator.problems import ProcedureError
@@ -142,7 +148,8 @@ def station_instruments(procedure: Procedure, clock, sim: bool, seed: int | None
         instruments = open_instruments(station, clock, addresses, on_retry=on_retry,
                                        sample_rate_hz=fs_hz)
         try:
-            yield instruments, simulated
+            with _identity_locks(instruments, sim):
+                yield instruments, simulated
         finally:
             instruments.close()
     finally:
@@ -229,6 +236,23 @@ def _station_locks(procedure: Procedure, sim: bool) -> contextlib.AbstractContex
     station = procedure.station
     return instrument_locks({"chamber": station.chamber.address, "table": station.table.address,
                              "gyro": station.gyro.port})
+
+
+@contextlib.contextmanager
+def _identity_locks(instruments: Instruments, sim: bool) -> Iterator[None]:
+    """Locks on the serials the chamber and the table report, before preflight commands them.
+
+    The address locks already refused a second controller on any spelling of
+    the same endpoint; this catches two endpoints of one instrument. The
+    chamber first: its identity is register reads only, while the table's
+    ``*IDN?`` opens a session (the dialect's start-up). ``--sim`` instruments
+    are private to the run.
+    """
+    with contextlib.ExitStack() as held:
+        if not sim:
+            for instrument in (instruments.chamber, instruments.table):
+                held.enter_context(identity_locks([instrument.identify()]))
+        yield
 
 
 def _announce_stale(lock: FileLock) -> None:
@@ -494,6 +518,12 @@ def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: P
     except RunFaultError as exc:
         print(f"gyrocal: fault: {exc}", file=sys.stderr)
         _report_simulator_crash(simulated, journal)
+        return EXIT_FAULT
+    except LockBusyError as exc:
+        # The serial lock, taken after the identity queries and before preflight.
+        journal.append(JournalEvent.FAULT, message=str(exc), state="connecting")
+        folder.update_manifest(state="faulted", last_fault=str(exc))
+        print(f"gyrocal: {exc}; nothing was commanded", file=sys.stderr)
         return EXIT_FAULT
     except InstrumentError as exc:
         # Raised while connecting, before the engine owned the instruments.

@@ -34,6 +34,10 @@ from dataclasses import asdict, dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
+from gyrocal.instruments.interfaces import Identity
+from gyrocal.orchestrator.instrument_address import instrument_keys
+from gyrocal.reports.decision import reported_serial
+
 RUN_LOCK_FILE = "controller.lock"
 LOCK_DIR_ENV = "GYROCAL_LOCK_DIR"
 
@@ -168,7 +172,7 @@ def lock_dir() -> Path:
 
 
 def address_lock_path(address: str) -> Path:
-    """One file per instrument address; readable name plus a hash (addresses hold ``/`` and ``:``)."""
+    """One file per instrument key; readable name plus a hash (keys hold ``/`` and ``:``)."""
     readable = re.sub(r"[^A-Za-z0-9._-]+", "_", address.strip())[:60]
     digest = hashlib.sha256(address.strip().encode()).hexdigest()[:12]
     return lock_dir() / f"{readable}-{digest}.lock"
@@ -176,13 +180,45 @@ def address_lock_path(address: str) -> Path:
 
 @contextlib.contextmanager
 def instrument_locks(addresses: dict[str, str]) -> Iterator[list[FileLock]]:
-    """Exclusive locks on every ``role -> address`` for the life of the block (sorted: no deadlock)."""
+    """Exclusive locks on every instrument ``role -> address`` reaches, for the life of the block.
+
+    Keyed on what the address *reaches* (``instrument_address.instrument_keys``:
+    the host resolved to its IP addresses with the port, a device's real path),
+    never on its spelling, so ``localhost:5020`` and ``127.0.0.1:5020`` are one
+    lock. Taken in sorted order (no deadlock between two controllers). An
+    address that cannot be resolved is a station-file error (``AddressError``).
+    """
+    keyed: dict[str, list[str]] = {}
+    for role, address in addresses.items():
+        for key in instrument_keys(role, address):
+            keyed.setdefault(key, []).append(f"{role} at {address}")
+    with _held(sorted(keyed.items())) as held:
+        yield held
+
+
+@contextlib.contextmanager
+def identity_locks(identities: list[Identity]) -> Iterator[list[FileLock]]:
+    """Exclusive locks on the serials the connected instruments reported (driver + serial).
+
+    The second key of an instrument: two addresses that resolve differently but
+    reach one controller (a serial gateway and its TCP port, two NICs) still
+    meet here, before preflight commands anything. An instrument that reports
+    no serial is keyed by its address alone.
+    """
+    serials = {ident: reported_serial(ident.description) for ident in identities}
+    keyed = {f"serial:{ident.driver}:{serial.strip().upper()}": [f"{ident.role} serial {serial}"]
+             for ident, serial in serials.items() if serial and serial.strip()}
+    with _held(sorted(keyed.items())) as held:
+        yield held
+
+
+@contextlib.contextmanager
+def _held(keyed: list[tuple[str, list[str]]]) -> Iterator[list[FileLock]]:
     held: list[FileLock] = []
     try:
-        for address in sorted(set(addresses.values())):
-            roles = ", ".join(r for r, a in addresses.items() if a == address)
-            held.append(FileLock(address_lock_path(address), f"{roles} at {address}",
-                                 create_dir=True).acquire())
+        for key, names in keyed:
+            what = f"{' and '.join(dict.fromkeys(names))} ({key})"
+            held.append(FileLock(address_lock_path(key), what, create_dir=True).acquire())
         yield held
     finally:
         for lock in reversed(held):

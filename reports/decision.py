@@ -80,8 +80,11 @@ class Blocker:
     reason: str
 
 
-def _reported_serial(description: str | None) -> str | None:
-    """The serial an instrument reported: ``*IDN?`` field 3, or ``serial X`` in the text."""
+def reported_serial(description: str | None) -> str | None:
+    """The serial an instrument reported: ``*IDN?`` field 3, or ``serial X`` in the text.
+
+    One reader for the report's identity check and the station's serial locks.
+    """
     if not description:
         return None
     fields = [f.strip() for f in description.split(",")]
@@ -106,7 +109,7 @@ def instrument_blockers(instruments: dict[str, Any]) -> list[Blocker]:
             else:
                 blockers.append(Blocker(role, "reference instrument out of calibration "
                                               f"(due {entry.get('calibration_due')})"))
-        reported = _reported_serial(entry.get("description")) if role != "gyro" else None
+        reported = reported_serial(entry.get("description")) if role != "gyro" else None
         entry["reported_serial"] = reported
         declared = entry.get("serial")
         mismatch = bool(reported and declared and reported.strip().upper()

@@ -5,6 +5,27 @@ from __future__ import annotations
 import pytest
 
 
+@pytest.fixture(scope="session", autouse=True)
+def session_lock_dir(tmp_path_factory):
+    """Station locks private to this test session (and the processes it starts).
+
+    Locks are keyed on the instrument (its resolved address, its reported serial),
+    and every ``gyrocal sim serve`` reports the same simulated serials: two test
+    sessions on one machine must not refuse each other's simulated stations.
+    """
+    import os
+
+    from gyrocal.orchestrator.locks import LOCK_DIR_ENV
+
+    previous = os.environ.get(LOCK_DIR_ENV)
+    os.environ[LOCK_DIR_ENV] = str(tmp_path_factory.mktemp("station-locks"))
+    yield os.environ[LOCK_DIR_ENV]
+    if previous is None:
+        os.environ.pop(LOCK_DIR_ENV, None)
+    else:
+        os.environ[LOCK_DIR_ENV] = previous
+
+
 @pytest.fixture(scope="session")
 def smoke_run(tmp_path_factory):
     """One dry run of procedures/smoke.yaml for the whole session (tests copy it to tamper)."""

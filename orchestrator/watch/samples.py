@@ -13,8 +13,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
 import pyarrow.parquet as pq
 
+from gyrocal.orchestrator.record.run_folder import RunFolderError
 from gyrocal.orchestrator.watch.snapshot import PlanStep
 
 
@@ -35,9 +37,22 @@ def _chunk_stats(path: Path, step_id: str) -> ChunkStats | None:
         key = (str(path), path.stat().st_mtime_ns)
     except FileNotFoundError:
         return None
+    except OSError as exc:          # e.g. `samples` is a file: NotADirectoryError
+        raise _damaged(path, exc) from None
     if key not in _stats_cache:
-        _stats_cache[key] = _read_stats(path, step_id)
+        try:
+            _stats_cache[key] = _read_stats(path, step_id)
+        except (OSError, pa.ArrowException, TypeError, ValueError) as exc:
+            raise _damaged(path, exc) from None
     return _stats_cache[key]
+
+
+def _damaged(path: Path, exc: BaseException) -> RunFolderError:
+    """A chunk the journal names that cannot be read: name it, and what reading it said."""
+    text = str(exc).strip()
+    why = getattr(exc, "strerror", None) or (text.splitlines()[0] if text else type(exc).__name__)
+    return RunFolderError(f"{path}: cannot be read as a sample chunk ({why}); "
+                          "the run folder is damaged")
 
 
 def _read_stats(path: Path, step_id: str) -> ChunkStats | None:
@@ -111,10 +126,12 @@ def step_signal(run_dir: Path, events: list[dict[str, Any]], max_points: int = 1
     for path in paths:
         try:
             table = pq.read_table(path, columns=["t_s", "gyro"])
-        except (FileNotFoundError, OSError):
-            continue
-        t_parts.append(table.column("t_s").to_numpy())
-        g_parts.append(table.column("gyro").to_numpy())
+            t_parts.append(np.asarray(table.column("t_s").to_numpy(), dtype=float))
+            g_parts.append(np.asarray(table.column("gyro").to_numpy(), dtype=float))
+        except FileNotFoundError:
+            continue               # a chunk being replaced right now: the next look has it
+        except (OSError, pa.ArrowException, TypeError, ValueError, KeyError) as exc:
+            raise _damaged(path, exc) from None
     if not t_parts:
         return {"step_id": step_id, "t_s": [], "gyro": []}
     t_s, gyro = np.concatenate(t_parts), np.concatenate(g_parts)

@@ -15,6 +15,7 @@ import hmac
 import ipaddress
 import json
 import secrets
+import sys
 import threading
 from functools import partial
 from http import HTTPStatus
@@ -51,6 +52,9 @@ def page_data(run_dir: Path) -> dict:
 
 class WatchHandler(BaseHTTPRequestHandler):
     server_version = "gyrocal-watch"
+    #: A request line that cannot be parsed is answered with a status line (400), not as
+    #: HTTP/0.9 (a bare error page with no status, which the standard default would send).
+    default_request_version = "HTTP/1.0"
 
     def __init__(self, *args, run_dir: Path, token: str | None, **kwargs) -> None:
         self.run_dir = run_dir
@@ -84,10 +88,11 @@ class WatchHandler(BaseHTTPRequestHandler):
         if url.path == "/api/snapshot":
             try:
                 body = json.dumps(page_data(self.run_dir), allow_nan=False, default=str)
-                self._send(HTTPStatus.OK, body.encode(), "application/json")
             except (RunFolderError, ValueError) as exc:
                 self._send(HTTPStatus.SERVICE_UNAVAILABLE, json.dumps(
                     {"error": str(exc)}).encode(), "application/json")
+                return
+            self._send(HTTPStatus.OK, body.encode(), "application/json")
             return
         if url.path == "/" + REPORT:      # the finished run's report, linked from the page
             report = self.run_dir / REPORT
@@ -111,6 +116,25 @@ class WatchHandler(BaseHTTPRequestHandler):
     do_POST = do_PUT = do_DELETE = do_PATCH = _refuse
 
 
+class QuietHTTPServer(ThreadingHTTPServer):
+    """Clients that hang up are ignored; anything else is one line on the console, never a traceback.
+
+    The standard server prints a traceback for every exception a request raises
+    (``socketserver.BaseServer.handle_error``): a browser closing a tab mid-reply
+    (BrokenPipe, ConnectionReset) filled the ``watch`` console. Malformed requests
+    never get here: the handler answers them 400 (``BaseHTTPRequestHandler``).
+    """
+
+    daemon_threads = True
+
+    def handle_error(self, request: object, client_address: tuple) -> None:
+        exc = sys.exc_info()[1]
+        if isinstance(exc, (ConnectionError, TimeoutError)):
+            return
+        print(f"gyrocal watch: request from {client_address[0]} failed: "
+              f"{type(exc).__name__}: {exc}", file=sys.stderr, flush=True)
+
+
 class WatchServer:
     """The page's server, startable from a test or the command (port 0: any free port)."""
 
@@ -120,8 +144,7 @@ class WatchServer:
             raise RunFolderError(f"{run_dir}: not a run folder (manifest.json missing)")
         self.token = None if is_loopback(bind) else (token or secrets.token_urlsafe(18))
         handler = partial(WatchHandler, run_dir=Path(run_dir), token=self.token)
-        self.httpd = ThreadingHTTPServer((bind, port), handler)
-        self.httpd.daemon_threads = True
+        self.httpd = QuietHTTPServer((bind, port), handler)
         self._thread: threading.Thread | None = None
 
     @property

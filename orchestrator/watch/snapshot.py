@@ -11,6 +11,7 @@ still being written, or torn by a crash, is left out): auditing the chain is
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
 from dataclasses import asdict, dataclass, field
@@ -89,6 +90,9 @@ def read_events(run_dir: Path) -> list[dict[str, Any]]:
         data = path.read_bytes()
     except FileNotFoundError:
         return []
+    except OSError as exc:
+        raise RunFolderError(f"{path}: cannot be read ({exc.strerror or exc}); "
+                             "the run folder is damaged") from None
     events = []
     for line_no, raw in enumerate(data.split(b"\n")[:-1], start=1):
         try:
@@ -101,14 +105,36 @@ def read_events(run_dir: Path) -> list[dict[str, Any]]:
     return events
 
 
+def read_json_object(path: Path) -> dict[str, Any]:
+    """A JSON file that must hold an object: anything else names the file (exit 2), never a crash."""
+    try:
+        data = json.loads(path.read_bytes())
+    except IsADirectoryError:
+        raise RunFolderError(f"{path}: a folder where the run keeps a file") from None
+    except (ValueError, UnicodeDecodeError):
+        raise RunFolderError(f"{path}: not valid JSON") from None
+    except OSError as exc:
+        raise RunFolderError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    if not isinstance(data, dict):
+        raise RunFolderError(f"{path}: holds a JSON {type(data).__name__}, not the object "
+                             "a run writes there; the run folder is damaged") from None
+    return data
+
+
+def _list_of(path: Path, key: str, value: Any, item: type) -> list[Any]:
+    if value is None:
+        return []
+    if not isinstance(value, list) or not all(isinstance(v, item) for v in value):
+        raise RunFolderError(f"{path}: {key!r} is not a list of {item.__name__}; "
+                             "the run folder is damaged")
+    return value
+
+
 def read_plan(run_dir: Path) -> list[PlanStep]:
     path = Path(run_dir) / PLAN_FILE
-    if not path.is_file():
+    if not path.exists():
         return []
-    try:
-        steps = json.loads(path.read_text()).get("steps", [])
-    except ValueError:
-        raise RunFolderError(f"{path}: not valid JSON") from None
+    steps = _list_of(path, "steps", read_json_object(path).get("steps"), dict)
     return [PlanStep(str(s.get("step_id")), str(s.get("kind")), _num(s.get("setpoint_c")),
                      _num(s.get("rate_dps")) or 0.0, _num(s.get("expected_s")) or 0.0)
             for s in steps]
@@ -117,17 +143,16 @@ def read_plan(run_dir: Path) -> list[PlanStep]:
 def read_snapshot(run_dir: Path, *, now: float | None = None, last_events: int = 20) -> RunSnapshot:
     run_dir = Path(run_dir)
     manifest_path = run_dir / MANIFEST
-    if not manifest_path.is_file():
+    if not run_dir.is_dir() or not manifest_path.exists():
         raise RunFolderError(f"{run_dir}: not a run folder ({MANIFEST} missing)")
-    try:
-        manifest = json.loads(manifest_path.read_text())
-    except ValueError:
-        raise RunFolderError(f"{manifest_path}: not valid JSON") from None
+    manifest = read_json_object(manifest_path)
     now = time.time() if now is None else now
     events = read_events(run_dir)
     plan = read_plan(run_dir)
-    step_ids = [s.step_id for s in plan] or list(manifest.get("steps") or [])
-    done = [e["step_id"] for e in events if e.get("event") == "step_completed" and "step_id" in e]
+    step_ids = [s.step_id for s in plan] or [
+        str(s) for s in _list_of(manifest_path, "steps", manifest.get("steps"), str)]
+    done = [str(e["step_id"]) for e in events
+            if e.get("event") == "step_completed" and "step_id" in e]
     done_set = set(done)
     remaining = [s for s in step_ids if s not in done_set]
     current = remaining[0] if remaining else None
@@ -143,7 +168,8 @@ def read_snapshot(run_dir: Path, *, now: float | None = None, last_events: int =
 
     expected = {s.step_id: s.expected_s for s in plan}
     eta_s = sum(expected.get(s, 0.0) for s in remaining) if plan else None
-    last_age = now - float(events[-1].get("wall_time", now)) if events else None
+    last_wall = _num(events[-1].get("wall_time")) if events else None
+    last_age = now - last_wall if last_wall is not None else None
     stale = bool(live and last_age is not None and last_age > STALE_AFTER_S and state != "paused")
     lines = [_line(e) for e in events]
     faults = [line for line in lines if line.fault]
@@ -155,7 +181,8 @@ def read_snapshot(run_dir: Path, *, now: float | None = None, last_events: int =
         state=state, live=live, steps_done=len(done_set), step_count=len(step_ids),
         current_step=current, current_index=current_index, eta_s=eta_s,
         last_event_age_s=last_age, stale=stale, lock=lock,
-        last_fault=manifest.get("last_fault") or (faults[-1].detail if faults else None),
+        last_fault=(str(manifest["last_fault"]) if manifest.get("last_fault")
+                    else (faults[-1].detail if faults else None)),
         plan=plan, completed=done, events=lines[-last_events:], faults=faults[-last_events:],
         simulated=_simulated(events, manifest),
     )
@@ -188,13 +215,16 @@ def _procedure_name(events: list[dict[str, Any]]) -> str:
 def _line(event: dict[str, Any]) -> EventLine:
     name = str(event.get("event", "?"))
     detail = describe_event(event)
-    return EventLine(int(event.get("seq", 0) or 0), float(event.get("wall_time", 0.0) or 0.0),
+    seq = _num(event.get("seq"))
+    return EventLine(int(seq) if seq is not None else 0, _num(event.get("wall_time")) or 0.0,
                      name, str(event.get("step_id") or event.get("before_step") or ""),
                      str(detail), name in FAULT_EVENTS)
 
 
 def _num(value: Any) -> float | None:
-    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value):
+        return float(value)
+    return None
 
 
 def _pid_alive(pid: Any) -> bool:
