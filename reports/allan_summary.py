@@ -81,6 +81,17 @@ def curve_json(curve: AllanCurve, fit: NoiseFit) -> dict:
     }
 
 
+def identifiability_json(fit: NoiseFit) -> dict:
+    """Which terms this record can tell from zero, and the 95 % upper bound of each (extra keys).
+
+    ``allan.fit`` keeps the fitted number the contract names; a term that is not
+    identifiable is reported as such (HTML, console, acceptance), never as 0.
+    """
+    terms = {name: getattr(fit, name) for name in TERM_NAMES}
+    return {"identifiable": {name: term.identifiable for name, term in terms.items()},
+            "upper_bound_95": {name: term.upper_bound() for name, term in terms.items()}}
+
+
 def fit_uncertainty_json(fit: NoiseFit) -> dict:
     """Standard error and 68 % interval of each fitted term (extra results.json key)."""
     out = {}

@@ -53,7 +53,13 @@ from gyrocal.orchestrator.record.strays import set_aside
 from gyrocal.orchestrator.signing import Signer
 from gyrocal.reports import bias as bias_mod
 from gyrocal.reports import compensation as comp
-from gyrocal.reports.allan_summary import allan_curve, curve_json, fit_curve, fit_uncertainty_json
+from gyrocal.reports.allan_summary import (
+    allan_curve,
+    curve_json,
+    fit_curve,
+    fit_uncertainty_json,
+    identifiability_json,
+)
 from gyrocal.reports.decision import instrument_blockers, overall_verdict
 from gyrocal.reports.dwell import Dwell, SegmentDrift, dwell_mean, segment_drift
 from gyrocal.reports.gum import batch_mean_sem
@@ -352,6 +358,7 @@ def _allan(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any]
         return None
     return curve_json(curve, fit) | {
         "fit_uncertainty": fit_uncertainty_json(fit), "fit_dof": fit.dof,
+        **identifiability_json(fit),
         "model_adev_dph": fit.model_adev(curve.tau_s).tolist(),
         "step_id": step.step_id, "temp_c": step.setpoint_c,
         "duration_s": rate_dph.size / fs_hz, "n_samples": int(rate_dph.size),
@@ -448,13 +455,41 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
     }
     add_uncertainties(results, [_mean_u(s) for s in data.steps], data.plan, REFERENCE_TEMP_C,
                       notes)
-    results["acceptance"] = evaluate_acceptance(results, data.plan.get("acceptance") or [], notes)
+    results["acceptance"] = evaluate_acceptance(results, data.plan.get("acceptance") or [], notes,
+                                                measured=measured_needs(data))
     sf_tolerance = (data.plan.get("sanity") or {}).get("sf_tolerance_pct")
     results["verdict"] = overall_verdict(check_physics(results, sf_tolerance),
                                          results["acceptance"],
                                          instrument_blockers(results["instruments"]))
     results["notes"] = notes
     return results
+
+
+def measured_needs(data: RunData) -> frozenset[str]:
+    """What the completed steps measured, in the terms of ``orchestrator/metrics.py`` ``needs``.
+
+    An acceptance limit whose metric needs more is NOT EVALUATED: a report
+    rebuilt on an interrupted run must not grade the noise terms on a short
+    static because the long Allan hold never ran. ``allan`` holds only when the
+    plan's longest Allan hold completed and is the record the fit used.
+    """
+    done = [s.step for s in data.steps]
+    sweep_temps = {s.setpoint_c for s in done if s.kind == StepKind.DWELL}
+    hold_temps = {s.setpoint_c for s in done if s.kind in (StepKind.STATIC, StepKind.ALLAN)}
+    needs = set()
+    if sweep_temps:
+        needs.add("sweep")
+    if len(sweep_temps) >= 2:
+        needs.add("sweep_temps")
+    if len(hold_temps) >= 2:
+        needs.add("bias_temps")
+    planned = [s for s in data.record.steps if s.kind == StepKind.ALLAN
+               and (s.mounting is None or s.mounting in _unit_under_test_mountings(data.record))]
+    longest = max(planned, key=lambda s: s.duration_s, default=None)
+    if (longest is not None and data.allan_step is not None
+            and data.allan_step.step.step_id == longest.step_id):
+        needs.add("allan")
+    return frozenset(needs)
 
 
 def _mean_u(s: StepSummary) -> StepMean:

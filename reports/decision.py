@@ -14,8 +14,9 @@ The overall verdict, in order of precedence: INVALID (physics checks:
 sanity.py) > FAIL (any limit failed) > BLOCKED (a reference instrument whose
 calibration was due before the run, unless the station waives it with a
 reason; or an identity the instrument reported that differs from the
-station's declared one) > CONDITIONAL (any guarded limit indeterminate) >
-PASS. Only PASS exits 0.
+station's declared one) > INCOMPLETE (a limit NOT EVALUATED: the step its
+metric needs never completed, or a noise term the record cannot identify) >
+CONDITIONAL (any guarded limit indeterminate) > PASS. Only PASS exits 0.
 """
 
 from __future__ import annotations
@@ -44,6 +45,10 @@ class Decision(str, Enum):
     PASS = "PASS"
     FAIL = "FAIL"
     CONDITIONAL = "CONDITIONAL"
+    #: the step the metric needs was not completed (an interrupted run's rebuilt report),
+    #: or the metric is a noise term this record cannot identify and its upper bound
+    #: does not settle the limit: nothing was measured to judge
+    NOT_EVALUATED = "NOT EVALUATED"
 
 
 DEFAULT_RULE = DecisionRule.SIMPLE
@@ -132,6 +137,8 @@ def overall_verdict(checks: Sequence[Check], acceptance: list[dict[str, Any]],
         overall = "FAIL"
     elif blockers:
         overall = "BLOCKED"
+    elif Decision.NOT_EVALUATED.value in decisions:
+        overall = "INCOMPLETE"
     elif Decision.CONDITIONAL.value in decisions:
         overall = "CONDITIONAL"
     else:
@@ -140,4 +147,6 @@ def overall_verdict(checks: Sequence[Check], acceptance: list[dict[str, Any]],
             "blocked_because": [f"{b.role}: {b.reason}" for b in blockers],
             "conditional": sorted(a["name"] for a in acceptance
                                   if a.get("decision") == Decision.CONDITIONAL.value),
+            "not_evaluated": sorted(a["name"] for a in acceptance
+                                    if a.get("decision") == Decision.NOT_EVALUATED.value),
             "sanity": [{"name": c.name, "ok": c.ok, "detail": c.detail} for c in checks]}

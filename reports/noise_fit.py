@@ -87,6 +87,10 @@ _MARKOV_TIME_UNCONSTRAINED = math.log(1e12)
 _MARKOV_BIRGE_DROP = 3.0
 
 
+#: One-sided 95 % normal quantile: the bound a term that cannot be identified is judged by.
+UPPER_BOUND_Z = 1.6449
+
+
 @dataclass(frozen=True)
 class TermEstimate:
     """One noise coefficient with its 1-σ standard error and 68 % interval.
@@ -100,6 +104,24 @@ class TermEstimate:
     stderr: float
     lo: float
     hi: float
+
+    @property
+    def identifiable(self) -> bool:
+        """The record tells this term from zero: fitted above zero with a 68 % interval clear of it.
+
+        A term held at zero by the fit (FOG quantization, rate ramp on a short
+        record) is not "0": the data say only that it is below an upper bound.
+        """
+        return self.value > 0.0 and self.lo > 0.0 and math.isfinite(self.stderr)
+
+    def upper_bound(self, z: float = UPPER_BOUND_Z) -> float:
+        """One-sided upper bound of the term (default 95 %), on the squared coefficient as the fit."""
+        if not math.isfinite(self.stderr):
+            return math.inf
+        coeff = self.value ** 2
+        sd_c = 2.0 * self.value * self.stderr if self.value > 0 else self.stderr ** 2
+        return math.sqrt(max(coeff + z * sd_c, 0.0))
+
 
 
 @dataclass(frozen=True)

@@ -47,7 +47,7 @@ th{background:#eee}.pass{color:#070;font-weight:bold}.fail{color:#b00;font-weigh
 <table><tr><th>Limit</th><th>Metric</th><th>Value ± U (95 %)</th><th>Limit</th><th>Decision rule (guard band)</th><th>Decision</th></tr>
 {% for a in r.acceptance %}
 <tr><td>{{ a.name }}</td><td><code>{{ a.metric }}</code></td>
-{% set unit = unit_of(a) %}<td>{{ vu(a.value, a.U) }} {{ unit }}</td><td>{{ a.kind }} {{ fmt(a.limit) }} {{ unit }}</td>
+{% set unit = unit_of(a) %}<td>{% if a.identifiable == false %}not identifiable (95 % upper bound {{ fmt(a.upper_bound_95) }} {{ unit }}){% elif a.value is none and a.why %}{{ a.why }}{% else %}{{ vu(a.value, a.U) }} {{ unit }}{% endif %}</td><td>{{ a.kind }} {{ fmt(a.limit) }} {{ unit }}</td>
 <td>{{ a.decision_rule or "simple" }}{% if a.guard_band %} ({{ fmt(a.guard_band) }} {{ unit }}){% endif %}</td>
 <td>{% set d = a.decision or ("PASS" if a["pass"] else "FAIL") %}<span class="{{ 'pass' if d == 'PASS' else 'fail' }}">{{ d }}</span></td></tr>
 {% else %}<tr><td colspan="6">no acceptance limits in the procedure</td></tr>{% endfor %}
@@ -79,7 +79,7 @@ SF over temperature: {% if r.sf_temperature %}instability {{ vu(r.sf_temperature
 {% if r.allan %}
 <p>Hold {{ r.allan.step_id }} at {{ fmt(r.allan.temp_c) }} °C, {{ fmt(r.allan.duration_s) }} s at {{ fmt(r.allan.rate_hz) }} Hz; {{ r.allan.method }}.</p>
 <table><tr><th>Term</th><th>Value ± U (95 %)</th><th>k</th><th>68 % interval</th></tr>
-{% for name, label, unit in terms %}{% set au = (r.allan.uncertainty or {})[name] %}<tr><td>{{ label }}</td><td>{{ vu(r.allan.fit[name], au and au.U) }} {{ unit }}</td><td>{{ fmt(au and au.k, 3) if au else "—" }}</td>
+{% for name, label, unit in terms %}{% set au = (r.allan.uncertainty or {})[name] %}<tr><td>{{ label }}</td><td>{% if (r.allan.identifiable or {})[name] == false %}not identifiable from this record (95 % upper bound {{ fmt(r.allan.upper_bound_95[name]) }} {{ unit }}){% else %}{{ vu(r.allan.fit[name], au and au.U) }} {{ unit }}{% endif %}</td><td>{{ fmt(au and au.k, 3) if au else "—" }}</td>
 <td>{% set u = r.allan.fit_uncertainty[name] %}{{ fmt(u.lo) }} … {{ fmt(u.hi) }} {{ unit }}</td></tr>{% endfor %}
 <tr><td>Markov (correlated bias: σ, T<sub>c</sub>)</td><td colspan="3">{% if r.allan.fit.markov %}{{ fmt(r.allan.fit.markov.sigma_dph) }} deg/h, {{ fmt(r.allan.fit.markov.tau_s) }} s{% else %}not significant{% endif %}</td></tr>
 </table>

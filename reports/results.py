@@ -12,6 +12,7 @@ import json
 import math
 from typing import Any
 
+from gyrocal.orchestrator.metrics import METRICS, NEEDS_TEXT
 from gyrocal.reports.decision import DEFAULT_RULE, Decision, DecisionRule, decide
 
 #: The keys interfaces.md requires in report/results.json.
@@ -38,44 +39,79 @@ SIGNED_METRICS = frozenset({"asymmetry_ppm", "scale_factor_ls.bias",
 
 
 def evaluate_acceptance(results: dict[str, Any], limits: list[dict[str, Any]],
-                        notes: list[str]) -> list[dict[str, Any]]:
+                        notes: list[str], measured: frozenset[str] | None = None
+                        ) -> list[dict[str, Any]]:
     """One verdict per limit: {name, metric, kind, limit, unit, value, pass, decision, …}.
 
     ``limits`` are plan.json's acceptance entries ({name, metric, max|min, unit,
     decision_rule}); the rule (decision.py) uses the metric's expanded
     uncertainty from results["uncertainty"]. ``pass`` is true only for PASS.
-    A null or non-numeric value fails, and a note says which metric was missing.
+    ``measured`` (what the completed steps measured, ``orchestrator/metrics.py``
+    ``needs``): a limit whose metric needs more is NOT EVALUATED, whatever number
+    some other step gave. A noise term the record cannot identify is judged by its
+    95 % upper bound (PASS only if that bound is within a max limit), never as 0.
+    A null or non-numeric value of a measured metric fails, with a note.
     """
     uncertainty = results.get("uncertainty") or {}
     verdicts = []
     for limit in limits:
         kind = "max" if limit.get("max") is not None else "min"
         bound = float(limit[kind])
-        value = lookup_metric(results, limit["metric"])
-        number = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) \
-            else None
         rule = DecisionRule(limit.get("decision_rule") or DEFAULT_RULE.value)
         expanded = (uncertainty.get(limit["metric"]) or {}).get("U")
-        guard = 0.0
-        if number is None or not math.isfinite(number):
-            decision = Decision.FAIL
-            number = None
-            notes.append(f"acceptance {limit['name']!r}: {limit['metric']} was not computed, "
-                         "so the limit fails")
-        elif kind == "max" and number < 0 and limit["metric"] not in SIGNED_METRICS:
-            decision = Decision.FAIL
-            notes.append(f"acceptance {limit['name']!r}: {limit['metric']} = {number:g} cannot "
-                         "be negative, so the limit fails")
-        elif kind == "max" and limit["metric"] in SIGNED_METRICS:
-            # a signed figure's limit is on its size
-            decision, guard = decide(abs(number), expanded, bound, kind, rule)
-        else:
-            decision, guard = decide(number, expanded, bound, kind, rule)
-        verdicts.append({"name": limit["name"], "metric": limit["metric"], "kind": kind,
-                         "limit": bound, "unit": limit.get("unit"), "value": number,
-                         "pass": decision is Decision.PASS, "decision": decision.value,
-                         "decision_rule": rule.value, "U": expanded, "guard_band": guard})
+        entry = {"name": limit["name"], "metric": limit["metric"], "kind": kind,
+                 "limit": bound, "unit": limit.get("unit"), "value": None,
+                 "decision_rule": rule.value, "U": expanded, "guard_band": 0.0}
+        decision = _judge(results, entry, rule, measured, notes)
+        entry.update({"pass": decision is Decision.PASS, "decision": decision.value})
+        verdicts.append(entry)
     return verdicts
+
+
+def _judge(results: dict[str, Any], entry: dict[str, Any], rule: DecisionRule,
+           measured: frozenset[str] | None, notes: list[str]) -> Decision:
+    """The decision for one limit; fills ``value``, ``guard_band`` and any ``why`` in ``entry``."""
+    metric, kind, bound, label = entry["metric"], entry["kind"], entry["limit"], entry["name"]
+    spec = METRICS.get(metric)
+    if measured is not None and spec is not None and spec.needs not in measured:
+        entry["why"] = f"not measured: the run completed no {NEEDS_TEXT[spec.needs]}"
+        notes.append(f"acceptance {label!r}: {metric} NOT EVALUATED ({entry['why']})")
+        return Decision.NOT_EVALUATED
+    value = lookup_metric(results, metric)
+    number = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) \
+        else None
+    if number is None or not math.isfinite(number):
+        notes.append(f"acceptance {label!r}: {metric} was not computed, so the limit fails")
+        return Decision.FAIL
+    term = metric.removeprefix("allan.fit.")
+    allan = results.get("allan") or {}
+    if metric.startswith("allan.fit.") and (allan.get("identifiable") or {}).get(term) is False:
+        return _judge_unidentifiable(entry, allan, term, notes)
+    entry["value"] = number
+    if kind == "max" and number < 0 and metric not in SIGNED_METRICS:
+        notes.append(f"acceptance {label!r}: {metric} = {number:g} cannot be negative, "
+                     "so the limit fails")
+        return Decision.FAIL
+    judged = abs(number) if kind == "max" and metric in SIGNED_METRICS else number
+    decision, entry["guard_band"] = decide(judged, entry["U"], bound, kind, rule)
+    return decision
+
+
+def _judge_unidentifiable(entry: dict[str, Any], allan: dict[str, Any], term: str,
+                          notes: list[str]) -> Decision:
+    upper = (allan.get("upper_bound_95") or {}).get(term)
+    entry["identifiable"] = False
+    entry["upper_bound_95"] = upper
+    if entry["kind"] == "max" and isinstance(upper, (int, float)) and math.isfinite(upper) \
+            and upper <= entry["limit"]:
+        entry["why"] = (f"not identifiable from this record; its 95 % upper bound {upper:.3g} "
+                        "is within the limit")
+        return Decision.PASS
+    entry["why"] = ("not identifiable from this record" +
+                    (f"; its 95 % upper bound {upper:.3g} does not settle the limit"
+                     if isinstance(upper, (int, float)) else ""))
+    notes.append(f"acceptance {entry['name']!r}: {entry['metric']} NOT EVALUATED ({entry['why']})")
+    return Decision.NOT_EVALUATED
 
 
 def finite_or_none(value: Any) -> Any:
