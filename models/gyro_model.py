@@ -126,13 +126,25 @@ class _Where:
         return ModelError(f"{where}: {key}: {message}" if key else f"{where}: {message}")
 
 
+#: Bound on every number of a model file. Beyond it nothing is physical (an ARW of
+#: 1e+308 deg/√h overflowed the simulator), and squares and fourth powers of the
+#: noise terms stay far inside float64.
+MAX_MAGNITUDE = 1e9
+
+
 def _number(value: Any, path: tuple, where: _Where) -> float:
     # bool is an int subclass: `true` in YAML must not silently become 1.0.
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise where.error(path, f"must be a number, got {type(value).__name__} {value!r}")
-    number = float(value)
+    try:
+        number = float(value)
+    except OverflowError:          # a YAML integer beyond float range
+        raise where.error(path, f"must be a finite number, got {value!r}") from None
     if not math.isfinite(number):
         raise where.error(path, f"must be a finite number, got {value!r}")
+    if abs(number) > MAX_MAGNITUDE:
+        raise where.error(path, f"{number:g} is beyond ±{MAX_MAGNITUDE:g}: no gyro quantity in a "
+                                "model file is that large (a unit or exponent slip?)")
     return number
 
 

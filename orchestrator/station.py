@@ -446,6 +446,20 @@ def choice_of_ints(options: tuple[int, ...]):
     return convert
 
 
+def _check_model_file(ctx: Context, where: KeyPath, path: Path) -> None:
+    """The model a dry run would simulate, read now: ``validate`` OK must mean ``run --sim`` accepts.
+
+    The model's own error (file, line, key) is kept whole after the station's key.
+    """
+    from gyrocal.models.gyro_model import ModelError
+    from gyrocal.models.imu_model import load_any_model
+
+    try:
+        load_any_model(path)
+    except (ModelError, OSError, ValueError) as exc:
+        ctx.report(where, f"the gyro model file is not usable: {exc}")
+
+
 def _simulation(ctx: Context, where: KeyPath, value: object, base_dir: Path) -> SimulationConfig:
     fields = Fields(ctx, where, value, "simulation")
     model_text = fields.take("gyro_model", text)
@@ -458,6 +472,8 @@ def _simulation(ctx: Context, where: KeyPath, value: object, base_dir: Path) -> 
     elif gyro_model is not None and not gyro_model.is_file():
         ctx.report(fields.child("gyro_model"), f"gyro model file not found: {gyro_model} "
                    "(the path is relative to the file that names it)")
+    elif gyro_model is not None:
+        _check_model_file(ctx, fields.child("gyro_model"), gyro_model)
     seed = fields.take("seed", integer(0), required=False, default=1)
 
     ch = _section(ctx, fields, "chamber")

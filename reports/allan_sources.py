@@ -24,7 +24,13 @@ import numpy as np
 
 from gyrocal.inputs import check_text_head, require_regular_file
 from gyrocal.reports.allan_stream import RateBlocks
-from gyrocal.reports.measured_log import LogFormatError
+from gyrocal.reports.log_contract import (
+    CONTRACT_RANGES,
+    LogFormatError,
+    check_parquet_schema,
+    check_time,
+    check_values,
+)
 
 #: Column names taken for time, in order of preference (the spec's first).
 TIME_NAMES = ("t_s", "time_s", "time", "t", "timestamp", "seconds", "sec")
@@ -77,17 +83,20 @@ def _pick_columns(names: list[str], column: str | None, source: str) -> _Columns
                          "name it with --column")
 
 
-def _csv_has_header(path: Path) -> bool:
-    with open(path, encoding="utf-8", errors="replace") as handle:
-        first = handle.readline()
-    cells = [c.strip() for c in first.replace(";", ",").split(",") if c.strip()]
+def _csv_header(path: Path) -> list[str] | None:
+    """The header's names (BOM and quotes removed, as ``csv`` reads them), or None for bare numbers."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8-sig", errors="replace") as handle:
+        first = next(csv.reader(handle), [])
+    cells = [c.strip() for c in first if c.strip()]
     if not cells:
         raise LogFormatError(f"{path}: line 1: empty; expected a header or two numbers")
     try:
         [float(c) for c in cells]
     except ValueError:
-        return True
-    return False
+        return [c.strip() for c in first]
+    return None
 
 
 class _File:
@@ -113,66 +122,78 @@ class _File:
             except Exception as exc:  # noqa: BLE001 - pyarrow raises many types for bad files
                 raise LogFormatError(f"{path}: not a readable Parquet file: {exc}") from None
             names = list(meta.schema_arrow.names)
+            self.schema = meta.schema_arrow
+            check_parquet_schema(path, self.schema, [])      # duplicate names, before any use
             self.rows = int(meta.metadata.num_rows)
             self.first_row = 2  # as a spreadsheet export of it would show, header = row 1
         elif suffix in (".csv", ".txt", ".dat"):
             self.kind = "csv"
-            self.header = _csv_has_header(path)
-            if self.header:
-                with open(path, encoding="utf-8", errors="replace") as handle:
-                    names = [n.strip() for n in handle.readline().strip().split(",")]
-            else:
-                names = ["time", "rate"]
+            header = _csv_header(path)
+            self.header = header is not None
+            names = header if header is not None else ["time", "rate"]
+            if len(set(names)) != len(names):
+                dupes = sorted({n for n in names if names.count(n) > 1})
+                raise LogFormatError(f"{path}: line 1: duplicate column name(s) "
+                                     f"{', '.join(map(repr, dupes))}")
             self.rows = -1  # counted in the first pass
             self.first_row = 2 if self.header else 1
         else:
             raise LogFormatError(f"{path}: unknown log format {suffix!r}; use .csv or .parquet")
         self.names = names
         self.columns = _pick_columns(names, column, str(path))
+        if self.kind == "parquet":    # types of what will be read, before a value is converted
+            check_parquet_schema(path, self.schema, [self.columns.rate, self.columns.time or "",
+                                                     *self.contract_columns()])
 
-    def batches(self, with_time: bool) -> Iterator[tuple[np.ndarray | None, np.ndarray]]:
-        """(time, rate) float64 batches in order; time is None unless asked for."""
+    def contract_columns(self) -> list[str]:
+        """The measured-log contract's columns this file also carries (checked on the first pass)."""
+        chosen = {self.columns.rate, self.columns.time}
+        return [n for n in CONTRACT_RANGES if n in self.names and n not in chosen]
+
+    def batches(self, with_time: bool, extra: tuple[str, ...] = ()
+                ) -> Iterator[tuple[np.ndarray | None, np.ndarray, dict[str, np.ndarray]]]:
+        """(time, rate, {extra column: values}) float64 batches in order; time None unless asked."""
         wanted = [self.columns.rate] + ([self.columns.time] if with_time and self.columns.time
-                                        else [])
+                                        else []) + list(extra)
         if self.kind == "parquet":
             import pyarrow.parquet as pq
 
             reader = pq.ParquetFile(self.path)
             for batch in reader.iter_batches(batch_size=BATCH_ROWS, columns=wanted):
-                yield self._arrays(batch, wanted)
+                yield self._arrays(batch, wanted, with_time)
             return
         import pyarrow as pa
         import pyarrow.csv as pcsv
 
-        names = self.names
-        read = pcsv.ReadOptions(block_size=1 << 24, column_names=None if self.header else names)
+        # the names as csv read them (no BOM, no quotes); the header line itself skipped
+        read = pcsv.ReadOptions(block_size=1 << 24, column_names=self.names,
+                                skip_rows=1 if self.header else 0)
         convert = pcsv.ConvertOptions(include_columns=wanted,
                                       column_types={n: pa.float64() for n in wanted})
         try:
             reader = pcsv.open_csv(self.path, read_options=read, convert_options=convert)
             for batch in reader:
-                yield self._arrays(batch, wanted)
+                yield self._arrays(batch, wanted, with_time)
         except pa.ArrowInvalid as exc:
             raise LogFormatError(self._locate_bad_cell(wanted, exc)) from None
-        except pa.ArrowKeyError:   # a header name with surrounding spaces or quotes
-            raise LogFormatError(f"{self.path}: line 1: the header's column names cannot be "
-                                 f"matched ({', '.join(map(repr, wanted))}); write them plainly, "
-                                 "comma-separated") from None
 
-    def _arrays(self, batch, wanted: list[str]) -> tuple[np.ndarray | None, np.ndarray]:
-        rate = batch.column(wanted[0]).to_numpy(zero_copy_only=False).astype(np.float64)
-        time = (batch.column(wanted[1]).to_numpy(zero_copy_only=False).astype(np.float64)
-                if len(wanted) > 1 else None)
-        return time, rate
+    def _arrays(self, batch, wanted: list[str], with_time: bool
+                ) -> tuple[np.ndarray | None, np.ndarray, dict[str, np.ndarray]]:
+        arrays = {name: batch.column(name).to_numpy(zero_copy_only=False).astype(np.float64)
+                  for name in dict.fromkeys(wanted)}
+        rate = arrays.pop(wanted[0])
+        time = arrays.pop(wanted[1]) if with_time and self.columns.time else None
+        return time, rate, arrays
 
     def _locate_bad_cell(self, wanted: list[str], exc: Exception) -> str:
         """The CSV reader says only *that* a cell is bad; find which row and column."""
         import csv
 
-        with open(self.path, newline="", encoding="utf-8", errors="replace") as handle:
+        with open(self.path, newline="", encoding="utf-8-sig", errors="replace") as handle:
             reader = csv.reader(handle)
-            names = next(reader) if self.header else self.names
-            names = [n.strip() for n in names]
+            if self.header:
+                next(reader)
+            names = self.names
             index = {n: names.index(n) for n in wanted if n in names}
             for line_no, row in enumerate(reader, start=self.first_row):
                 for name, i in index.items():
@@ -250,14 +271,16 @@ def open_log_files(paths: list[Path], column: str | None = None,
         total = 0
         for file in files:
             row0 = 0
-            for time, rate in file.batches(with_time=checking):
+            extra = tuple(file.contract_columns()) if checking else ()
+            for time, rate, others in file.batches(with_time=checking, extra=extra):
+                # the log contract first (log_contract.py): finite, physical, typed
+                check_values(rate, str(file.path), file.columns.rate, file.first_row, row0)
+                for name, values in others.items():
+                    check_values(values, str(file.path), name, file.first_row, row0)
                 if checking and time is not None:
+                    check_values(time, str(file.path), file.columns.time, file.first_row, row0,
+                                 role="t_s")
                     checker.check(file, row0, time)
-                bad = np.flatnonzero(~np.isfinite(rate))
-                if bad.size:
-                    raise LogFormatError(
-                        f"{file.path}: line {row0 + int(bad[0]) + file.first_row}: column "
-                        f"{file.columns.rate}: non-finite value {float(rate[bad[0]])!r}")
                 row0 += rate.size
                 total += rate.size
                 yield rate
@@ -279,8 +302,10 @@ def _rate_from_time(file: _File) -> float:
     spacing of a 200 Hz log reads 200.00000000004 Hz; the snap keeps a log's
     result identical to the same samples analysed at their nominal rate.
     """
-    for time, _ in file.batches(with_time=True):
+    for time, _, _ in file.batches(with_time=True):
         if time is not None and time.size >= 2:
+            check_values(time, str(file.path), str(file.columns.time), file.first_row, role="t_s")
+            check_time(time, str(file.path), str(file.columns.time), file.first_row)
             spacing = float(np.median(np.diff(time)))
             if not spacing > 0:
                 raise LogFormatError(f"{file.path}: column {file.columns.time}: time does not "

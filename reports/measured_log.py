@@ -14,13 +14,17 @@ from pathlib import Path
 import numpy as np
 
 from gyrocal.inputs import check_text_head, require_regular_file
+from gyrocal.reports.log_contract import (
+    LogFormatError,
+    check_parquet_schema,
+    check_time,
+    check_values,
+)
+
+__all__ = ["LogFormatError", "MeasuredLog", "read_measured_log", "validate_columns"]
 
 REQUIRED_COLUMNS = ("t_s", "table_rate_dps", "chamber_temp_c", "gyro")
 OPTIONAL_COLUMNS = ("sensor_temp_c", "table_angle_deg")
-
-
-class LogFormatError(ValueError):
-    """The measured log cannot be used as it is; the message names file, row and column."""
 
 
 @dataclass
@@ -57,28 +61,37 @@ def _read_columns(path: Path) -> tuple[dict[str, np.ndarray], int]:
     else:
         require_regular_file(path)
     if suffix in (".parquet", ".pq"):
-        import pyarrow.parquet as pq
-
-        try:
-            table = pq.read_table(path)
-        except Exception as exc:  # noqa: BLE001 - pyarrow raises many types for bad files
-            raise LogFormatError(f"{path}: not a readable Parquet file: {exc}") from None
-        columns = {}
-        for name in table.column_names:
-            try:
-                columns[name] = table.column(name).to_numpy(zero_copy_only=False).astype(np.float64)
-            except (TypeError, ValueError):
-                columns[name] = None  # a non-numeric column: an error only if it is one we need
-        return columns, 1
+        return _read_parquet(path), 1
     if suffix in (".csv", ".txt"):
         return _read_csv(path), 2
     raise LogFormatError(f"{path}: unknown log format {suffix!r}; use .csv or .parquet")
 
 
+def _read_parquet(path: Path) -> dict[str, np.ndarray | None]:
+    """The contract's columns, their types checked on the schema before a value is converted."""
+    import pyarrow.parquet as pq
+
+    contract = REQUIRED_COLUMNS + OPTIONAL_COLUMNS
+    try:
+        schema = pq.read_schema(path)
+    except Exception as exc:  # noqa: BLE001 - pyarrow raises many types for bad files
+        raise LogFormatError(f"{path}: not a readable Parquet file: {exc}") from None
+    check_parquet_schema(path, schema, list(contract))
+    wanted = [name for name in contract if name in schema.names]
+    try:
+        table = pq.read_table(path, columns=wanted)
+    except Exception as exc:  # noqa: BLE001 - pyarrow raises many types for bad files
+        raise LogFormatError(f"{path}: not a readable Parquet file: {exc}") from None
+    return {name: table.column(name).to_numpy(zero_copy_only=False).astype(np.float64)
+            for name in wanted}
+
+
 def _read_csv(path: Path) -> dict[str, np.ndarray]:
     import csv
 
-    with open(path, newline="") as handle:
+    # utf-8-sig: a byte-order mark (spreadsheet exports write one) is not part of the
+    # first column's name; csv takes quoted names ("t_s") as the names they quote.
+    with open(path, newline="", encoding="utf-8-sig") as handle:
         reader = csv.reader(handle)
         try:
             header = [name.strip() for name in next(reader)]
@@ -107,6 +120,7 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
 
 
 def validate_columns(columns: dict[str, np.ndarray | None], source: str, first_row: int) -> None:
+    """The log contract (``log_contract.py``): present, numeric, finite, physical, time increasing."""
     missing = [name for name in REQUIRED_COLUMNS if name not in columns]
     if missing:
         raise LogFormatError(f"{source}: missing required column(s) {', '.join(missing)}; "
@@ -117,18 +131,8 @@ def validate_columns(columns: dict[str, np.ndarray | None], source: str, first_r
         data = columns[name]
         if data is None:
             raise LogFormatError(f"{source}: column {name}: not numeric")
-        bad = np.flatnonzero(~np.isfinite(data))
-        if bad.size:
-            raise LogFormatError(f"{source}: line {bad[0] + first_row}: column {name}: "
-                                 f"non-finite value {float(data[bad[0]])!r} ({bad.size} such rows)")
-    t = columns["t_s"]
-    if t.size < 2:
-        raise LogFormatError(f"{source}: {t.size} data row(s); at least 2 are needed")
-    bad = np.flatnonzero(np.diff(t) <= 0)
-    if bad.size:
-        row = bad[0] + 1
-        raise LogFormatError(f"{source}: line {row + first_row}: column t_s: time {float(t[row])!r} does "
-                             f"not increase (previous {float(t[row - 1])!r}); t_s must be strictly increasing")
+        check_values(data, source, name, first_row)
+    check_time(columns["t_s"], source, "t_s", first_row)
 
 
 def read_measured_log(path: str | Path) -> MeasuredLog:
