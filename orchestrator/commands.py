@@ -91,6 +91,9 @@ def cmd_validate(args: argparse.Namespace) -> int:
     # a station whose every address is `sim` can only run with --sim: judge it that way
     sim = args.sim or is_simulated(procedure)
     check_runnable(procedure, sim)
+    # the key run would seal with, loaded as run loads it (missing, unreadable, readable by
+    # others, not a key): validate OK must mean run accepts
+    run_signer(None, procedure.station.signing_key)
     how = " for `gyrocal run --sim`" if sim else ""
     print(f"{procedure.file}: OK{how} — {procedure.name!r} on station {procedure.station.name!r}: "
           f"{len(plan.steps)} steps, ETA {_hms(plan.total_s)} (worst case {_hms(plan.max_total_s)})")

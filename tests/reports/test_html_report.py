@@ -91,9 +91,17 @@ def test_values_carry_their_expanded_uncertainty_and_the_decision(smoke_run):
     assert "guarded" in html and ">CONDITIONAL</span>" in html
     ls = results["scale_factor_ls"]
     assert "SF {} ± {},".format(*round_to_uncertainty(ls["sf"], ls["U"])) in html
+    identifiable = results["allan"]["identifiable"]
     for name, entry in results["allan"]["uncertainty"].items():
+        if identifiable.get(name) is False:    # issue 28: said so, never "0 ± U"
+            continue
         shown = "{} ± {}".format(*round_to_uncertainty(entry["value"], entry["U"]))
         assert f"<td>{shown} " in html, name
+    assert not all(identifiable.values())     # this record cannot tell every term from zero
+    unidentified = sum(1 for name in results["allan"]["uncertainty"]
+                       if identifiable.get(name) is False)
+    assert len(re.findall(r"</td><td>not identifiable from this record \(95 % upper bound \S+ ",
+                          html)) == unidentified
 
 
 def _visible_text(html: str) -> str:
