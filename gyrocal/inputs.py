@@ -364,6 +364,10 @@ class _Builder:
         if not target_text:
             self.problems.append(Problem(display, line, where, "!include needs a file name"))
             return None
+        if any(ord(c) < 32 or ord(c) == 127 for c in target_text):
+            self.problems.append(Problem(display, line, where, f"!include {target_text!r}: a file "
+                                         "name cannot hold a NUL or control character"))
+            return None
         target = (path.parent / target_text).resolve()
         if not target.is_relative_to(self.root_dir):
             self.problems.append(

@@ -31,6 +31,7 @@ from gyrocal.orchestrator.schema import (
     Fields,
     choice,
     duration,
+    file_name,
     integer,
     number,
     quantity,
@@ -438,10 +439,10 @@ class _Parser:
                                     file=self.document.file, path=None)
             return station if len(self.ctx.problems) == before else None
         try:
-            relative = text(raw)
-        except UnitError:
+            relative = file_name(raw)
+        except UnitError as exc:
             self.ctx.report(("station",), "expected the path of a station file (relative to "
-                            f"this procedure) or a station mapping, got {describe(raw)}")
+                            f"this procedure) or a station mapping: {exc}")
             return None
         target = self.document.path.parent / relative
         refused = None if self.ctx.allow_outside else outside_reference(self.document.path, target)
@@ -795,6 +796,10 @@ class _Parser:
             fields.finish()
             if fields.has("max") == fields.has("min"):
                 self.ctx.report(path, "give exactly one of max or min")
+            if maximum is not None and maximum < 0 and metric is not None:
+                # every max limit bounds a size, a spread or (signed metrics) a magnitude
+                self.ctx.report(fields.child("max"), f"max {format_number(maximum)} can never be "
+                                f"met: {metric} is judged by its size, which is never negative")
             if name is not None:
                 if name in names:
                     self.ctx.report(fields.child("name"),

@@ -117,11 +117,33 @@ def text(value: object) -> str:
     return value.strip()
 
 
+def file_name(value: object) -> str:
+    """A file path named inside a procedure or station: text with no NUL or control character.
+
+    The operating system cannot open such a name (Python raises a bare
+    ``ValueError: embedded null byte``); here it is an error at its key and line.
+    """
+    name = text(value)
+    bad = next((c for c in name if ord(c) < 32 or ord(c) == 127), None)
+    if bad is not None:
+        raise UnitError(f"a file name cannot hold the control character {bad!r}, got {name!r}")
+    return name
+
+
 def serial_number(value: object) -> str:
     """Serials are often all digits; YAML reads ``12345`` as a number, so take it as text."""
     if isinstance(value, int) and not isinstance(value, bool):
         return str(value)
-    return text(value)
+    serial = text(value)
+    if len(serial) > MAX_SERIAL_CHARS or any(not c.isprintable() for c in serial):
+        raise UnitError(f"a serial number is at most {MAX_SERIAL_CHARS} printable characters, "
+                        f"got {describe(value)}")
+    return serial
+
+
+#: Longer than any maker's serial; what a serial *means* ("5 parsecs") cannot be checked
+#: here: the instrument's own report (*IDN?, serial registers) is what it is compared with.
+MAX_SERIAL_CHARS = 64
 
 
 def boolean(value: object) -> bool:

@@ -34,6 +34,7 @@ from gyrocal.orchestrator.schema import (
     choice,
     date,
     duration,
+    file_name,
     integer,
     number,
     quantity,
@@ -259,7 +260,7 @@ def parse_station(
     gyro = _gyro(ctx, fields)
     present, raw = fields.raw("simulation")
     simulation = _simulation(ctx, fields.child("simulation"), raw, base_dir) if present else None
-    key_text = fields.take("signing_key", text, required=False)
+    key_text = fields.take("signing_key", file_name, required=False)
     signing_key = (base_dir / key_text) if key_text else None
     present, raw = fields.raw("notify")
     notify = parse_notify(ctx.report, fields.child("notify"), raw) if present else ()
@@ -462,7 +463,7 @@ def _check_model_file(ctx: Context, where: KeyPath, path: Path) -> None:
 
 def _simulation(ctx: Context, where: KeyPath, value: object, base_dir: Path) -> SimulationConfig:
     fields = Fields(ctx, where, value, "simulation")
-    model_text = fields.take("gyro_model", text)
+    model_text = fields.take("gyro_model", file_name)
     gyro_model = (base_dir / model_text).resolve() if model_text is not None else None
     refused = None if gyro_model is None or ctx.allow_outside else outside_reference(
         ctx.document.path, gyro_model)
