@@ -479,7 +479,7 @@ def _simulation(ctx: Context, where: KeyPath, value: object, base_dir: Path) -> 
 
     ch = _section(ctx, fields, "chamber")
     chamber = ChamberPhysics(
-        ch.take("ambient_c", quantity(TEMPERATURE, -273.15)),
+        ch.take("ambient_c", quantity(TEMPERATURE, -273.15, 1000.0)),
         ch.take("tau_s", duration(bare_seconds=True)),
         ch.take("max_heat_c_per_min", quantity(TEMPERATURE_RATE, above=0.0)),
         ch.take("max_cool_c_per_min", quantity(TEMPERATURE_RATE, above=0.0)),
