@@ -1,3 +1,3 @@
-from gyrocal.cli import main
+from gyrocal.cli import entry
 
-raise SystemExit(main())
+entry()

@@ -9,11 +9,13 @@ lives in its own module; this file only routes.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
 import signal
 import sys
 import threading
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, NoReturn
 
 from gyrocal.errors import (  # noqa: F401 - re-exported: the names scripts already import
     EXIT_ACCEPTANCE_FAILED,
@@ -320,5 +322,27 @@ def _dispatch(args: argparse.Namespace) -> int:
         return EXIT_FAULT
 
 
+def entry(argv: Sequence[str] | None = None) -> NoReturn:
+    """The ``gyrocal`` program (console script and ``python -m gyrocal``): main, then exit.
+
+    Once the command has its exit code, a Ctrl-C or SIGTERM while the interpreter
+    shuts down (joining threads, flushing, finalising) would print
+    "Exception ignored … KeyboardInterrupt" with a traceback. Nothing is left to
+    protect by then (every journal line is fsynced, the command has returned),
+    so such a signal ends the process at once with the command's own code.
+    """
+    code = main(argv)
+    if threading.current_thread() is threading.main_thread():
+        def finish(signum: int, frame: object) -> None:
+            with contextlib.suppress(Exception):
+                sys.stdout.flush()
+                sys.stderr.flush()
+            os._exit(code)
+
+        signal.signal(signal.SIGINT, finish)
+        signal.signal(signal.SIGTERM, finish)
+    raise SystemExit(code)
+
+
 if __name__ == "__main__":
-    raise SystemExit(main())
+    entry()
