@@ -31,6 +31,31 @@ class InstrumentError(Exception):
         return text
 
 
+#: Bytes of a binary reply shown in a message; the rest is counted, not dumped.
+REPLY_HEX_BYTES = 16
+#: Characters of a text reply shown in a message.
+REPLY_TEXT_CHARS = 40
+
+
+def describe_reply(data: bytes, protocol: str) -> str | None:
+    """What came back, for a person: a text reply described as not the protocol, a binary one short.
+
+    A chamber address that reaches a web server answers an RTU frame with
+    "HTTP/1.1 400 Bad Request…": ninety hex bytes said nothing an operator could
+    read; ``not a Modbus reply: 'HTTP/1.1 400 Bad Request'`` says what is there.
+    """
+    if not data:
+        return None
+    printable = sum(1 for b in data if 32 <= b < 127 or b in (9, 10, 13))
+    if len(data) >= 4 and printable >= 0.9 * len(data):
+        lines = data.decode("ascii", "replace").strip().splitlines() or [""]
+        first = lines[0].strip()
+        more = len(first) > REPLY_TEXT_CHARS or len(lines) > 1
+        return f"not a {protocol} reply: {first[:REPLY_TEXT_CHARS]!r}" + ("…" if more else "")
+    shown = data[:REPLY_HEX_BYTES].hex(" ")
+    return shown + (f" … ({len(data)} bytes)" if len(data) > REPLY_HEX_BYTES else "")
+
+
 class InstrumentTimeout(InstrumentError):
     """No (complete) reply within the timeout. Transient by default."""
 

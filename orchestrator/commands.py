@@ -48,6 +48,7 @@ from gyrocal.orchestrator.remount import (
     SimulatedFixtureOperator,
     write_confirmation,
 )
+from gyrocal.orchestrator.retry_console import RetryConsole
 from gyrocal.orchestrator.run_close import close_completed, steps_completed_run
 from gyrocal.orchestrator.run_errors import RunFaultError
 from gyrocal.orchestrator.signing import (
@@ -73,7 +74,9 @@ SimStarted = Callable[[Any], None]
 def quiet_library_logs(debug: bool = False) -> None:
     """pymodbus logs every retry to stderr; the journal is where retries belong."""
     level = logging.DEBUG if debug else logging.CRITICAL
-    for name in ("pymodbus", "pyvisa", "pyvisa_py"):
+    # the drivers' own retry warnings too: retries reach the console once, collapsed
+    # (retry_console.py), and the journal in full
+    for name in ("pymodbus", "pyvisa", "pyvisa_py", "gyrocal.instruments"):
         logging.getLogger(name).setLevel(level)
 
 
@@ -503,9 +506,12 @@ def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: P
                        on_sim_started: SimStarted | None = None,
                        closing: ClosingSignals | None = None) -> int:
 
+    console = RetryConsole()
+
     def on_retry(role: str, attempt: int, exc: InstrumentError) -> None:
         journal.append(JournalEvent.RETRY, instrument=role, attempt=attempt, command=exc.command,
                        detail=exc.detail, reply=_text(exc.reply))
+        console.note(role, exc)
 
     results: dict[str, Any] = {}
 
@@ -535,18 +541,22 @@ def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: P
             finally:
                 if closing is not None:
                     closing.received.extend(engine.deferred_signals)
+        console.flush()
         journal.append(JournalEvent.RUN_CLOSED, outcome="completed")
     except RunFaultError as exc:
+        console.flush()
         print(f"gyrocal: fault: {exc}", file=sys.stderr)
         _report_simulator_crash(simulated, journal)
         return EXIT_FAULT
     except LockBusyError as exc:
+        console.flush()
         # The serial lock, taken after the identity queries and before preflight.
         journal.append(JournalEvent.FAULT, message=str(exc), state="connecting")
         folder.update_manifest(state="faulted", last_fault=str(exc))
         print(f"gyrocal: {exc}; nothing was commanded", file=sys.stderr)
         return EXIT_FAULT
     except InstrumentError as exc:
+        console.flush()
         # Raised while connecting, before the engine owned the instruments.
         journal.append(JournalEvent.FAULT, message=str(exc), state="connecting")
         folder.update_manifest(state="faulted", last_fault=str(exc))

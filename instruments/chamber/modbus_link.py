@@ -32,6 +32,7 @@ from gyrocal.instruments.errors import (
     InstrumentError,
     InstrumentProtocolError,
     InstrumentTimeout,
+    describe_reply,
 )
 from gyrocal.instruments.retry import RetryPolicy, call_with_retry
 
@@ -178,7 +179,7 @@ class ModbusLink:
         return data
 
     def _reply_text(self) -> str | None:
-        return self._last_received.hex(" ") if self._last_received else None
+        return describe_reply(self._last_received, "Modbus") if self._last_received else None
 
     def _execute(self, command: str, request: Callable[[ModbusBaseSyncClient], Any]) -> Any:
         try:
