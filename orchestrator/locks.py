@@ -7,9 +7,12 @@ hash chain breaks. So a controller takes, for its whole life, an exclusive
 
 * the run folder (``RUN_DIR/controller.lock``): run, resume and a report
   rebuild take it, so none of them runs while another writes the folder;
-* every instrument address of the station (one file per address in the lock
-  directory: ``$GYROCAL_LOCK_DIR``, else ``$XDG_RUNTIME_DIR/gyrocal-locks``,
-  else ``/tmp/gyrocal-locks``), so two runs on one station cannot both drive it.
+* every instrument of the station (one file per key in the lock directory:
+  ``$GYROCAL_LOCK_DIR``, else ``$XDG_RUNTIME_DIR/gyrocal-locks``, else
+  ``/tmp/gyrocal-locks``), so two runs on one station cannot both drive it. The
+  keys are what an address *reaches*, not how it is spelled
+  (``instrument_address.py``: resolved host and port, a device's real path),
+  and, once connected, the serial the chamber and the table report.
 
 The kernel drops an ``flock`` when its process ends however it ends (kill -9,
 power loss takes the whole machine), so a crashed controller never leaves a
