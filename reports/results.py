@@ -74,7 +74,7 @@ def _judge(results: dict[str, Any], entry: dict[str, Any], rule: DecisionRule,
     metric, kind, bound, label = entry["metric"], entry["kind"], entry["limit"], entry["name"]
     spec = METRICS.get(metric)
     if measured is not None and spec is not None and spec.needs not in measured:
-        entry["why"] = f"not measured: the run completed no {NEEDS_TEXT[spec.needs]}"
+        entry["why"] = f"not measured: it needs {NEEDS_TEXT[spec.needs]}, completed"
         notes.append(f"acceptance {label!r}: {metric} NOT EVALUATED ({entry['why']})")
         return Decision.NOT_EVALUATED
     value = lookup_metric(results, metric)
