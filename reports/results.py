@@ -12,7 +12,7 @@ import json
 import math
 from typing import Any
 
-from gyrocal.orchestrator.metrics import METRICS, NEEDS_TEXT
+from gyrocal.orchestrator.record.plan_record import metric_needs
 from gyrocal.reports.decision import DEFAULT_RULE, Decision, DecisionRule, decide
 
 #: The keys interfaces.md requires in report/results.json.
@@ -72,9 +72,9 @@ def _judge(results: dict[str, Any], entry: dict[str, Any], rule: DecisionRule,
            measured: frozenset[str] | None, notes: list[str]) -> Decision:
     """The decision for one limit; fills ``value``, ``guard_band`` and any ``why`` in ``entry``."""
     metric, kind, bound, label = entry["metric"], entry["kind"], entry["limit"], entry["name"]
-    spec = METRICS.get(metric)
-    if measured is not None and spec is not None and spec.needs not in measured:
-        entry["why"] = f"not measured: it needs {NEEDS_TEXT[spec.needs]}, completed"
+    needs = metric_needs(metric)
+    if measured is not None and needs is not None and needs[0] not in measured:
+        entry["why"] = f"not measured: it needs {needs[1]}, completed"
         notes.append(f"acceptance {label!r}: {metric} NOT EVALUATED ({entry['why']})")
         return Decision.NOT_EVALUATED
     value = lookup_metric(results, metric)

@@ -17,6 +17,7 @@ from enum import Enum
 from pathlib import Path
 from typing import Any
 
+from gyrocal.orchestrator.metrics import METRICS, NEEDS_TEXT
 from gyrocal.orchestrator.record.atomic import write_bytes_atomic
 from gyrocal.orchestrator.record.step_kind import StepKind
 
@@ -146,3 +147,13 @@ class PlanRecord:
 def load_plan_record(run_dir: Path) -> PlanRecord:
     """plan.json of a run folder, typed (KeyError/ValueError name a malformed record)."""
     return PlanRecord.of(read_plan_record(run_dir))
+
+
+def metric_needs(metric: str) -> tuple[str, str] | None:
+    """What an acceptance metric needs the run to have measured, and that need in words.
+
+    The report's door to ``orchestrator/metrics.py`` (reports read runs only
+    through the record): a limit whose need no completed step met is NOT EVALUATED.
+    """
+    spec = METRICS.get(metric)
+    return None if spec is None else (spec.needs, NEEDS_TEXT[spec.needs])
