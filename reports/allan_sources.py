@@ -260,7 +260,9 @@ def open_log_files(paths: list[Path], column: str | None = None,
     if rate_hz is None:
         if not has_time:
             missing = next(f for f in files if f.columns.time is None)
-            raise LogFormatError(f"{missing.path}: no time column ({', '.join(TIME_NAMES)}); "
+            header = "line 1 (the header): " if missing.kind == "csv" and missing.header else ""
+            raise LogFormatError(f"{missing.path}: {header}no time column "
+                                 f"({', '.join(TIME_NAMES)}); "
                                  "give the sample rate with --rate-hz")
         rate_hz = _rate_from_time(files[0])
     counted = {"done": False, "rows": 0}

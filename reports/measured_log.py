@@ -123,7 +123,8 @@ def validate_columns(columns: dict[str, np.ndarray | None], source: str, first_r
     """The log contract (``log_contract.py``): present, numeric, finite, physical, time increasing."""
     missing = [name for name in REQUIRED_COLUMNS if name not in columns]
     if missing:
-        raise LogFormatError(f"{source}: missing required column(s) {', '.join(missing)}; "
+        header = "line 1 (the header): " if first_row == 2 else ""   # a CSV's header row
+        raise LogFormatError(f"{source}: {header}missing required column(s) {', '.join(missing)}; "
                              f"required: {', '.join(REQUIRED_COLUMNS)}")
     for name in REQUIRED_COLUMNS + OPTIONAL_COLUMNS:
         if name not in columns:
