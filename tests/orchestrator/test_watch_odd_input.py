@@ -136,6 +136,8 @@ def test_status_and_watch_describe_a_damaged_folder_naming_the_file(
     from gyrocal.orchestrator.watch.server import WatchServer
 
     if case == "manifest a folder":   # refused at start, as status refuses it
+        assert main(["watch", str(run), "--port", "0"]) == EXIT_BAD_INPUT
+        assert "manifest.json" in capsys.readouterr().err
         return
     server = WatchServer(run, port=0).start()
     try:
