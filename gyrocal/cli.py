@@ -331,7 +331,11 @@ def entry(argv: Sequence[str] | None = None) -> NoReturn:
     protect by then (every journal line is fsynced, the command has returned),
     so such a signal ends the process at once with the command's own code.
     """
-    code = main(argv)
+    try:
+        code = main(argv)
+    except KeyboardInterrupt:      # after the command's own handling, before main returned
+        print("gyrocal: interrupted", file=sys.stderr)
+        code = EXIT_FAULT
     if threading.current_thread() is threading.main_thread():
         def finish(signum: int, frame: object) -> None:
             with contextlib.suppress(Exception):
