@@ -40,6 +40,7 @@ from gyrocal.orchestrator.record.run_folder import (
     SAMPLES,
 )
 from gyrocal.orchestrator.units import DURATION
+from gyrocal.reports.log_contract import CONTRACT_RANGES, MAX_SPACING_S, MIN_SPACING_S
 from gyrocal.reports.measured_log import OPTIONAL_COLUMNS, REQUIRED_COLUMNS
 
 SCHEMA_DRAFT = "http://json-schema.org/draft-07/schema#"
@@ -493,8 +494,14 @@ section of a three-axis calibration); keys are only ever added.
 """
 
 
+def _physical_range(column: str) -> str:
+    limits = CONTRACT_RANGES[column]
+    return f"{limits.low:g} … {limits.high:g} ({limits.why})"
+
+
 def measured_log_doc() -> str:
-    rows = "\n".join(f"| `{c}` | {'yes' if c in REQUIRED_COLUMNS else 'no'} | {_column_unit(c)} |"
+    rows = "\n".join(f"| `{c}` | {'yes' if c in REQUIRED_COLUMNS else 'no'} | {_column_unit(c)} "
+                     f"| {_physical_range(c)} |"
                      for c in (*REQUIRED_COLUMNS, *OPTIONAL_COLUMNS))
     return f"""# Measured log
 
@@ -503,13 +510,18 @@ def measured_log_doc() -> str:
 What `gyrocal discrepancy --measured` and `gyrocal analyze allan` read besides a run folder:
 a CSV file with a header row, or a Parquet file, one row per sample.
 
-| column | required | unit |
-|---|---|---|
+| column | required | unit | physical range |
+|---|---|---|---|
 {rows}
 
-`t_s` must increase strictly; the sample rate is taken from it. A row with a non-finite
-value, a time that does not increase or a missing required column is an error naming the row
-and the column (exit 2); no row is dropped silently. Other columns are ignored.
+`t_s` must increase strictly, with a median spacing between {MIN_SPACING_S:g} and
+{MAX_SPACING_S:g} s; the sample rate is taken from it. A row with a non-finite value or a value
+outside its column's physical range, a time that does not increase or a missing required column
+is an error naming the row and the column (exit 2); no row is dropped silently. In a Parquet
+file these columns must be integer or floating columns (a timestamp `t_s` is refused: store
+seconds as float64), and no column name may appear twice. A CSV may start with a UTF-8
+byte-order mark and quote its header names. Other columns are ignored. All of this is checked
+before any analysis runs (`reports/log_contract.py`).
 """
 
 
