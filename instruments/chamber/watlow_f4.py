@@ -10,12 +10,18 @@ Sources for the register map (holding registers, 0-based protocol addresses):
   paused — in Espec North America's open-source F4 driver (ChamberConnectLibrary
   ``watlowf4.py``, ``get_status``/``get_loop_sp``). Preflight refuses to start
   while the controller runs its own profile.
-- Alarms: no F4 register for "alarm active" was found in any source here. The
-  same Espec driver reads a tripped limit controller from the digital input it
-  is wired to: input N's state (201 + 12·(N−1)) differs from its configured
-  level (1061 + 2·(N−1)). The station's ``chamber.limit_input: N`` names that
-  input; without it the driver reports no alarm and says so in its identity
-  (unconfirmed against a Watlow manual).
+- Limit alarm: the limit controller is wired to a digital input, and the input
+  is ACTIVE when its state equals its condition. Watlow Series F4P user's
+  manual, ch. 9 Modbus register list: 201 + 12·(N−1) "Digital Input N, Status"
+  (read; 0 low, 1 high; p. 9.4) and 1061 + 2·(N−1) "Condition, Digital Input
+  N" (0 low, 1 high; p. 9.3; Setup Page table p. 6.17: the condition that
+  triggers the input); features p. 7.3: the input's event lasts as long as
+  that state exists. Espec's driver agrees since its fix 13600df (its
+  ``__get_digital_input`` returns state ≠ condition and files such an input
+  under *inactive* alarms). An earlier release of this driver read
+  state ≠ condition as "tripped": inverted, a tripped limit read healthy.
+  The station's ``chamber.limit_input: N`` names that input; without it the
+  driver reports no alarm and says so in its identity.
 - 901 temperature units (nonzero °C, 0 °F) and 606 input 1 decimal places: read
   by the same Espec driver (``get_loop_units``, ``__get_scalar``). Read at
   connect (``identify``): °F is converted to and from °C, and the decimals the
@@ -70,14 +76,18 @@ PROFILE_STATE_TEXT = {0: "constant", 1: "constant", PROFILE_RUNNING: "profile ru
                       PROFILE_PAUSED: "profile paused"}
 
 
+#: Digital input condition / status values (F4P manual pp. 9.3-9.4): 0 low, 1 high.
+DIGITAL_LEVELS = {0: "low", 1: "high"}
+
+
 def digital_input_registers(number: int) -> tuple[Register, Register]:
-    """(state, configured level) of digital input ``number`` (1-4), Espec watlowf4.py."""
+    """(status, condition) of digital input ``number`` (1-4), F4P manual pp. 9.3-9.4."""
     if not 1 <= number <= 4:
         raise ValueError(f"digital input must be 1..4, got {number!r}")
     return (Register(f"di{number}_state", 201 + 12 * (number - 1), Encoding.UINT16, False,
-                     f"digital input {number} state"),
-            Register(f"di{number}_level", 1061 + 2 * (number - 1), Encoding.UINT16, False,
-                     f"digital input {number} function level"))
+                     f"digital input {number} status"),
+            Register(f"di{number}_condition", 1061 + 2 * (number - 1), Encoding.UINT16, False,
+                     f"digital input {number} condition"))
 
 
 def f4_model_text(model_register: int) -> str:
@@ -187,16 +197,28 @@ class WatlowF4:
         value = setpoint_c * 1.8 + 32.0 if self.fahrenheit else setpoint_c
         self._link.write(F4_REGISTERS["setpoint"], value, self.decimals)
 
+    def limit_tripped(self) -> bool:
+        """True when the limit controller's digital input is active: its status EQUALS its
+        condition (F4P manual pp. 9.3-9.4, 6.17, 7.3). A value other than 0/1 is a fault."""
+        if self._limit_registers is None:
+            return False
+        status_reg, condition_reg = self._limit_registers
+        values = []
+        for register in (status_reg, condition_reg):
+            value = int(self._link.read(register))
+            if value not in DIGITAL_LEVELS:
+                raise InstrumentProtocolError(
+                    self.name, f"read {register.label}",
+                    f"reads {value}; the manual's values are 0 (low) and 1 (high)", reply=str(value))
+            values.append(value)
+        return values[0] == values[1]
+
     def read_status(self) -> ChamberStatus:
         state = int(self._link.read(F4_REGISTERS["profile_state"]))
         problems = []
-        tripped = False
-        if self._limit_registers is not None:
-            level_now = int(self._link.read(self._limit_registers[0]))
-            level_ok = int(self._link.read(self._limit_registers[1]))
-            tripped = level_now != level_ok
-            if tripped:
-                problems.append(f"alarm: limit controller tripped (digital input {self.limit_input})")
+        tripped = self.limit_tripped()
+        if tripped:
+            problems.append(f"alarm: limit controller tripped (digital input {self.limit_input})")
         return ChamberStatus(
             temperature_c=self.read_temperature_c(),
             setpoint_c=self.read_setpoint_c(),

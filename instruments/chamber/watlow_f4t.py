@@ -16,6 +16,10 @@ number at 16, 15 registers) for the loop addresses and the alarm state.
   the codes 7 "alarm high" and 8 "alarm low" used by the simulator are this
   project's assumption, and any non-quiet code is reported as an alarm anyway);
 - device status 90: 138 "OK", 32 "Fail";
+- profile state 16568 (Espec ``get_status``, read on every F4T whatever its
+  options): 149 "running", 146 "paused" — the controller runs (or holds) its
+  own profile and preflight refuses to drive it; 1783 is Espec's "calendar
+  start" (reported, not refused); any other value is no profile running;
 - display units 1328 (same guide, p. 225, "Display Units": F (30), C (15), default F (30),
   unsigned 16-bit RW). Temperatures and set points on Modbus are in the display units, so
   a factory-default controller speaks °F: the driver reads 1328 at connect and converts
@@ -48,6 +52,7 @@ F4T_REGISTERS: dict[str, Register] = register_table(
     Register("alarm1_state", 1356, Encoding.UINT16, False, "alarm 1 state"),
     Register("setpoint", 2782, Encoding.FLOAT32_LWF, True, "control loop 1 set point"),
     Register("process_value", 2820, Encoding.FLOAT32_LWF, False, "control loop 1 process value"),
+    Register("profile_state", 16568, Encoding.UINT16, False, "profile state"),
 )
 
 #: float word order: the guide's and Espec's low word first; "high_first" for a controller
@@ -76,6 +81,11 @@ ALARM_STATE_BLOCKED = 12
 ALARM_STATE_HIGH = 7
 ALARM_STATE_LOW = 8
 ALARM_STATE_ERROR = 28
+PROFILE_STATE_RUNNING = 149     # Espec watlowf4t.py get_status / value table
+PROFILE_STATE_PAUSED = 146
+PROFILE_STATE_CALENDAR_START = 1783
+PROFILE_STATE_TEXT = {PROFILE_STATE_RUNNING: "profile running", PROFILE_STATE_PAUSED: "profile paused",
+                      PROFILE_STATE_CALENDAR_START: "constant (profile calendar start)"}
 ALARM_QUIET_STATES = frozenset({ALARM_STATE_NONE, ALARM_STATE_STARTUP, ALARM_STATE_BLOCKED})
 ALARM_STATE_TEXT = {
     ALARM_STATE_NONE: "none", ALARM_STATE_STARTUP: "startup", ALARM_STATE_BLOCKED: "blocked",
@@ -175,11 +185,14 @@ class WatlowF4T:
             problems.append(
                 "device status fail" if device_status == DEVICE_STATUS_FAIL else f"device status {device_status}"
             )
+        profile_state = int(self._link.read(self.registers["profile_state"]))
         return ChamberStatus(
             temperature_c=self.read_temperature_c(),
             setpoint_c=self.read_setpoint_c(),
             alarm=bool(problems),
             detail="; ".join(problems),
+            profile_running=profile_state in (PROFILE_STATE_RUNNING, PROFILE_STATE_PAUSED),
+            run_state=PROFILE_STATE_TEXT.get(profile_state, "constant"),
         )
 
     def reset_link(self) -> None:

@@ -24,10 +24,11 @@ Faults (armed on :attr:`faults`, a :class:`FaultInjector` over :data:`FAULTS`):
 - ``never_reaches_setpoint`` (param ``capacity``): persistent; sets
   ``physics.stuck`` so the PV stalls short of the setpoint.
 - ``alarm`` (param ``state`` for the F4T, default 7 "alarm high"): persistent;
-  the status register (F4T) or the limit controller's digital input (F4)
-  reports an alarm regardless of the physics.
-- ``profile_running`` (F4): persistent; register 200 reads 2, the controller
-  running its own profile.
+  the status register (F4T) or the limit controller's digital input (F4:
+  status 201 equal to its condition 1061, F4P manual pp. 9.3-9.4) reports an
+  alarm regardless of the physics.
+- ``profile_running``: persistent; the controller runs its own profile (F4:
+  register 200 reads 2; F4T: register 16568 reads 149, Espec's "running").
 
 Per-request faults (the first four) consume one firing per request; the two
 persistent ones are read, not consumed, and take effect at the next request
@@ -60,6 +61,7 @@ from gyrocal.instruments.chamber.watlow_f4t import (
     DISPLAY_UNITS_C,
     DISPLAY_UNITS_F,
     F4T_REGISTERS,
+    PROFILE_STATE_RUNNING,
 )
 from gyrocal.instruments.sim.faults import FaultInjector
 from gyrocal.models.chamber import ChamberPhysics
@@ -296,7 +298,9 @@ class SimulatedWatlowF4(_SimulatedModbusChamber):
     #: the registers of the driver's map, plus digital input 1 where the simulated limit
     #: controller is wired (station sim.yaml: chamber.limit_input: 1)
     REGISTERS = {**F4_REGISTERS, **{r.name: r for r in digital_input_registers(1)}}
-    LIMIT_INPUT_LEVEL = 1
+    #: the input triggers on a high state (condition 1061 = 1; F4P manual p. 9.3): the limit
+    #: controller's contact reads low (201 = 0) while healthy and high (201 = 1) once tripped
+    LIMIT_INPUT_CONDITION = 1
     SERIAL_NUMBER = (12, 3456)
 
     def __init__(
@@ -336,11 +340,11 @@ class SimulatedWatlowF4(_SimulatedModbusChamber):
             return 1                  # °C (nonzero); the F4's factory default is not documented here
         if name == "profile_state":
             return 2 if self.faults.params("profile_running") is not None else 0
-        if name == "di1_state":       # the limit controller's contact: at its level unless tripped
+        if name == "di1_state":       # active (= its condition) only while the limit is tripped
             tripped = self._alarm_forced() or self.physics.alarm_state().active
-            return 0 if tripped else self.LIMIT_INPUT_LEVEL
-        if name == "di1_level":
-            return self.LIMIT_INPUT_LEVEL
+            return self.LIMIT_INPUT_CONDITION if tripped else 1 - self.LIMIT_INPUT_CONDITION
+        if name == "di1_condition":
+            return self.LIMIT_INPUT_CONDITION
         raise KeyError(name)
 
 
@@ -391,6 +395,9 @@ class SimulatedWatlowF4T(_SimulatedModbusChamber):
             return self._in_units(self.physics.temperature_c())
         if name == "setpoint":
             return self._in_units(self.physics.setpoint_c)
+        if name == "profile_state":
+            running = self.faults.params("profile_running") is not None
+            return PROFILE_STATE_RUNNING if running else ALARM_STATE_NONE    # 61 "none"
         if name == "alarm1_state":
             forced = self.faults.params("alarm")
             if forced is not None:

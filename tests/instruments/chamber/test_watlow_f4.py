@@ -35,22 +35,27 @@ def test_write_negative_setpoint_bytes(scripted_peer):
     assert peer.error is None and len(peer.received) == 1
 
 
-def test_read_status_bytes(scripted_peer):
+@pytest.mark.parametrize(("status_reply", "tripped"), [
+    ("01 03 02 00 01 79 84", True),      # register 201 = 1 (high) EQUALS condition 1: active
+    ("01 03 02 00 00 B8 44", False),     # register 201 = 0 (low) differs: inactive, healthy
+])
+def test_read_status_bytes(scripted_peer, status_reply, tripped):
     """Register 200 is the run state (1: constant), not an alarm (Espec ChamberConnectLibrary
-    watlowf4.py); the alarm is the limit controller's digital input 1 (state 201 = 0 differs
-    from its level 1061 = 1: tripped)."""
+    watlowf4.py). The alarm is the limit controller's digital input 1, active when its
+    status (201; F4P manual p. 9.4, 0 low / 1 high) equals its condition (1061; p. 9.3 and
+    the Setup Page table p. 6.17: the state that triggers the input; p. 7.3)."""
     peer = scripted_peer([
         ("01 03 00 C8 00 01 05 F4", "01 03 02 00 01 79 84"),         # register 200: 1 constant
-        ("01 03 00 C9 00 01 54 34", "01 03 02 00 00 B8 44"),         # register 201: DI 1 state 0
-        ("01 03 04 25 00 01 94 F1", "01 03 02 00 01 79 84"),         # register 1061: DI 1 level 1
+        ("01 03 00 C9 00 01 54 34", status_reply),                   # register 201: DI 1 status
+        ("01 03 04 25 00 01 94 F1", "01 03 02 00 01 79 84"),         # register 1061: condition high
         ("01 03 00 64 00 01 C5 D5", "01 03 02 00 E7 F8 0E"),
         ("01 03 01 2C 00 01 44 3F", "01 03 02 02 58 B8 DE"),         # register 300: 600 -> 60.0 °C
     ])
     with f4_on(peer, limit_input=1) as f4:
         status = f4.read_status()
     assert peer.error is None
-    assert (status.temperature_c, status.setpoint_c, status.alarm) == (pytest.approx(23.1), 60.0, True)
-    assert status.detail == "alarm: limit controller tripped (digital input 1)"
+    assert (status.temperature_c, status.setpoint_c, status.alarm) == (pytest.approx(23.1), 60.0, tripped)
+    assert status.detail == ("alarm: limit controller tripped (digital input 1)" if tripped else "")
     assert status.profile_running is False and status.run_state == "constant"
 
 

@@ -71,14 +71,17 @@ def test_read_status_bytes(scripted_peer):
     peer = scripted_peer([
         ("00 01 00 00 00 06 01 03 05 4C 00 01", "00 01 00 00 00 05 01 03 02 00 07"),   # 1356: 7 alarm high
         ("00 02 00 00 00 06 01 03 00 5A 00 01", "00 02 00 00 00 05 01 03 02 00 8A"),   # 90: 138 OK
-        ("00 03 00 00 00 06 01 03 05 30 00 01", "00 03 00 00 00 05 01 03 02 00 0F"),   # 1328: C
-        ("00 04 00 00 00 06 01 03 0B 04 00 02", "00 04 00 00 00 07 01 03 04 CC CD 41 B8"),
-        ("00 05 00 00 00 06 01 03 0A DE 00 02", "00 05 00 00 00 07 01 03 04 00 00 41 C8"),
+        # 16568 profile state (Espec watlowf4t.py get_status): 149 = 0x95 running
+        ("00 03 00 00 00 06 01 03 40 B8 00 01", "00 03 00 00 00 05 01 03 02 00 95"),
+        ("00 04 00 00 00 06 01 03 05 30 00 01", "00 04 00 00 00 05 01 03 02 00 0F"),   # 1328: C
+        ("00 05 00 00 00 06 01 03 0B 04 00 02", "00 05 00 00 00 07 01 03 04 CC CD 41 B8"),
+        ("00 06 00 00 00 06 01 03 0A DE 00 02", "00 06 00 00 00 07 01 03 04 00 00 41 C8"),
     ])
     with f4t_on(peer) as f4t:
         status = f4t.read_status()
     assert peer.error is None
     assert status.alarm is True and status.detail == "alarm 1 alarm high"
+    assert status.profile_running is True and status.run_state == "profile running"
     assert status.temperature_c == pytest.approx(23.1, abs=1e-6) and status.setpoint_c == 25.0
 
 
