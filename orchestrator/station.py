@@ -67,7 +67,7 @@ _ADDRESS_FORMS = {
     "watlow_f4t": (rf"^{_HOST_PORT}$", "host:port"),
     # Acutrol3000: VISA resource string.
     "acutrol3000": (r"^(TCPIP\d*::\S+|ASRL\S+|GPIB\d*::\S+)$",
-                    "a VISA resource such as TCPIP0::10.0.0.5::5025::SOCKET"),
+                    "a VISA resource such as TCPIP0::10.0.0.5::9878::SOCKET"),
     # STIM300: RS-422 serial, or a TCP serial bridge.
     "stim300": (rf"^(/dev/\S+|COM\d+|socket://{_HOST_PORT})$",
                 "a serial device (/dev/ttyUSB0, COM3) or socket://host:port"),
@@ -154,7 +154,7 @@ class TableConfig:
     limits: TableLimits
     timeout_s: float
     retries: int
-    #: how the controller answers (instruments/table/acutrol_protocol.py DIALECTS)
+    #: how the controller answers (instruments/table/acutrol_protocol.py DIALECTS: the manual's only)
     dialect: str = DEFAULT_DIALECT
 
 

@@ -1,56 +1,52 @@
-"""The simulated ACUTROL3000's command interpreter: SCPI text in, replies and errors out.
+"""The simulated ACUTROL3000's command interpreter: ACL text in, (error code, message) out.
 
 Kept apart from the socket server so the instrument's *language* (headers,
-abbreviations, arguments, the error queue) is one piece and the transport and
-injected faults another. The interpreter answers from :class:`TablePhysics`
-at the clock's now.
+abbreviations, arguments, error codes, status registers) is one piece and the
+transport and injected faults another. The interpreter answers from
+:class:`TablePhysics` at the clock's now. It follows TM-8004-C (sections as
+cited in ``instruments/table/acutrol_protocol.py``); headers are accepted
+case-insensitively in the manual's long form, its short form and the
+single-letter form of its examples (``:Demand:Rate``, ``:DEM:RATE``, ``:D:R``)::
 
-Accepted headers (case-insensitive; each node in long, SCPI short or the
-single-letter ACUTROL form, e.g. ``:DEMAND:RATE``, ``:DEM:RAT``, ``:D:R``)::
+    *IDN?  *CLS  *ESR?  *STB?          identity, clear status, event status, status byte
+    :Mode? <axis>                      the mode letter: R rate, O off
+    :Mode:Rate <axis>                  rate mode (refused while the interlock is open)
+    :Mode:Off <axis>                   servo to rest (always accepted)
+    :Mode:Position / :Mode:Synthesis   refused: "Not simulated" (the physics is rate-only)
+    :Demand:Rate <axis>,<deg/s>        rate demand (rate mode only, within the rate limit)
+    :Demand:Rate? <axis>               current demand
+    :Demand:Position <axis>,<deg>      stored (position mode is not simulated)
+    :Demand:Oscillator <axis>,<mag>,<Hz>,<deg>   stored (synthesis is not simulated)
+    :Read:Rate[?] <axis>               rate readback, deg/s ("?" optional, §4.10.5)
+    :Read:Position[?] <axis>           position readback, deg in [0, 360)
+    :Interlock? <axis>                 Close | Open | Fault
+    :Interlock:Close <axis>            close (refused while the safety chain is open)
+    :Interlock:Open <axis>             open it (the table stops)
+    :Interlock:Reset                   no argument (§4.5.6); with one it is refused
+    :Limit:Acceleration R,<axis>,<deg/s^2>   acceleration limit of rate mode (§4.6.2)
+    :Limit:Acceleration? R,<axis>
+    :Query:Error? <code>               the text of an error code
+    :Utility:Lockout ON|OFF            remote lockout of the other interfaces
 
-    *IDN?                          identity
-    *CLS                           clear the error queue
-    :MODE:RATE <axis>              enter rate mode (refused while the interlock is open)
-    :MODE:OFF <axis>               servo to rest (always accepted)
-    :MODE? <axis>                  RATE | OFF
-    :DEMAND:RATE <axis>, <deg/s>   rate demand (rate mode only, within the rate limit)
-    :DEMAND:RATE? <axis>           current demand
-    :READ:RATE? <axis>             rate readback, deg/s
-    :READ:POS? <axis>              position readback, deg in [0, 360)
-    :INTERLOCK? <axis>             1 closed, 0 open
-    :INTERLOCK:CLOSE <axis>        close the interlock (refused while the safety chain is open)
-    :INTERLOCK:OPEN <axis>         open it (the table stops)
-    :LIMIT:ACC RATE, <axis>, <deg/s^2>   acceleration limit of rate mode
-    :LIMIT:ACC? RATE, <axis>
-    :SYSTEM:ERROR?                 oldest queued error: <code>,"<message>" (0,"No error")
-    :INTERLOCK:RESET <axis>        clear latched interlock faults
-    :UTILITY:LOCKOUT ON|OFF        remote lockout of the front panel
+Several commands may share one line separated by ``;``; the messages of the
+queries among them are joined with ``;`` in order, and the line's error code
+is the first command's that failed.
 
-Two reply dialects (``acutrol_protocol.Dialect``): SCPI error queue (above:
-settings silent, queries joined with ``;``) and the acknowledged one of the
-public script for a real ACUTROL (every line answered: ``OK``, the value, or
-``ERROR <code>,"<message>"``, after an 8-character prefix) — see
-:meth:`AcutrolInterpreter.execute_acknowledged`. An unknown command is never
-met with silence in the acknowledged dialect.
-
-Several commands may share one line separated by ``;``; the replies of the
-queries among them are joined with ``;`` in order. A query that fails queues
-an error and contributes no reply (SCPI behaviour).
-
-The acceleration-limit syntax ``:limit:acc <mode>,<axis>,<value>`` follows a
-public user script that drives a real ACUTROL3000 through pyvisa; the error
-codes below are SCPI-standard except the device-specific ``201`` (interlock
-open), which is an assumption of this simulator (no manual was available).
+The error codes are this simulator's own: TM-8004 leaves its list "TBD"
+(§6.1, p. 213), and the driver never reads meaning into a number. What the
+driver relies on is documented: ``*STB?`` bit 0 while the system interlocks
+are faulted, ``*ESR?`` bit 2 for a bad device-dependent message (axis out of
+range, data of the wrong size or kind).
 """
 
 from __future__ import annotations
 
 import math
 import threading
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from gyrocal.instruments.table import acutrol_protocol as proto
 from gyrocal.models.table import (
     MODE_RATE,
     TableInterlockError,
@@ -59,47 +55,35 @@ from gyrocal.models.table import (
     TablePhysics,
 )
 
-#: SCPI error codes the simulator queues, with their standard messages.
-ERR_NONE = (0, "No error")
-ERR_DATA_TYPE = (-104, "Data type error")
-ERR_PARAM_NOT_ALLOWED = (-108, "Parameter not allowed")
-ERR_MISSING_PARAM = (-109, "Missing parameter")
-ERR_UNDEFINED_HEADER = (-113, "Undefined header")
-ERR_EXECUTION = (-200, "Execution error")
-ERR_SETTINGS_CONFLICT = (-221, "Settings conflict")
-ERR_OUT_OF_RANGE = (-222, "Data out of range")
-ERR_ILLEGAL_VALUE = (-224, "Illegal parameter value")
-ERR_QUEUE_OVERFLOW = (-350, "Queue overflow")
-ERR_INTERLOCK_OPEN = (201, "Interlock open")
+#: (code, text) of the simulator's refusals; 0 is success.
+ERR_UNDEFINED_HEADER = (1, "Undefined header")
+ERR_BAD_PARAMETER = (2, "Parameter out of range")
+ERR_INTERLOCK_OPEN = (3, "Interlock open")
+ERR_SETTINGS_CONFLICT = (4, "Settings conflict")
+ERR_EXECUTION = (5, "Execution error")
+ERR_NOT_SIMULATED = (6, "Not simulated")
+ERROR_TEXTS = dict((ERR_UNDEFINED_HEADER, ERR_BAD_PARAMETER, ERR_INTERLOCK_OPEN,
+                    ERR_SETTINGS_CONFLICT, ERR_EXECUTION, ERR_NOT_SIMULATED))
 
-_ERROR_QUEUE_LENGTH = 16
-
-_ROOT_NODES = {
-    "MODE": ("M", "MOD", "MODE"),
-    "DEMAND": ("D", "DEM", "DEMAND"),
-    "READ": ("R", "READ"),
-    "INTERLOCK": ("I", "INT", "INTERLOCK"),
-    "LIMIT": ("L", "LIM", "LIMIT"),
-    "SYSTEM": ("SYST", "SYSTEM"),
-    "UTILITY": ("U", "UTIL", "UTILITY"),
+_RATE = ("R", "RAT", "RATE")
+_POSITION = ("P", "POS", "POSITION")
+_NODES: dict[str, tuple[tuple[str, ...], dict[str, tuple[str, ...]]]] = {
+    "MODE": (("M", "MOD", "MODE"), {"RATE": _RATE, "OFF": ("O", "OFF"), "POSITION": _POSITION,
+                                    "SYNTHESIS": ("S", "SYNT", "SYNTH", "SYNTHESIS")}),
+    "DEMAND": (("D", "DEM", "DEMAND"), {"RATE": _RATE, "POSITION": _POSITION,
+                                        "OSCILLATOR": ("O", "OSC", "OSCILLATOR")}),
+    "READ": (("R", "READ"), {"RATE": _RATE, "POSITION": _POSITION}),
+    "INTERLOCK": (("I", "INT", "INTERLOCK"), {"CLOSE": ("C", "CLOS", "CLOSE"), "OPEN": ("O", "OPEN"),
+                                              "RESET": ("R", "RES", "RESET")}),
+    "LIMIT": (("L", "LIM", "LIMIT"), {"ACCELERATION": ("A", "ACC", "ACCELERATION")}),
+    "UTILITY": (("U", "UTIL", "UTILITY"), {"LOCKOUT": ("L", "LOCK", "LOCKOUT")}),
+    "QUERY": (("Q", "QUER", "QUERY"), {"ERROR": ("E", "ERR", "ERROR")}),
 }
-_LEAF_NODES = {
-    "RATE": ("R", "RAT", "RATE"),
-    "POSITION": ("P", "POS", "POSITION"),
-    "OFF": ("O", "OFF"),
-    "CLOSE": ("C", "CLOS", "CLOSE"),
-    "OPEN": ("OPEN",),
-    "ACCELERATION": ("A", "ACC", "ACCELERATION"),
-    "ERROR": ("ERR", "ERROR"),
-    "RESET": ("RES", "RESET"),
-    "LOCKOUT": ("LOCK", "LOCKOUT"),
-}
-_ROOT_ALIASES = {alias: name for name, aliases in _ROOT_NODES.items() for alias in aliases}
-_LEAF_ALIASES = {alias: name for name, aliases in _LEAF_NODES.items() for alias in aliases}
+_ROOT_ALIASES = {alias: root for root, (aliases, _) in _NODES.items() for alias in aliases}
 
 
 @dataclass(frozen=True)
-class ScpiCommand:
+class AclCommand:
     """One command of a line: canonical header path, query flag, raw arguments."""
 
     text: str
@@ -113,7 +97,7 @@ class ScpiCommand:
 
 
 class CommandFailed(Exception):
-    """Raised inside a handler: the command is refused with this SCPI error."""
+    """Raised inside a handler: the command is refused with this (code, text)."""
 
     def __init__(self, error: tuple[int, str], detail: str = "") -> None:
         super().__init__(detail)
@@ -121,8 +105,20 @@ class CommandFailed(Exception):
         self.detail = detail
 
 
-def parse_command(text: str) -> ScpiCommand:
-    """Split ``:DEM:RATE 1, 20`` into its canonical path, query flag and arguments."""
+def _path(header: str) -> tuple[str, ...] | None:
+    nodes = [n for n in header.split(":") if n]
+    if not header.startswith(":") or not 1 <= len(nodes) <= 2 or nodes[0] not in _ROOT_ALIASES:
+        return None
+    root = _ROOT_ALIASES[nodes[0]]
+    if len(nodes) == 1:
+        return (root,)
+    leaves = _NODES[root][1]
+    leaf = next((name for name, aliases in leaves.items() if nodes[1] in aliases), None)
+    return None if leaf is None else (root, leaf)
+
+
+def parse_command(text: str) -> AclCommand:
+    """Split ``:DEM:RATE 1,20`` into its canonical path, query flag and arguments."""
     text = text.strip()
     header, _, arg_text = text.replace("\t", " ").partition(" ")
     args = tuple(a.strip() for a in arg_text.split(",")) if arg_text.strip() else ()
@@ -130,33 +126,19 @@ def parse_command(text: str) -> ScpiCommand:
     query = header.endswith("?")
     header = header.rstrip("?")
     if header.startswith("*"):
-        return ScpiCommand(text, (header,), query, args)
-    nodes = [n for n in header.split(":") if n]
-    path: tuple[str, ...] | None = None
-    if header.startswith(":") and 1 <= len(nodes) <= 2:
-        root = _ROOT_ALIASES.get(nodes[0])
-        leaf = _LEAF_ALIASES.get(nodes[1]) if len(nodes) == 2 else None
-        if root is not None and (len(nodes) == 1 or leaf is not None):
-            path = (root,) if leaf is None else (root, leaf)
+        return AclCommand(text, (header,), query, args)
+    path = _path(header)
     if path is not None and path[0] == "READ":
-        query = True  # ACUTROL answers :R:R 1 with or without the "?"
-    return ScpiCommand(text, path, query, args)
+        query = True  # "For ACT2000 compatibility, the ? is not required" (§4.10.4, §4.10.5)
+    return AclCommand(text, path, query, args)
 
 
-def parse_line(line: str) -> list[ScpiCommand]:
+def parse_line(line: str) -> list[AclCommand]:
     return [parse_command(part) for part in line.split(";") if part.strip()]
 
 
-def format_error(error: tuple[int, str], detail: str = "") -> str:
-    """SCPI error text: ASCII only (the protocol's character set), no embedded quotes."""
-    code, message = error
-    text = f"{message};{detail}" if detail else message
-    text = text.replace('"', "'").encode("ascii", "replace").decode("ascii")
-    return f'{code},"{text}"'
-
-
 class AcutrolInterpreter:
-    """Executes parsed commands against the physics and keeps the SCPI error queue."""
+    """Executes parsed commands against the physics and keeps the status registers."""
 
     def __init__(self, physics: TablePhysics, idn: str, axes: tuple[int, ...] = (1,)) -> None:
         self.physics = physics
@@ -164,192 +146,222 @@ class AcutrolInterpreter:
         self.axes = axes
         #: True while the (simulated) safety chain is broken: the interlock cannot close.
         self.safety_chain_open = False
-        self._errors: deque[str] = deque()
+        self.remote_lockout = False
+        self.position_demand_deg = 0.0
+        self.oscillator = (0.0, 0.0, 0.0)
+        self._esr = 0                 # latched *ESR? bits, cleared by reading
+        self._stb_latched = 0         # latched *STB? bits, cleared by reading
         self._lock = threading.Lock()
-        self._handlers: dict[tuple[tuple[str, ...], bool], Callable[[ScpiCommand], str | None]] = {
+        self._handlers: dict[tuple[tuple[str, ...], bool], Callable[[AclCommand], str | None]] = {
             (("*IDN",), True): lambda c: self._no_args(c) or self.idn,
-            (("*CLS",), False): self._clear_errors,
+            (("*CLS",), False): self._clear_status,
+            (("*ESR",), True): self._read_esr,
+            (("*STB",), True): self._read_stb,
+            (("MODE",), True): self._mode_query,
             (("MODE", "RATE"), False): self._mode_rate,
             (("MODE", "OFF"), False): self._mode_off,
-            (("MODE",), True): self._mode_query,
+            (("MODE", "POSITION"), False): self._not_simulated,
+            (("MODE", "SYNTHESIS"), False): self._not_simulated,
             (("DEMAND", "RATE"), False): self._demand_rate,
             (("DEMAND", "RATE"), True): self._demand_rate_query,
+            (("DEMAND", "POSITION"), False): self._demand_position,
+            (("DEMAND", "OSCILLATOR"), False): self._demand_oscillator,
             (("READ", "RATE"), True): self._read_rate,
             (("READ", "POSITION"), True): self._read_position,
             (("INTERLOCK",), True): self._interlock_query,
             (("INTERLOCK", "CLOSE"), False): self._interlock_close,
             (("INTERLOCK", "OPEN"), False): self._interlock_open,
+            (("INTERLOCK", "RESET"), False): self._no_args,
             (("LIMIT", "ACCELERATION"), False): self._limit_acc,
             (("LIMIT", "ACCELERATION"), True): self._limit_acc_query,
-            (("SYSTEM", "ERROR"), True): self._pop_error,
-            (("INTERLOCK", "RESET"), False): self._interlock_reset,
+            (("QUERY", "ERROR"), True): self._error_text,
             (("UTILITY", "LOCKOUT"), False): self._lockout,
         }
-        self.remote_lockout = False
 
-    # ----- error queue --------------------------------------------------------------------
-
-    def push_error(self, error: tuple[int, str], detail: str = "") -> None:
+    def latch_bad_message(self) -> None:
+        """``*ESR?`` bit 2: a bad device-dependent message was received (Table 1, p. 18)."""
         with self._lock:
-            if len(self._errors) >= _ERROR_QUEUE_LENGTH:
-                self._errors[-1] = format_error(ERR_QUEUE_OVERFLOW)
-            else:
-                self._errors.append(format_error(error, detail))
-
-    def pending_errors(self) -> list[str]:
-        with self._lock:
-            return list(self._errors)
+            self._esr |= proto.ESR_BAD_MESSAGE
 
     # ----- execution ----------------------------------------------------------------------
 
-    def execute(self, command: ScpiCommand) -> str | None:
-        """Run one command; its reply text, or None (setting, or a query that failed)."""
+    def execute(self, command: AclCommand) -> tuple[int, str | None]:
+        """Run one command: (0, its message or None) or (error code, None)."""
         handler = self._handlers.get((command.path, command.query)) if command.path else None
-        if handler is None:
-            self.push_error(ERR_UNDEFINED_HEADER, command.text)
-            return None
         try:
-            return handler(command)
+            if handler is None:
+                raise CommandFailed(ERR_UNDEFINED_HEADER, command.text)
+            return 0, handler(command)
         except CommandFailed as exc:
-            self.push_error(exc.error, exc.detail)
-            return None
+            with self._lock:
+                if exc.error == ERR_BAD_PARAMETER:
+                    self._esr |= proto.ESR_BAD_MESSAGE
+                if exc.error == ERR_INTERLOCK_OPEN:
+                    self._stb_latched |= proto.STB_SYSTEM_INTERLOCKS
+            return exc.error[0], None
 
-    def execute_acknowledged(self, command: ScpiCommand) -> str:
-        """The acknowledged dialect: every command answered — OK, its value, or ERROR."""
-        handler = self._handlers.get((command.path, command.query)) if command.path else None
-        if handler is None:
-            return f"ERROR {format_error(ERR_UNDEFINED_HEADER, command.text)}"
-        try:
-            reply = handler(command)
-        except CommandFailed as exc:
-            return f"ERROR {format_error(exc.error, exc.detail)}"
-        return "OK" if reply is None else reply
-
-    def execute_line(self, commands: list[ScpiCommand]) -> str | None:
-        """Run the commands of one line; the joined query replies, or None if there are none."""
-        replies = [r for r in (self.execute(c) for c in commands) if r is not None]
-        return ";".join(replies) if replies else None
+    def execute_line(self, commands: list[AclCommand]) -> tuple[int, str]:
+        """Run the commands of one line: (first nonzero code or 0, query messages joined by ;)."""
+        code, messages = 0, []
+        for command in commands:
+            result, message = self.execute(command)
+            code = code or result
+            if message is not None:
+                messages.append(message)
+        return code, ";".join(messages)
 
     # ----- argument helpers ---------------------------------------------------------------
 
     @staticmethod
-    def _no_args(command: ScpiCommand) -> None:
+    def _no_args(command: AclCommand) -> None:
         if command.args:
-            raise CommandFailed(ERR_PARAM_NOT_ALLOWED, command.text)
+            raise CommandFailed(ERR_BAD_PARAMETER, command.text)
 
     @staticmethod
-    def _arity(command: ScpiCommand, count: int) -> tuple[str, ...]:
-        if len(command.args) < count or any(not a for a in command.args):
-            raise CommandFailed(ERR_MISSING_PARAM, command.text)
-        if len(command.args) > count:
-            raise CommandFailed(ERR_PARAM_NOT_ALLOWED, command.text)
+    def _arity(command: AclCommand, count: int) -> tuple[str, ...]:
+        if len(command.args) != count or any(not a for a in command.args):
+            raise CommandFailed(ERR_BAD_PARAMETER, command.text)
         return command.args
 
     @staticmethod
-    def _number(text: str, command: ScpiCommand) -> float:
+    def _number(text: str, command: AclCommand) -> float:
         try:
             value = float(text)
         except ValueError:
-            raise CommandFailed(ERR_DATA_TYPE, command.text) from None
+            raise CommandFailed(ERR_BAD_PARAMETER, command.text) from None
         if not math.isfinite(value):
-            raise CommandFailed(ERR_DATA_TYPE, command.text)
+            raise CommandFailed(ERR_BAD_PARAMETER, command.text)
         return value
 
-    def _axis(self, text: str, command: ScpiCommand) -> int:
+    def _axis(self, text: str, command: AclCommand) -> int:
         value = self._number(text, command)
         if value != int(value) or int(value) not in self.axes:
-            raise CommandFailed(ERR_OUT_OF_RANGE, f"axis {text}")
+            raise CommandFailed(ERR_BAD_PARAMETER, f"axis {text}")
         return int(value)
 
     def _refusing(self, action: Callable[[], None]) -> None:
-        """Turn the physics' refusals into the matching SCPI errors."""
+        """Turn the physics' refusals into the matching errors."""
         try:
             action()
         except TableInterlockError as exc:
             raise CommandFailed(ERR_INTERLOCK_OPEN, str(exc)) from None
         except TableLimitError as exc:
-            raise CommandFailed(ERR_OUT_OF_RANGE, str(exc)) from None
+            raise CommandFailed(ERR_BAD_PARAMETER, str(exc)) from None
         except TableModeError as exc:
             raise CommandFailed(ERR_SETTINGS_CONFLICT, str(exc)) from None
 
     # ----- handlers -----------------------------------------------------------------------
 
-    def _clear_errors(self, command: ScpiCommand) -> None:
+    def _clear_status(self, command: AclCommand) -> None:
         self._no_args(command)
         with self._lock:
-            self._errors.clear()
+            self._esr = self._stb_latched = 0
 
-    def _pop_error(self, command: ScpiCommand) -> str:
+    def _read_esr(self, command: AclCommand) -> str:
         self._no_args(command)
         with self._lock:
-            return self._errors.popleft() if self._errors else format_error(ERR_NONE)
+            value, self._esr = self._esr, 0
+        return str(value)
 
-    def _mode_rate(self, command: ScpiCommand) -> None:
+    def _read_stb(self, command: AclCommand) -> str:
+        """Bit 0 while the interlock chain is faulted or since a refusal for it (then cleared)."""
+        self._no_args(command)
+        with self._lock:
+            value, self._stb_latched = self._stb_latched, 0
+        if self.safety_chain_open:
+            value |= proto.STB_SYSTEM_INTERLOCKS
+        return str(value)
+
+    def _error_text(self, command: AclCommand) -> str:
+        (code_text,) = self._arity(command, 1)
+        code = self._number(code_text, command)
+        return ERROR_TEXTS.get(int(code), "Unknown error code") if code == int(code) else "Unknown"
+
+    def _not_simulated(self, command: AclCommand) -> None:
+        self._axis(*self._arity(command, 1), command)
+        raise CommandFailed(ERR_NOT_SIMULATED, command.text)
+
+    def _mode_rate(self, command: AclCommand) -> None:
         self._axis(*self._arity(command, 1), command)
         self._refusing(self.physics.set_mode_rate)
 
-    def _mode_off(self, command: ScpiCommand) -> None:
+    def _mode_off(self, command: AclCommand) -> None:
         self._axis(*self._arity(command, 1), command)
         self.physics.set_mode_off()
 
-    def _mode_query(self, command: ScpiCommand) -> str:
+    def _mode_query(self, command: AclCommand) -> str:
         self._axis(*self._arity(command, 1), command)
-        return "RATE" if self.physics.mode == MODE_RATE else "OFF"
+        mode = proto.TableMode.RATE if self.physics.mode == MODE_RATE else proto.TableMode.OFF
+        return mode.value
 
-    def _demand_rate(self, command: ScpiCommand) -> None:
+    def _demand_rate(self, command: AclCommand) -> None:
         axis_text, rate_text = self._arity(command, 2)
         self._axis(axis_text, command)
         rate_dps = self._number(rate_text, command)
         self._refusing(lambda: self.physics.set_rate_demand_dps(rate_dps))
 
-    def _demand_rate_query(self, command: ScpiCommand) -> str:
+    def _demand_rate_query(self, command: AclCommand) -> str:
         self._axis(*self._arity(command, 1), command)
         return f"{self.physics.demand_dps:.6f}"
 
-    def _read_rate(self, command: ScpiCommand) -> str:
+    def _demand_position(self, command: AclCommand) -> None:
+        axis_text, position_text = self._arity(command, 2)
+        self._axis(axis_text, command)
+        self.position_demand_deg = self._number(position_text, command)
+
+    def _demand_oscillator(self, command: AclCommand) -> None:
+        axis_text, *values = self._arity(command, 4)
+        self._axis(axis_text, command)
+        magnitude, frequency_hz, phase_deg = (self._number(v, command) for v in values)
+        if frequency_hz <= 0:
+            raise CommandFailed(ERR_BAD_PARAMETER, f"frequency {frequency_hz}")
+        self.oscillator = (magnitude, frequency_hz, phase_deg)
+
+    def _read_rate(self, command: AclCommand) -> str:
         self._axis(*self._arity(command, 1), command)
         return f"{self.physics.read_rate_dps():.6f}"
 
-    def _read_position(self, command: ScpiCommand) -> str:
+    def _read_position(self, command: AclCommand) -> str:
         self._axis(*self._arity(command, 1), command)
         return f"{self.physics.position_deg():.6f}"
 
-    def _interlock_query(self, command: ScpiCommand) -> str:
+    def _interlock_query(self, command: AclCommand) -> str:
         self._axis(*self._arity(command, 1), command)
-        return "1" if self.physics.interlock_closed else "0"
+        if self.physics.interlock_closed:
+            return proto.InterlockState.CLOSE.value
+        return (proto.InterlockState.FAULT if self.safety_chain_open else proto.InterlockState.OPEN).value
 
-    def _interlock_close(self, command: ScpiCommand) -> None:
+    def _interlock_close(self, command: AclCommand) -> None:
         self._axis(*self._arity(command, 1), command)
         if self.safety_chain_open:
             raise CommandFailed(ERR_INTERLOCK_OPEN, "safety chain open, interlock cannot close")
         self.physics.close_interlock()
 
-    def _interlock_open(self, command: ScpiCommand) -> None:
+    def _interlock_open(self, command: AclCommand) -> None:
         self._axis(*self._arity(command, 1), command)
         self.physics.open_interlock()
 
-    def _interlock_reset(self, command: ScpiCommand) -> None:
-        self._axis(*self._arity(command, 1), command)   # clears latched faults: nothing latched here
-
-    def _lockout(self, command: ScpiCommand) -> None:
+    def _lockout(self, command: AclCommand) -> None:
         (state,) = self._arity(command, 1)
         if state.upper() not in ("ON", "OFF"):
-            raise CommandFailed(ERR_ILLEGAL_VALUE, f"lockout {state!r}")
+            raise CommandFailed(ERR_BAD_PARAMETER, f"lockout {state!r}")
         self.remote_lockout = state.upper() == "ON"
 
-    def _limit_mode(self, text: str) -> None:
-        if text.upper() not in ("RATE", "RAT", "R"):
-            raise CommandFailed(ERR_ILLEGAL_VALUE, f"limit mode {text!r} (only RATE simulated)")
+    def _limit_mode(self, text: str, command: AclCommand) -> None:
+        """§4.6: the profiler mode is one character (R rate); only rate mode is simulated."""
+        if text.upper() not in ("R", "RATE"):
+            other_mode = text.upper() in {"A", "O", "P", "S", "T"}
+            raise CommandFailed(ERR_NOT_SIMULATED if other_mode else ERR_BAD_PARAMETER, command.text)
 
-    def _limit_acc(self, command: ScpiCommand) -> None:
+    def _limit_acc(self, command: AclCommand) -> None:
         mode_text, axis_text, accel_text = self._arity(command, 3)
-        self._limit_mode(mode_text)
+        self._limit_mode(mode_text, command)
         self._axis(axis_text, command)
         accel_dps2 = self._number(accel_text, command)
         self._refusing(lambda: self.physics.set_accel_limit_dps2(accel_dps2))
 
-    def _limit_acc_query(self, command: ScpiCommand) -> str:
+    def _limit_acc_query(self, command: AclCommand) -> str:
         mode_text, axis_text = self._arity(command, 2)
-        self._limit_mode(mode_text)
+        self._limit_mode(mode_text, command)
         self._axis(axis_text, command)
         return f"{self.physics.accel_limit_dps2:.6f}"

@@ -1,25 +1,27 @@
-"""A simulated ACUTROL3000 rate table: a real SCPI socket server on loopback.
+"""A simulated ACUTROL3000 rate table: a real ACL socket server on loopback.
 
 The driver reaches it through pyvisa-py exactly as it reaches a real table's
-``TCPIP0::host::port::SOCKET`` resource, so dry runs exercise the same code
-path as the lab. Each line received is one *request*; the injected faults
-act on requests:
+``TCPIP0::host::9878::SOCKET`` resource, so dry runs exercise the same code
+path as the lab. Each line received (LF-terminated, TM-8004 §2.4) is one
+*request* and gets one reply framed as TM-8004 §2 / TM-9374A §3.4.2 describe:
+error code and message length as two little-endian 32-bit words, then the
+message and a NUL (``acutrol_protocol.frame_reply``). The injected faults act
+on requests:
 
 ``drop_connection``  the request is not executed; the connection is reset (RST),
                      as when the table's controller reboots or a switch drops the link.
-``no_reply``         a request with a reply: it is executed, the reply is lost.
-``late_reply``       a request with a reply: the reply is sent ``delay_s`` (default 1 s) late.
-``garbled_reply``    a request with a reply: the reply arrives corrupted (still terminated).
-``error_reply``      the first *setting* command of the request is refused and an SCPI
-                     error queued (params ``code``, ``message``; default -200 Execution error).
+``no_reply``         it is executed, the reply is lost.
+``late_reply``       the reply is sent ``delay_s`` (default 1 s) late.
+``garbled_reply``    the reply's message arrives corrupted (the framing intact).
+``error_reply``      the first *setting* command of the request is refused with error code
+                     ``code`` (default 5, the simulator's "Execution error"); with
+                     ``bad_message: true`` it is flagged in ``*ESR?`` bit 2 as a bad message.
 ``interlock_open``   persistent until cleared: the safety chain is open, so the interlock
                      reads open, motion is refused, a spinning table stops and
                      ``:interlock:close`` fails. Applied at the next request (or at
                      :meth:`SimulatedAcutrol.apply_persistent_faults`); after clearing it
                      the interlock stays open until closed by command, as on a real table.
 
-Reply faults are consumed only by requests that produce a reply, so arming one
-before a setting command does not silently waste it.
 """
 
 from __future__ import annotations
@@ -31,14 +33,8 @@ import struct
 import threading
 
 from gyrocal.instruments.sim.faults import FaultInjector
-from gyrocal.instruments.sim.table_scpi import (
-    ERR_EXECUTION,
-    ERR_PARAM_NOT_ALLOWED,
-    AcutrolInterpreter,
-    format_error,
-    parse_line,
-)
-from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
+from gyrocal.instruments.sim.table_scpi import ERR_EXECUTION, AcutrolInterpreter, parse_line
+from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS, frame_reply
 from gyrocal.models.table import TablePhysics
 
 FAULTS = (
@@ -54,9 +50,9 @@ DEFAULT_IDN = "ACUTRONIC,ACUTROL3000-SIM,SIM0001,1.0"
 _GARBLE = str.maketrans("0123456789.-,;", "O!Z3A5G7B9#~%$")
 
 
-def garble(reply: str) -> str:
-    """Corrupt a reply the way line noise would: control byte first, characters swapped."""
-    return "\x15" + reply.translate(_GARBLE)
+def garble(message: str) -> str:
+    """Corrupt a message the way line noise would: control byte first, characters swapped."""
+    return "\x15" + message.translate(_GARBLE)
 
 
 class _Server(socketserver.ThreadingTCPServer):
@@ -110,8 +106,9 @@ class SimulatedAcutrol:
         idn: str = DEFAULT_IDN,
         dialect: str = DEFAULT_DIALECT,
     ) -> None:
-        self.dialect = DIALECTS[dialect]
-        self._replies = 0
+        if dialect not in DIALECTS:
+            raise ValueError(f"simulated table: dialect must be one of {list(DIALECTS)}, got {dialect!r}")
+        self.dialect = dialect
         self.physics = physics
         self.faults = faults if faults is not None else FaultInjector(FAULTS, owner="simulated table")
         unknown = set(self.faults.known) - set(FAULTS)
@@ -208,49 +205,28 @@ class SimulatedAcutrol:
             if self.faults.take("drop_connection") is not None:
                 _reset(sock)
                 return False
-            if self.dialect.acknowledged:
-                reply = self._acknowledged(line)
-                return self._send(sock, reply)
             commands = parse_line(line)
+            refused = 0
             if any(c.is_setting for c in commands):
                 refusal = self.faults.take("error_reply")
                 if refusal is not None:
-                    index = next(i for i, c in enumerate(commands) if c.is_setting)
-                    code = int(refusal.get("code", ERR_EXECUTION[0]))
-                    message = str(refusal.get("message", ERR_EXECUTION[1]))
-                    self.interpreter.push_error((code, message), "simulated fault")
-                    del commands[index]
-            reply = self.interpreter.execute_line(commands)
-        if reply is None:
-            return True
-        return self._send(sock, reply)
+                    refused = int(refusal.get("code", ERR_EXECUTION[0]))
+                    if refusal.get("bad_message"):
+                        self.interpreter.latch_bad_message()
+                    del commands[next(i for i, c in enumerate(commands) if c.is_setting)]
+            code, message = self.interpreter.execute_line(commands)
+        return self._send(sock, refused or code, message)
 
-    def _acknowledged(self, line: str) -> str:
-        """One reply for one line: the prefix, then OK / the value / ERROR (faults applied)."""
-        commands = parse_line(line)
-        if len(commands) != 1:
-            reply = f"ERROR {format_error(ERR_PARAM_NOT_ALLOWED, 'one command per line')}"
-        elif commands[0].is_setting and (refusal := self.faults.take("error_reply")) is not None:
-            code = int(refusal.get("code", ERR_EXECUTION[0]))
-            message = str(refusal.get("message", ERR_EXECUTION[1]))
-            reply = f"ERROR {format_error((code, message), 'simulated fault')}"
-        else:
-            reply = self.interpreter.execute_acknowledged(commands[0])
-        self._replies += 1
-        # Only the prefix's length is known (the public script drops 8 characters);
-        # a reply counter fills it here.
-        return f"{self._replies % 10**7:07d} {reply}"
-
-    def _send(self, sock: socket.socket, reply: str) -> bool:
+    def _send(self, sock: socket.socket, code: int, message: str) -> bool:
         if self.faults.take("no_reply") is not None:
             return True
         late = self.faults.take("late_reply")
         if late is not None and self._stopping.wait(float(late.get("delay_s", 1.0))):
             return False
         if self.faults.take("garbled_reply") is not None:
-            reply = garble(reply)
+            message = garble(message)
         try:
-            sock.sendall((reply + self.dialect.terminator).encode("latin-1"))
+            sock.sendall(frame_reply(code, message))
         except OSError:
             return False
         return True

@@ -1,22 +1,27 @@
 """ACUTROL3000 rate-table driver over VISA sockets (pyvisa with the pyvisa-py backend).
 
-The orchestrator leaves a table spinning unattended overnight, so the driver
-must never be left in doubt about what the table did:
+Speaks the ACUTROL Command Language as TM-8004 defines it on the TCP/IP
+interface of TM-9384C (port 9878): every command line gets one reply, an
+8-byte header (error code, message length) then the message
+(``acutrol_protocol``). The orchestrator leaves a table spinning unattended
+overnight, so the driver must never be left in doubt about what the table did:
 
-- the reply dialect is declared (``acutrol_protocol.Dialect``): by default the
-  one of the public script that drives a real ACUTROL (every line answered,
-  ``OK`` for a setting, an 8-character prefix before each reply, CR LF, remote
-  lockout and an interlock open/reset/close at session start); the SCPI
-  error-queue form (settings silent, ``:syst:err?`` on the same line) is the
-  named alternative ``scpi-error-queue``. Either way a refused setting is an
-  error at once, at one round trip;
+- a reply is framed by its length, never by guessing a terminator; the error
+  code of every command is checked, so a refused setting is an error at once,
+  at one round trip;
+- a refusal is named with the controller's own text (``:Query:Error? <code>``)
+  and classified by the documented status registers, never by the code's
+  number (the manual leaves the list "TBD"): ``*STB?`` bit 0 (system
+  interlocks) makes it an :class:`InstrumentSafetyError` (the orchestrator goes
+  to the safe state), ``*ESR?`` bit 2 (a bad message) a refusal not worth
+  repeating; any other refusal may pass on a later attempt (station ``retries``);
 - after any transport fault (timeout, reset, garbled reply) the session is
   discarded and the next attempt opens a fresh one, because a reply arriving
   late on the old socket would otherwise be read as the answer to the *next*
   question; reconnecting is therefore how retries recover a dropped link;
-- a refusal because the interlock is open is an :class:`InstrumentSafetyError`
-  (the orchestrator must go to the safe state), other refusals an
-  :class:`InstrumentProtocolError`; both name the table, the command and the reply.
+- queries change nothing: remote lockout (``:Utility:Lockout ON``) is taken
+  before the first command of a session that changes the table, so
+  ``gyrocal station check`` leaves the front panel as it found it.
 
 The session opens lazily on the first command, so building the driver never
 blocks and every connection attempt goes through the retry policy.
@@ -65,8 +70,8 @@ class Acutrol3000Table:
         dialect: str = proto.DEFAULT_DIALECT,
     ) -> None:
         if dialect not in proto.DIALECTS:
-            raise ValueError(f"{name}: dialect must be one of {sorted(proto.DIALECTS)}, got {dialect!r}")
-        self.dialect = proto.DIALECTS[dialect]
+            raise ValueError(f"{name}: dialect must be one of {list(proto.DIALECTS)}, got {dialect!r}")
+        self.dialect = dialect
         if not (math.isfinite(timeout_s) and timeout_s > 0):
             raise ValueError(f"{name}: timeout_s must be a finite number > 0, got {timeout_s!r}")
         if int(axis) != axis or axis < 1:
@@ -79,7 +84,7 @@ class Acutrol3000Table:
         self.name = name
         self.on_retry = on_retry
         self._session: Any = None
-        self._started = False          # the dialect's start-up list has run once
+        self._locked_out = False       # :Utility:Lockout ON sent in this session
         self._lock = threading.RLock()
         self._closed = False
 
@@ -89,14 +94,40 @@ class Acutrol3000Table:
         description = self._query(proto.IDENTIFY)
         return Identity("table", DRIVER_NAME, self.resource, description)
 
-    def interlock_closed(self) -> bool:
+    def interlock_state(self) -> proto.InterlockState:
         return self._query(proto.INTERLOCK_QUERY)
 
+    def interlock_closed(self) -> bool:
+        return self.interlock_state() is proto.InterlockState.CLOSE
+
     def close_interlock(self) -> None:
+        """Unfreeze latched interlock faults (no axis: §4.5.6), then close and servo the axis."""
+        self._setting(proto.INTERLOCK_RESET)
         self._setting(proto.INTERLOCK_CLOSE)
+
+    def read_mode(self) -> proto.TableMode:
+        return self._query(proto.MODE_QUERY)
 
     def set_rate_mode(self) -> None:
         self._setting(proto.MODE_RATE)
+
+    def set_position_mode(self) -> None:
+        self._setting(proto.MODE_POSITION)
+
+    def set_position_deg(self, position_deg: float) -> None:
+        self._setting(proto.DEMAND_POSITION, position_deg=self._finite(position_deg, "position"))
+
+    def set_oscillator(self, magnitude: float, frequency_hz: float, phase_deg: float) -> None:
+        """The sinusoid synthesis mode will run (§4.3.4): load it before :meth:`set_synthesis_mode`."""
+        if not self._finite(frequency_hz, "frequency") > 0:
+            raise ValueError(f"{self.name}: frequency must be > 0 Hz, got {frequency_hz!r}")
+        self._setting(proto.DEMAND_OSCILLATOR, magnitude=self._finite(magnitude, "magnitude"),
+                      frequency_hz=frequency_hz, phase_deg=self._finite(phase_deg, "phase"))
+
+    def set_synthesis_mode(self) -> None:
+        """Start the sinusoid loaded by :meth:`set_oscillator`; the manual advises entering
+        it from position mode, whose demand is the centre of the motion (§4.7.6)."""
+        self._setting(proto.MODE_SYNTHESIS)
 
     def set_acceleration_limit_dps2(self, accel_dps2: float) -> None:
         self._setting(proto.LIMIT_ACCELERATION, accel_dps2=self._finite(accel_dps2, "accel"))
@@ -107,25 +138,25 @@ class Acutrol3000Table:
     def set_rate_dps(self, rate_dps: float) -> None:
         self._setting(proto.DEMAND_RATE, rate_dps=self._finite(rate_dps, "rate"))
 
+    def read_rate_demand_dps(self) -> float:
+        return self._query(proto.DEMAND_RATE_QUERY)
+
     def read_rate_dps(self) -> float:
-        return self._query(self.dialect.read_rate)
+        return self._query(proto.READ_RATE)
 
     def read_position_deg(self) -> float:
-        return self._query(self.dialect.read_position)
+        return self._query(proto.READ_POSITION)
 
     def read_status(self) -> TableStatus:
-        if self.dialect.acknowledged:        # one reply per line: three questions
-            return TableStatus(rate_dps=self.read_rate_dps(), position_deg=self.read_position_deg(),
-                               interlock_closed=self.interlock_closed())
-        rate_dps, position_deg, closed = self._query(proto.STATUS_QUERY)
-        return TableStatus(rate_dps=rate_dps, position_deg=position_deg, interlock_closed=closed)
+        return TableStatus(rate_dps=self.read_rate_dps(), position_deg=self.read_position_deg(),
+                           interlock_closed=self.interlock_closed())
 
     def stop(self) -> None:
         """Demand zero, then servo off; servo-off is attempted even if the demand was refused.
 
         A refused zero demand is expected when the table is already off or its
         interlock is open (it is then stopping by itself), so only a failure of
-        ``:mode:off`` — the safe state itself — is raised.
+        ``:Mode:Off`` — the safe state itself — is raised.
         """
         with self._lock:
             with contextlib.suppress(InstrumentError):
@@ -153,72 +184,50 @@ class Acutrol3000Table:
 
     def _query(self, command: proto.Command) -> Any:
         text = command.text(axis=self.axis)
-        return self._with_retry(
-            text, lambda: self._parse(command.parse, text, self._answer(text))
-        )
-
-    def _answer(self, text: str) -> str:
-        """The reply's value: the dialect's prefix removed; an ERROR reply refused."""
-        reply = self._exchange(text)
-        if not self.dialect.acknowledged:
-            return reply
-        value = self._parse(lambda r: proto.strip_prefix(r, self.dialect), text, reply)
-        if value.upper().startswith("ERROR"):
-            self._refused(text, value)
-        return value
-
-    def _refused(self, text: str, reply: str, also: str = "") -> None:
-        if "interlock" in reply.lower() or " 201" in f" {reply}":
-            raise InstrumentSafetyError(self.name, text, f"refused: interlock open{also}", reply=reply)
-        code = proto.error_code_in(reply)
-        raise InstrumentProtocolError(self.name, text, f"refused by the table{also}", reply=reply,
-                                      transient=proto.refusal_may_pass(code))
+        assert command.parse is not None
+        return self._with_retry(text, lambda: self._parse(command.parse, text, self._answer(text)))
 
     def _setting(self, command: proto.Command, **fields: Any) -> None:
-        """Send a setting and raise if the table refused it (its dialect says how we know).
-
-        A refusal is attempted again per the station's ``retries`` unless retrying cannot
-        help: an SCPI command error (-100…-199: the bytes themselves are wrong) or an open
-        interlock (a safety stop, never retried). The adversarial pass saw execution errors
-        (the table busy finishing a move) end runs that one more attempt would have saved.
-        """
+        """Send a setting; its reply's error code says whether the table took it."""
         text = command.text(axis=self.axis, **fields)
-        once = self._setting_acknowledged if self.dialect.acknowledged else self._setting_error_queue
-        self._with_retry(text, lambda: once(text))
 
-    def _setting_acknowledged(self, text: str) -> None:
-        value = self._answer(text)
-        if value.upper() != "OK":
-            self._refused(text, value)
+        def once() -> None:
+            if not self._locked_out:
+                self._answer(proto.LOCKOUT_ON.text())
+                self._locked_out = True
+            self._answer(text)
+        self._with_retry(text, once)
 
-    def _setting_error_queue(self, text: str) -> None:
-        """Send a setting with ``:syst:err?`` on the same line; raise if the table refused it."""
-        line = f"{text};{proto.ERROR_QUERY.text()}"
-        with self._lock:
-            code, message = self._parse(proto.parse_error, text, self._exchange(line))
-            if code == 0:
-                return
-            others = self._drain_errors()
-        reply = f'{code},"{message}"'
-        also = f" (also queued: {'; '.join(others)})" if others else ""
-        if proto.is_interlock_error(code, message):
-            raise InstrumentSafetyError(self.name, text, f"refused: interlock open{also}", reply=reply)
-        raise InstrumentProtocolError(self.name, text, f"refused by the table{also}", reply=reply,
-                                      transient=proto.refusal_may_pass(code))
+    def _answer(self, text: str) -> str:
+        """The message of ``text``'s reply; a nonzero error code is a refusal (raised)."""
+        code, message = self._exchange(text)
+        if code != 0:
+            self._refused(text, code, message)
+        return message
 
-    def _drain_errors(self) -> list[str]:
-        """Empty the error queue so one refusal is not blamed on the next command."""
-        found: list[str] = []
-        for _ in range(proto.MAX_QUEUED_ERRORS):
-            text = proto.ERROR_QUERY.text()
+    def _refused(self, text: str, code: int, message: str) -> None:
+        """Name the refusal with the controller's text and classify it by STB / ESR."""
+        detail, stb, esr = self._refusal_context(code)
+        reply = f"error {code}" + (f" ({detail})" if detail else "") + (f": {message}" if message else "")
+        if stb & proto.STB_SYSTEM_INTERLOCKS or "interlock" in detail.lower():
+            raise InstrumentSafetyError(self.name, text, "refused: interlock open", reply=reply)
+        raise InstrumentProtocolError(self.name, text, "refused by the table", reply=reply,
+                                      transient=not esr & proto.ESR_BAD_MESSAGE)
+
+    def _refusal_context(self, code: int) -> tuple[str, int, int]:
+        """(error text, *STB?, *ESR?) — best effort: a failing follow-up never hides the refusal."""
+        found: list[Any] = []
+        for command, fields in ((proto.ERROR_TEXT, {"code": code}), (proto.STATUS_BYTE, {}),
+                                (proto.EVENT_STATUS, {})):
+            line = command.text(**fields)
             try:
-                code, message = self._parse(proto.parse_error, text, self._exchange(text))
-            except InstrumentError:
-                break
-            if code == 0:
-                break
-            found.append(f'{code},"{message}"')
-        return found
+                follow_code, message = self._exchange(line)
+                assert command.parse is not None
+                found.append(command.parse(message) if follow_code == 0 else None)
+            except (InstrumentError, proto.ReplyFormatError):
+                found.append(None)
+        text, stb, esr = found
+        return text or "", stb or 0, esr or 0
 
     def _with_retry(self, command: str, attempt: Callable[[], T]) -> T:
         with self._lock:
@@ -226,21 +235,29 @@ class Acutrol3000Table:
                 raise InstrumentConnectionError(self.name, command, "driver already closed")
             return call_with_retry(attempt, self.retry, on_retry=self.on_retry)
 
-    def _parse(self, parse: Callable[[str], T] | None, command: str, reply: str) -> T:
-        assert parse is not None
+    def _parse(self, parse: Callable[[str], T], command: str, reply: str) -> T:
         try:
             return parse(reply)
         except proto.ReplyFormatError as exc:
-            self._drop_session()  # garbage may hide a terminator: resynchronise on a new socket
             raise InstrumentProtocolError(
                 self.name, command, f"unreadable reply: {exc}", reply=reply, transient=True
             ) from None
 
-    def _exchange(self, line: str) -> str:
-        """Write one line and read one reply line, mapping transport faults to instrument errors."""
+    def _exchange(self, line: str) -> tuple[int, str]:
+        """Write one command line, read one framed reply: (error code, message)."""
         session = self._open(line)
+        raw = b""
         try:
-            return session.query(line)
+            session.write(line)
+            raw = bytes(session.read_bytes(proto.HEADER.size))
+            header = proto.ReplyHeader.decode(raw)
+            body = bytes(session.read_bytes(header.length)) if header.length else b""
+            raw += body
+            return header.error_code, proto.message_text(body)
+        except proto.ReplyFormatError as exc:
+            self._drop_session()  # the framing is lost: resynchronise on a new socket
+            raise InstrumentProtocolError(self.name, line, f"unreadable reply: {exc}",
+                                          reply=raw.decode("latin-1"), transient=True) from None
         except VisaIOError as exc:
             self._drop_session()
             if exc.error_code == visa_constants.StatusCode.error_timeout:
@@ -251,7 +268,7 @@ class Acutrol3000Table:
         except OSError as exc:
             self._drop_session()
             raise InstrumentConnectionError(
-                self.name, line, f"connection lost ({exc.__class__.__name__}: {exc})"
+                self.name, line, f"connection to {self.resource} lost ({exc.__class__.__name__}: {exc})"
             ) from None
 
     def _open(self, line: str) -> Any:
@@ -263,8 +280,8 @@ class Acutrol3000Table:
             session = manager.open_resource(
                 self.resource,
                 open_timeout=timeout_ms,
-                read_termination=self.dialect.terminator,
-                write_termination=self.dialect.terminator,
+                read_termination=None,
+                write_termination=proto.COMMAND_TERMINATOR,
                 timeout=timeout_ms,
                 encoding="latin-1",
             )
@@ -280,42 +297,12 @@ class Acutrol3000Table:
             raise InstrumentConnectionError(
                 self.name, line, f"cannot open {self.resource}: {exc}"
             ) from None
-        try:
-            if self.dialect.acknowledged:
-                self._start_session(session)
-            else:
-                session.write(proto.CLEAR_STATUS.text())  # a new session starts with an empty queue
-        except (VisaIOError, OSError) as exc:
-            _close_quietly(session)
-            if (isinstance(exc, VisaIOError)
-                    and exc.error_code == visa_constants.StatusCode.error_timeout):
-                raise InstrumentTimeout(
-                    self.name, "session start", f"no reply within {self.timeout_s:g} s"
-                ) from None
-            raise InstrumentConnectionError(
-                self.name, "session start", f"cannot talk to {self.resource}: {exc}"
-            ) from None
         self._session = session
         return session
 
-    def _start_session(self, session: Any) -> None:
-        """The dialect's start-up list (once; a reconnect runs the shorter list), each ``OK``."""
-        commands = self.dialect.reconnect if self._started else self.dialect.startup
-        for command in commands:
-            text = command.text(axis=self.axis)
-            reply = session.query(text)
-            value = reply[self.dialect.reply_prefix:].strip()
-            if not (reply.isascii() and reply.isprintable()):
-                _close_quietly(session)         # garbage: resynchronise on a new socket
-                raise InstrumentProtocolError(self.name, text, "unreadable reply at session start",
-                                              reply=reply, transient=True)
-            if value.upper() != "OK":
-                _close_quietly(session)
-                self._refused(text, reply, " at session start")
-        self._started = True
-
     def _drop_session(self) -> None:
         session, self._session = self._session, None
+        self._locked_out = False       # a new session takes the lockout again
         if session is not None:
             _close_quietly(session)
 

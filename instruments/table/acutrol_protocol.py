@@ -1,33 +1,69 @@
-"""The ACUTROL3000 command set in one declaration: what is sent, and how replies parse.
+"""The ACUTROL3000 command language (ACL) as the driver and the simulator use it.
 
-Keeping every command string here means the driver methods stay one line each
-and a firmware difference (a renamed header, a reordered argument) is a
-one-line change. Sources and assumptions:
+Every command string and reply rule is declared here once, with the manual
+section it comes from (Acutronic TM-8004-C "ACUTROL3000 Command Language
+(ACL) Programming Manual"; TM-9384C "Using the Acutrol3000 TCP/IP
+Interface"; TM-9374A "Real Time Data Communication Manual"). Spellings are
+the manual's long forms; the controller accepts them case-insensitively.
 
-- ``:mode:rate``, ``:mode:off``, ``:demand:rate``, ``:read:rate?``, ``:read:pos?``,
-  ``:interlock?``, ``:interlock:close`` with the axis number after the header,
-  and ``;`` joining several commands on one line, follow public scripts that
-  drive real ACUTROL controllers (no manual was available here).
-- ``:limit:acc rate,<axis>,<deg/s^2>`` (mode name first, then axis) follows a
-  public pyvisa script for an ACUTROL3000; the other modes' limits (pos, synt)
-  are not used.
-- ``:syst:err?`` answering ``<code>,"<message>"`` (0 = no error) and ``*CLS``
-  are SCPI-standard. **Assumption:** a refusal because the interlock is open
-  carries the device-specific code 201 or mentions "interlock"; the driver
-  raises such refusals (a motion command, or closing the interlock while the
-  safety chain is broken) as safety errors.
+Reply framing over TCP (``frame_reply`` / ``ReplyHeader``):
+
+- TM-8004 §2 (p. 2): on every interface but IEEE-488 each command receives a
+  response, and the response carries an error code and a message length
+  prefixed to the data a query asked for;
+- TM-9374A §3.4.2 (p. 34), for the ACL channel: the first 32-bit word is the
+  error return of the command, the second the length of the response message
+  in characters, then the message, null-terminated;
+- TM-8004 §5.1.1 (p. 206): the controller is an Intel machine, binary data
+  little-endian; so both words are read as little-endian signed 32-bit.
+- A public script for a real table (AcutronicRobotics/acutrol ``acutrol.py``)
+  drops exactly 8 bytes before each reply, which agrees with two 32-bit words.
+
+**Unconfirmed**: whether the length counts the terminating NUL. The driver
+reads exactly ``length`` bytes after the header and drops trailing NULs, so a
+reply framed either way with its NUL inside the count is read correctly.
+
+Errors (§4.9.1 p. 163, §3.3 p. 14, §3.10 p. 19, Table 1 p. 18): error code 0
+is success; the text of any other code comes from ``:Query:Error? <code>``.
+The code list itself is "TBD" in TM-8004 (§6.1 p. 213), so the driver never
+interprets a code's number: ``*STB?`` bit 0 (summary of the system
+interlocks) says the refusal is a safety stop, and ``*ESR?`` bit 2 (a bad
+device-dependent message: axis out of range, wrong data) says that sending
+the same bytes again cannot succeed. There is no ``:SYST:ERR?`` in the ACL.
 """
 
 from __future__ import annotations
 
+import enum
 import math
-import re
+import struct
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-#: Device-specific SCPI error codes that mean "the interlock is open".
-INTERLOCK_ERROR_CODES = frozenset({201})
+#: TCP port of the real-time computer's ACL server (TM-9384C §1, p. 1; TM-9411 §4.1.1, p. 4).
+ACL_TCP_PORT = 9878
+#: A command ends with a line feed (TM-8004 §2.4, p. 4; TM-9374A §3.4.2, p. 34).
+COMMAND_TERMINATOR = "\n"
+#: The longest response message the controller sends (TM-8004 §2.5, p. 5: 32 K characters).
+MAX_MESSAGE_CHARS = 32768
+#: Two little-endian signed 32-bit words: error code, message length (see the module doc).
+HEADER = struct.Struct("<ii")
+
+#: ``*STB?`` bits (TM-8004 §3.10, p. 19).
+STB_SYSTEM_INTERLOCKS = 1 << 0
+STB_ERROR_QUEUE = 1 << 7
+#: ``*ESR?`` bits (TM-8004 Table 1, p. 18).
+ESR_MIS_SERVO_FAULT = 1 << 0
+ESR_BAD_MESSAGE = 1 << 2
+ESR_AXIS_TIMED_OUT = 1 << 5
+
+#: The dialects a station may declare (``table.dialect``). Only the manual's: the earlier
+#: text-line dialects contradicted TM-8004 §2 (an ASCII prefix, ``:syst:err?``) and no
+#: public script needs them.
+ACL_TCP = "acl-tcp"
+DIALECTS = (ACL_TCP,)
+DEFAULT_DIALECT = ACL_TCP
 
 
 class ReplyFormatError(ValueError):
@@ -35,12 +71,110 @@ class ReplyFormatError(ValueError):
 
 
 @dataclass(frozen=True)
-class Command:
-    """One entry of the command set.
+class ReplyHeader:
+    """The 8-byte prefix of every reply: the command's error code and the message length."""
 
-    ``parse`` is None for settings: they send no reply, so the driver appends
-    the error query to the same line and checks the answer (one round trip).
-    """
+    error_code: int
+    length: int
+
+    @classmethod
+    def decode(cls, raw: bytes) -> ReplyHeader:
+        if len(raw) != HEADER.size:
+            raise ReplyFormatError(f"reply header is {len(raw)} bytes, expected {HEADER.size}")
+        code, length = HEADER.unpack(raw)
+        if not 0 <= length <= MAX_MESSAGE_CHARS:
+            raise ReplyFormatError(f"reply header announces {length} characters "
+                                   f"(0..{MAX_MESSAGE_CHARS}, TM-8004 §2.5)")
+        return cls(code, length)
+
+
+def frame_reply(error_code: int, message: str) -> bytes:
+    """Header + message + NUL, the NUL counted in the length (the simulator's framing)."""
+    body = message.encode("latin-1") + b"\x00"
+    return HEADER.pack(error_code, len(body)) + body
+
+
+def message_text(body: bytes) -> str:
+    """The message of a reply body: trailing NULs dropped; anything unprintable is corrupt."""
+    text = body.rstrip(b"\x00").decode("latin-1")
+    if not (text.isascii() and text.isprintable()):
+        raise ReplyFormatError("not printable ASCII")
+    return text.strip()
+
+
+# ----- reply parsers ----------------------------------------------------------------------------
+
+def parse_float(reply: str) -> float:
+    try:
+        value = float(reply)
+    except ValueError:
+        raise ReplyFormatError("expected a number") from None
+    if not math.isfinite(value):
+        raise ReplyFormatError("expected a finite number")
+    return value
+
+
+def parse_register(reply: str) -> int:
+    """An NR1 register value 0..255 (``*ESR?``, ``*STB?``)."""
+    if not reply.isdigit() or not 0 <= int(reply) <= 255:
+        raise ReplyFormatError("expected an integer 0..255")
+    return int(reply)
+
+
+class InterlockState(enum.Enum):
+    """The interlock states the manual names (TM-8004 §4.5.3, p. 133: Close, Open, Fault)."""
+
+    CLOSE = "Close"
+    OPEN = "Open"
+    FAULT = "Fault"
+
+
+def parse_interlock(reply: str) -> InterlockState:
+    """``:Interlock? <axis>`` (TM-8004 Table 6, p. 24). The manual documents the interlock
+    state answer as one of Close, Open, Fault (§4.5.3, p. 133; a public script for a real
+    unit compares the answer with ``Fault``); the single initial is accepted too."""
+    word = reply.strip().upper()
+    for state in InterlockState:
+        if word in (state.value.upper(), state.value[0].upper()):
+            return state
+    raise ReplyFormatError("expected Close, Open or Fault")
+
+
+class TableMode(enum.Enum):
+    """Servo modes and the letter ``:Mode? <axis>`` answers (TM-8004 §4.7, p. 147)."""
+
+    POSITION = "P"
+    RATE = "R"
+    ARATE = "A"
+    SYNTHESIS = "S"
+    TRACK = "T"
+    OFF = "O"
+
+
+def parse_mode(reply: str) -> TableMode:
+    text = reply.strip().upper()
+    for mode in TableMode:
+        if text in (mode.value, mode.name):
+            return mode
+    raise ReplyFormatError("expected a mode letter P, R, A, S, T or O")
+
+
+def parse_identity(reply: str) -> str:
+    """``*IDN?``: manufacturer,model,serial number,software level (TM-8004 §3.4, p. 15)."""
+    if len(reply.split(",")) != 4:
+        raise ReplyFormatError("expected manufacturer,model,serial,software level")
+    return reply
+
+
+def parse_text(reply: str) -> str:
+    return reply
+
+
+# ----- the command set --------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Command:
+    """One ACL command; ``parse`` reads a query's message (None for a setting)."""
 
     template: str
     parse: Callable[[str], Any] | None = None
@@ -49,81 +183,9 @@ class Command:
         return self.template.format(**fields)
 
 
-def _printable(reply: str) -> str:
-    if not reply or not reply.isprintable() or not reply.isascii():
-        raise ReplyFormatError("not printable ASCII")
-    return reply.strip()
-
-
-def parse_float(reply: str) -> float:
-    try:
-        value = float(_printable(reply))
-    except ValueError:
-        raise ReplyFormatError("expected a number") from None
-    if not math.isfinite(value):
-        raise ReplyFormatError("expected a finite number")
-    return value
-
-
-def parse_interlock_closed(reply: str) -> bool:
-    text = _printable(reply)
-    if text not in ("0", "1"):
-        raise ReplyFormatError("expected 1 (closed) or 0 (open)")
-    return text == "1"
-
-
-def parse_identity(reply: str) -> str:
-    text = _printable(reply)
-    if len(text.split(",")) != 4:
-        raise ReplyFormatError("expected manufacturer,model,serial,firmware")
-    return text
-
-
-_ERROR_REPLY = re.compile(r'^([+-]?\d+),"(.*)"$')
-
-
-def parse_error(reply: str) -> tuple[int, str]:
-    match = _ERROR_REPLY.match(_printable(reply))
-    if match is None:
-        raise ReplyFormatError('expected <code>,"<message>"')
-    return int(match.group(1)), match.group(2)
-
-
-_ERROR_CODE = re.compile(r"([+-]\d{3})\b")
-
-
-def error_code_in(reply: str) -> int | None:
-    """The SCPI error code a refusal carries (``ERROR -200,"Execution error"``), if any."""
-    match = _ERROR_CODE.search(reply)
-    return int(match.group(1)) if match else None
-
-
-#: SCPI parameter errors inside the execution class: the value itself is wrong
-#: (-220 parameter error, -222 data out of range, -223 too much data, -224 illegal
-#: parameter value, -225 out of memory, -226 lists not same length).
-PARAMETER_ERROR_CODES = frozenset({-220, -222, -223, -224, -225, -226})
-
-
-def refusal_may_pass(code: int | None) -> bool:
-    """Whether sending the same setting again may succeed.
-
-    SCPI-99 error/event classes: -100…-199 are command errors (syntax, bad header: the
-    same bytes fail again), and the parameter errors above say the value is wrong; the
-    other execution errors (-200 execution error, -221 settings conflict, -230/-240 data
-    or hardware trouble), device-specific (-3xx) and query (-4xx) errors depend on the
-    table's state and may pass on a later attempt. A refusal without a code is treated
-    as retryable: the station's ``retries`` bound it.
-    """
-    if code is None:
-        return True
-    return not (-199 <= code <= -100 or code in PARAMETER_ERROR_CODES)
-
-
-def parse_status(reply: str) -> tuple[float, float, bool]:
-    fields = _printable(reply).split(";")
-    if len(fields) != 3:
-        raise ReplyFormatError("expected rate;position;interlock")
-    return parse_float(fields[0]), parse_float(fields[1]), parse_interlock_closed(fields[2])
+#: The demand's fixed-point resolution. The plan rounds its rates with
+#: :func:`commanded_rate_dps`, so the rate analysed is the rate sent, to the last digit.
+RATE_DECIMALS = 6
 
 
 def commanded_rate_dps(rate_dps: float) -> float:
@@ -131,105 +193,36 @@ def commanded_rate_dps(rate_dps: float) -> float:
     return float(f"{rate_dps:.{RATE_DECIMALS}f}")
 
 
-def is_interlock_error(code: int, message: str) -> bool:
-    return code in INTERLOCK_ERROR_CODES or "interlock" in message.lower()
+IDENTIFY = Command("*IDN?", parse_identity)                                  # §3.4 p. 15
+EVENT_STATUS = Command("*ESR?", parse_register)                              # §3.3 p. 14
+STATUS_BYTE = Command("*STB?", parse_register)                               # §3.10 p. 19
+ERROR_TEXT = Command(":Query:Error? {code}", parse_text)                     # §4.9.1 p. 163
+LOCKOUT_ON = Command(":Utility:Lockout ON")                                  # §4.14.2 p. 196
 
+MODE_QUERY = Command(":Mode? {axis}", parse_mode)                            # §4.7 p. 147
+MODE_OFF = Command(":Mode:Off {axis}")                                       # §4.7.3 p. 150
+MODE_POSITION = Command(":Mode:Position {axis}")                             # §4.7.4 p. 151
+MODE_RATE = Command(":Mode:Rate {axis}")                                     # §4.7.5 p. 152
+MODE_SYNTHESIS = Command(":Mode:Synthesis {axis}")                           # §4.7.6 p. 153
 
-# ----- the command set ----------------------------------------------------------------------
+DEMAND_POSITION = Command(":Demand:Position {axis},{position_deg:.6f}")       # §4.3.5 p. 112
+DEMAND_RATE = Command(f":Demand:Rate {{axis}},{{rate_dps:.{RATE_DECIMALS}f}}")  # §4.3.6 p. 113
+#: §4.3.4 p. 111: <axis>,<magnitude>,<frequency Hz>,<phase deg>; the magnitude is of the state
+#: set by Configure:Oscillator (position by default: "peak position displacement").
+DEMAND_OSCILLATOR = Command(":Demand:Oscillator {axis},{magnitude:.6f},{frequency_hz:.6f},"
+                            "{phase_deg:.6f}")
+DEMAND_RATE_QUERY = Command(":Demand:Rate? {axis}", parse_float)             # §4.3.6 p. 113
 
-IDENTIFY = Command("*IDN?", parse_identity)
-CLEAR_STATUS = Command("*CLS")
-ERROR_QUERY = Command(":syst:err?", parse_error)
+#: §4.6.2 p. 139: <mode>,<axis>,<limit>; the mode is one character (§4.6 p. 137: R = rate).
+LIMIT_ACCELERATION = Command(":Limit:Acceleration R,{axis},{accel_dps2:.6f}")
+LIMIT_ACCELERATION_QUERY = Command(":Limit:Acceleration? R,{axis}", parse_float)
 
-MODE_RATE = Command(":mode:rate {axis}")
-MODE_OFF = Command(":mode:off {axis}")
-#: The rate a demand carries: fixed point with RATE_DECIMALS places. The plan rounds its rates
-#: with :func:`commanded_rate_dps`, so the rate analysed is the rate sent, to the last digit.
-RATE_DECIMALS = 6
-DEMAND_RATE = Command(":demand:rate {axis}, {rate_dps:." + str(RATE_DECIMALS) + "f}")
-LIMIT_ACCELERATION = Command(":limit:acc rate,{axis}, {accel_dps2:.6f}")
-LIMIT_ACCELERATION_QUERY = Command(":limit:acc? rate,{axis}", parse_float)
+READ_POSITION = Command(":Read:Position? {axis}", parse_float)               # §4.10.4 p. 168
+READ_RATE = Command(":Read:Rate? {axis}", parse_float)                       # §4.10.5 p. 169
 
-READ_RATE = Command(":read:rate? {axis}", parse_float)
-READ_POSITION = Command(":read:pos? {axis}", parse_float)
-INTERLOCK_QUERY = Command(":interlock? {axis}", parse_interlock_closed)
-INTERLOCK_CLOSE = Command(":interlock:close {axis}")
-
-#: Rate, position and interlock in one round trip.
-# ----- dialects -------------------------------------------------------------------------------
-
-LOCKOUT_ON = Command(":utility:lockout on")
-INTERLOCK_OPEN = Command(":interlock:open {axis}")
-INTERLOCK_RESET = Command(":interlock:reset {axis}")
-READ_RATE_PLAIN = Command(":read:rate {axis}", parse_float)
-READ_POSITION_PLAIN = Command(":read:position {axis}", parse_float)
-
-
-@dataclass(frozen=True)
-class Dialect:
-    """How a controller answers: a declared, tested property of the driver.
-
-    ``acknowledged``: every command line gets exactly one reply, ``OK`` for an
-    accepted setting; ``reply_prefix`` characters precede every reply's value;
-    ``startup`` runs when a session opens. Without acknowledgement (the SCPI
-    error-queue form) settings are silent and ``:syst:err?`` on the same line
-    says whether they were accepted.
-    """
-
-    name: str
-    acknowledged: bool
-    reply_prefix: int
-    terminator: str
-    startup: tuple[Command, ...]       # the first session of a driver
-    reconnect: tuple[Command, ...]     # a session reopened after a transport fault
-    read_rate: Command
-    read_position: Command
-    source: str
-
-
-#: The one public script that drives a real ACUTROL over raw TCP (a ROS node for an
-#: AC117 table, AcutronicRobotics/acutrol: ``acutrol.py`` with ``ac117.json``): CR LF,
-#: every reply read as ``recv(1024)[8:]`` (an 8-character prefix), ``:read:rate 1`` /
-#: ``:read:position 1`` without ``?``. ``ac117.json`` spells the start-up list and its
-#: expected answers exactly: ``[":utility:lockout on", "OK"], [":interlock:open 1", "OK"],
-#: [":interlock:reset 1", "OK"], [":interlock:close 1", "OK"]`` (shutdown: ``:mode:off 1``,
-#: ``:interlock:open 1``). The prefix's content is not known (only its length); whether
-#: replies end in CR LF is unconfirmed (the script compares ``[8:]`` with ``"OK"``
-#: unstripped, which would hold only without a terminator, but never checks the result).
-ACUTROL_TCP_SCRIPT = Dialect(
-    "acutrol-tcp-script", acknowledged=True, reply_prefix=8, terminator="\r\n",
-    startup=(LOCKOUT_ON, INTERLOCK_OPEN, INTERLOCK_RESET, INTERLOCK_CLOSE),
-    # never the interlock again after a reconnect: opening it would stop a table mid-dwell
-    reconnect=(LOCKOUT_ON,),
-    read_rate=READ_RATE_PLAIN, read_position=READ_POSITION_PLAIN,
-    source="public ROS script for an AC117 on an ACUTROL (raw TCP)")
-
-#: The SCPI-standard form the project used first: silent settings, ``:syst:err?``
-#: polling, ``?`` queries, LF. Kept as a named alternative for controllers set up
-#: for SCPI error-queue reporting (no ACUTROL document confirms it).
-SCPI_ERROR_QUEUE = Dialect(
-    "scpi-error-queue", acknowledged=False, reply_prefix=0, terminator="\n", startup=(),
-    reconnect=(),
-    read_rate=READ_RATE, read_position=READ_POSITION,
-    source="SCPI-1999 error queue (unconfirmed for ACUTROL)")
-
-DIALECTS = {d.name: d for d in (ACUTROL_TCP_SCRIPT, SCPI_ERROR_QUEUE)}
-DEFAULT_DIALECT = ACUTROL_TCP_SCRIPT.name
-
-
-def strip_prefix(reply: str, dialect: Dialect) -> str:
-    """The value after the prefix; a reply with non-printable bytes anywhere is corrupt."""
-    if not (reply.isascii() and reply.isprintable()):
-        raise ReplyFormatError("not printable ASCII")
-    if len(reply) < dialect.reply_prefix:
-        raise ReplyFormatError(f"shorter than the dialect's {dialect.reply_prefix}-character prefix")
-    return reply[dialect.reply_prefix:].strip()
-
-
-STATUS_QUERY = Command(
-    ";".join((READ_RATE.template, READ_POSITION.template, INTERLOCK_QUERY.template)),
-    parse_status,
-)
-
-#: Error-queue entries drained after a refusal (the controller's queue depth).
-MAX_QUEUED_ERRORS = 16
+INTERLOCK_QUERY = Command(":Interlock? {axis}", parse_interlock)             # Table 6 p. 24
+INTERLOCK_CLOSE = Command(":Interlock:Close {axis}")                         # §4.5.1 p. 131
+INTERLOCK_OPEN = Command(":Interlock:Open {axis}")                           # §4.5.5 p. 135
+#: §4.5.6 p. 136: no argument — it unfreezes the interlock status of every faulted axis and
+#: has no effect on an axis already servoed.
+INTERLOCK_RESET = Command(":Interlock:Reset")

@@ -126,12 +126,14 @@ def test_a_missing_gyro_model_file_is_caught_before_the_run(tmp_path):
                         f"file not found: {missing} (the path is relative to the file that names it)"]
 
 
-def test_the_table_dialect_defaults_to_the_public_tcp_script_and_is_checked(tmp_path):
-    """Issue 8: the reply dialect is a declared station property, named on error with file:line."""
-    assert load_station(SIM).table.dialect == "acutrol-tcp-script"
-    assert load_station(REPO / "stations" / "lab-example.yaml").table.dialect == "acutrol-tcp-script"
-    text = SIM.read_text(encoding="utf-8").replace("  axis: 1\n", "  axis: 1\n  dialect: gpib\n")
+def test_the_table_dialect_defaults_to_the_manuals_and_is_checked(tmp_path):
+    """Issue 8/23: the reply dialect is a declared station property (only TM-8004's ACL over
+    TCP remains), named on error with file:line; the lab example uses TM-9384C's port 9878."""
+    assert load_station(SIM).table.dialect == "acl-tcp"
+    lab = load_station(REPO / "stations" / "lab-example.yaml")
+    assert lab.table.dialect == "acl-tcp" and lab.table.address.endswith("::9878::SOCKET")
+    text = SIM.read_text(encoding="utf-8").replace("  axis: 1\n", "  axis: 1\n  dialect: scpi-error-queue\n")
     problems, path = station_problems(tmp_path, text)
     assert len(problems) == 1
-    assert problems[0].startswith(f"{path}:{line_of(text, 'dialect: gpib')}: table.dialect: ")
-    assert "acutrol-tcp-script" in problems[0] and "scpi-error-queue" in problems[0]
+    assert problems[0].startswith(f"{path}:{line_of(text, 'dialect: scpi-error-queue')}: table.dialect: ")
+    assert "acl-tcp" in problems[0]

@@ -1,10 +1,15 @@
 """The simulated ACUTROL3000 checked with a plain socket client (no driver involved).
 
-The command strings here are written out literally from the documented
-command set, so a mistake shared by the driver and the simulator cannot hide.
+Commands are written out literally from TM-8004-C (sections cited per test);
+replies are read by the framing TM-8004 §2 (p. 2) and TM-9374A §3.4.2 (p. 34)
+describe — two 32-bit words, error code then message length, little-endian
+like all the controller's binary data (TM-8004 §5.1.1, p. 206) — unpacked here
+with ``struct``, not with the project's codec, so a mistake shared by the
+driver and the simulator cannot hide.
 """
 
 import socket
+import struct
 import threading
 import time
 
@@ -17,32 +22,38 @@ from gyrocal.models.table import TablePhysics
 pytestmark = pytest.mark.timeout(20)
 
 
-class LineClient:
-    """Minimal line-oriented TCP client: send a line, read one reply line."""
+class FrameClient:
+    """Send an LF-terminated command line (TM-8004 §2.4), read one framed reply."""
 
     def __init__(self, host: str, port: int, timeout_s: float = 2.0) -> None:
         self.sock = socket.create_connection((host, port), timeout=timeout_s)
-        self.buffer = b""
 
     def send(self, line: str) -> None:
         self.sock.sendall(line.encode("ascii") + b"\n")
 
-    def read_line(self) -> str:
-        while b"\n" not in self.buffer:
-            chunk = self.sock.recv(4096)
+    def _exactly(self, count: int) -> bytes:
+        data = b""
+        while len(data) < count:
+            chunk = self.sock.recv(count - len(data))
             if not chunk:
                 raise ConnectionError("server closed the connection")
-            self.buffer += chunk
-        line, self.buffer = self.buffer.split(b"\n", 1)
-        return line.decode("latin-1")
+            data += chunk
+        return data
 
-    def ask(self, line: str) -> str:
+    def read_reply(self) -> tuple[int, str]:
+        code, length = struct.unpack("<ii", self._exactly(8))
+        body = self._exactly(length)
+        assert body.endswith(b"\x00")            # the message is null-terminated
+        return code, body[:-1].decode("latin-1")
+
+    def ask(self, line: str) -> tuple[int, str]:
         self.send(line)
-        return self.read_line()
+        return self.read_reply()
 
-    def command(self, line: str) -> None:
-        """Send settings and wait until they ran (the error query answers after them)."""
-        assert self.ask(line + ";:syst:err?") == '0,"No error"'
+    def ok(self, line: str) -> str:
+        code, message = self.ask(line)
+        assert code == 0, (line, code, message)
+        return message
 
     def close(self) -> None:
         self.sock.close()
@@ -60,15 +71,13 @@ def physics(clock):
 
 @pytest.fixture
 def sim(physics):
-    # the SCPI error-queue dialect's wire behaviour; the acknowledged one is below
-    with SimulatedAcutrol(physics, idn="ACUTRONIC,ACUTROL3000-SIM,T42,2.1",
-                          dialect="scpi-error-queue") as server:
+    with SimulatedAcutrol(physics, idn="Acutronic R&D USA,Acutrol3000,T42,2.1") as server:
         yield server
 
 
 @pytest.fixture
 def client(sim):
-    c = LineClient(sim.host, sim.port)
+    c = FrameClient(sim.host, sim.port)
     yield c
     c.close()
 
@@ -78,80 +87,82 @@ def test_resource_string_names_the_listening_port(sim):
     assert sim.port > 0
 
 
-def test_identify_and_empty_error_queue(client):
-    assert client.ask("*IDN?") == "ACUTRONIC,ACUTROL3000-SIM,T42,2.1"
-    assert client.ask(":syst:err?") == '0,"No error"'
+def test_every_command_is_answered_with_the_documented_header(client):
+    """§2 p. 2: every command gets a response, a setting too (empty message)."""
+    client.send("*IDN?")
+    raw = client._exactly(8)
+    assert raw[:4] == bytes.fromhex("00 00 00 00")                     # error code 0
+    text = b"Acutronic R&D USA,Acutrol3000,T42,2.1\x00"
+    assert raw[4:] == struct.pack("<i", len(text))
+    assert client._exactly(len(text)) == text
+    assert client.ask(":Utility:Lockout ON") == (0, "")
 
 
 def test_rate_profile_through_the_documented_commands(client, clock):
-    assert client.ask(":interlock? 1") == "0"
-    client.send(":interlock:close 1")
-    assert client.ask(":interlock? 1") == "1"
-    client.send(":mode:rate 1")
-    assert client.ask(":MODE? 1") == "RATE"
-    client.send(":limit:acc rate,1, 25")
-    assert float(client.ask(":limit:acc? rate,1")) == 25.0
-    client.command(":demand:rate 1,   100")  # whitespace after the comma is tolerated
-    assert float(client.ask(":demand:rate? 1")) == 100.0
+    assert client.ok(":Interlock? 1") == "Open"                  # Table 6 p. 24; §4.5.3 p. 133
+    client.ok(":Interlock:Reset")                                # §4.5.6 p. 136: no argument
+    client.ok(":INT:CLOS 1")                                     # §4.5.1 p. 131
+    assert client.ok(":Interlock? 1") == "Close"
+    client.ok(":Mode:Rate 1")                                    # §4.7.5 p. 152
+    assert client.ok(":MODE? 1") == "R"                          # §4.7 p. 147
+    client.ok(":Limit:Acceleration R,1,25.0")                    # §4.6.2 p. 139
+    assert float(client.ok(":LIM:ACC? R,1")) == 25.0
+    client.ok(":Demand:Rate 1,100.0")                            # §4.3.6 p. 113
+    assert float(client.ok(":DEM:RATE? 1")) == 100.0
     clock.advance_to(2.0)  # 100 / 25 = 4 s ramp: half way
-    assert float(client.ask(":read:rate? 1")) == pytest.approx(50.0)
-    assert float(client.ask(":READ:POS? 1")) == pytest.approx(0.5 * 25 * 4.0)
+    assert float(client.ok(":Read:Rate? 1")) == pytest.approx(50.0)          # §4.10.5 p. 169
+    assert float(client.ok(":READ:POS? 1")) == pytest.approx(0.5 * 25 * 4.0)  # §4.10.4 p. 168
     clock.advance_to(10.0)  # 200 deg ramp + 6 s at 100 = 800 deg -> 80 deg on the dial
-    assert float(client.ask(":R:R 1")) == pytest.approx(100.0)  # single-letter form, no "?"
-    assert float(client.ask(":read:pos? 1")) == pytest.approx(80.0)
-    client.command(":mode:off 1")
+    assert float(client.ok(":R:R 1")) == pytest.approx(100.0)   # single letters, no "?"
+    assert float(client.ok(":Read:Position? 1")) == pytest.approx(80.0)
+    client.ok(":M:O 1")                                          # §4.7.3 p. 150
     clock.advance_to(20.0)
-    assert float(client.ask(":read:rate? 1")) == 0.0
-    assert client.ask(":syst:err?") == '0,"No error"'
+    assert float(client.ok(":Read:Rate? 1")) == 0.0
+    assert client.ok(":Mode? 1") == "O"
 
 
 def test_compound_line_answers_each_query_in_order(client, clock):
-    client.command(":int:close 1;:m:r 1;:d:r 1, 30")
+    client.ok(":I:C 1;:M:R 1;:D:R 1,30")
     clock.advance_to(5.0)
-    rate, position, interlock = client.ask(":read:rate? 1;:read:pos? 1;:interlock? 1").split(";")
+    rate, position, interlock = client.ok(":Read:Rate? 1;:Read:Position? 1;:Interlock? 1").split(";")
     assert float(rate) == 30.0
     assert float(position) == pytest.approx(0.5 * 50 * 0.6**2 + 30 * 4.4)
-    assert interlock == "1"
-    assert client.ask(":dem:rate 1, 40;:syst:err?") == '0,"No error"'
+    assert interlock == "Close"
 
 
-@pytest.mark.parametrize(
-    ("line", "code"),
-    [
-        (":bogus:thing 1", "-113"),
-        (":demand:rate 1", "-109"),
-        (":demand:rate 1, fast", "-104"),
-        (":mode:rate 1, 2", "-108"),
-        (":mode:rate 3", "-222"),
-        (":limit:acc pos,1, 10", "-224"),
-        (":limit:acc rate,1, 51", "-222"),
-    ],
-)
-def test_malformed_or_out_of_range_commands_queue_scpi_errors(client, line, code):
-    client.send(":interlock:close 1;:mode:rate 1")
-    client.send(line)
-    reply = client.ask(":syst:err?")
-    assert reply.startswith(code + ",\"")
-    assert client.ask(":syst:err?") == '0,"No error"'
+@pytest.mark.parametrize("line", [
+    ":Demand:Rate 1", ":Demand:Rate 1,fast", ":Mode:Rate 1,2", ":Mode:Rate 3",
+    ":Limit:Acceleration Q,1,10", ":Limit:Acceleration R,1,51",
+    ":Interlock:Reset 1",          # §4.5.6: the reset takes no axis
+])
+def test_bad_messages_are_refused_and_flagged_in_the_event_status(client, line):
+    client.ok(":Interlock:Close 1;:Mode:Rate 1")
+    code, message = client.ask(line)
+    assert code != 0 and message == ""
+    assert int(client.ok("*ESR?")) & 0b100                       # Table 1 p. 18: bit 2
+    assert client.ok("*ESR?") == "0"                             # §3.3: reading clears it
+    assert client.ok(f":Query:Error? {code}") != ""              # §4.9.1 p. 163
 
 
-def test_refusals_name_their_reason(client):
-    client.send(":interlock:close 1")
-    assert client.ask(":demand:rate 1, 10;:syst:err?").startswith('-221,"Settings conflict')
-    client.send(":mode:rate 1")
-    out_of_range = client.ask(":demand:rate 1, 600.5;:syst:err?")
-    assert out_of_range.startswith('-222,"Data out of range')
-    assert out_of_range.isascii() and "600.5" in out_of_range
-    client.send(":interlock:open 1")
-    assert client.ask(":demand:rate 1, 10;:syst:err?").startswith('201,"Interlock open')
-    assert client.ask(":mode:rate 1;:syst:err?").startswith("201,")
+def test_an_unknown_header_is_answered_never_silent(client):
+    code, _ = client.ask(":Bogus:Thing 1")
+    assert code != 0
+    assert client.ok(f":Query:Error? {code}") == "Undefined header"
 
 
-def test_star_cls_clears_the_queue(client):
-    client.send(":nope")
-    client.send(":nope")
-    client.send("*CLS")
-    assert client.ask(":syst:err?") == '0,"No error"'
+def test_position_and_synthesis_are_refused_as_not_simulated(client):
+    client.ok(":Demand:Position 1,135.223")                      # §4.3.5 p. 112 (stored)
+    client.ok(":DEM:OSC 1,10.0,2.50,90")                         # §4.3.4 p. 111 (stored)
+    for line in (":Mode:Position 1", ":MODE:SYNT 1"):            # §4.7.4, §4.7.6
+        code, _ = client.ask(line)
+        assert client.ok(f":Query:Error? {code}") == "Not simulated"
+
+
+def test_an_interlock_refusal_sets_the_status_byte_interlock_bit(client):
+    code, _ = client.ask(":Mode:Rate 1")                         # interlock open
+    assert client.ok(f":Query:Error? {code}") == "Interlock open"
+    assert int(client.ok("*STB?")) & 1                           # §3.10 p. 19: bit 0 (SI)
+    assert int(client.ok("*STB?")) & 1 == 0                      # reading clears it
 
 
 def test_unknown_fault_names_are_refused(sim):
@@ -163,11 +174,10 @@ def test_unknown_fault_names_are_refused(sim):
 def test_no_reply_loses_exactly_one_reply(sim, client):
     client.sock.settimeout(0.3)
     sim.faults.arm("no_reply")
-    client.send(":interlock:close 1")  # settings do not consume a reply fault
-    client.send("*IDN?")
+    client.send(":Interlock:Close 1")
     with pytest.raises(TimeoutError):
-        client.read_line()
-    assert client.ask(":interlock? 1") == "1"
+        client.read_reply()
+    assert client.ok(":Interlock? 1") == "Close"      # it was executed
 
 
 def test_late_reply_arrives_after_the_delay(sim, client):
@@ -175,62 +185,61 @@ def test_late_reply_arrives_after_the_delay(sim, client):
     client.sock.settimeout(0.1)
     client.send("*IDN?")
     with pytest.raises(TimeoutError):
-        client.read_line()  # not there yet ...
+        client.read_reply()  # not there yet ...
     client.sock.settimeout(3.0)
-    assert client.read_line().startswith("ACUTRONIC")  # ... but it does come
+    assert client.read_reply()[1].startswith("Acutronic")  # ... but it does come
     assert sim.faults.history == ["late_reply"]
 
 
-def test_garbled_reply_is_terminated_but_unreadable(sim, client):
+def test_garbled_reply_is_framed_but_unreadable(sim, client):
     sim.faults.arm("garbled_reply")
-    reply = client.ask(":read:rate? 1")
-    assert reply.startswith("\x15")
-    with pytest.raises(ValueError):
-        float(reply)
-    assert float(client.ask(":read:rate? 1")) == 0.0
+    code, message = client.ask(":Read:Rate? 1")
+    assert code == 0 and message.startswith("\x15")
+    assert float(client.ok(":Read:Rate? 1")) == 0.0
 
 
 def test_drop_connection_resets_the_client_and_new_connections_work(sim, client):
     sim.faults.arm("drop_connection")
     client.send("*IDN?")
     with pytest.raises((ConnectionError, OSError)):
-        client.read_line()
-    fresh = LineClient(sim.host, sim.port)
+        client.read_reply()
+    fresh = FrameClient(sim.host, sim.port)
     try:
-        assert fresh.ask("*IDN?").startswith("ACUTRONIC")
+        assert fresh.ok("*IDN?").startswith("Acutronic")
     finally:
         fresh.close()
 
 
 def test_error_reply_refuses_the_next_setting_command(sim, client):
-    client.command(":interlock:close 1")
-    sim.faults.arm("error_reply", code=-240, message="Hardware error")
-    assert client.ask("*IDN?").startswith("ACUTRONIC")  # queries do not consume it
-    assert client.ask(":mode:rate 1;:syst:err?") == '-240,"Hardware error;simulated fault"'
-    assert client.ask(":mode? 1") == "OFF"  # the refused command did not run
-    assert client.ask(":mode:rate 1;:syst:err?") == '0,"No error"'
+    client.ok(":Interlock:Close 1")
+    sim.faults.arm("error_reply", code=9)
+    assert client.ok("*IDN?").startswith("Acutronic")  # queries do not consume it
+    assert client.ask(":Mode:Rate 1") == (9, "")
+    assert client.ok(":Mode? 1") == "O"  # the refused command did not run
+    client.ok(":Mode:Rate 1")
 
 
 def test_interlock_fault_stops_a_spinning_table_until_cleared_and_closed(sim, client, clock):
-    client.command(":interlock:close 1;:mode:rate 1;:demand:rate 1, 100")
+    client.ok(":Interlock:Close 1;:Mode:Rate 1;:Demand:Rate 1,100")
     clock.advance_to(10.0)
     sim.faults.arm("interlock_open", count=None)
-    assert client.ask(":interlock? 1") == "0"
+    assert client.ok(":Interlock? 1") == "Fault"
+    assert int(client.ok("*STB?")) & 1
     clock.advance_to(11.0)  # stopping at 50 deg/s^2
-    assert float(client.ask(":read:rate? 1")) == pytest.approx(50.0)
-    assert client.ask(":interlock:close 1;:syst:err?").startswith("201,")
-    assert client.ask(":mode:rate 1;:syst:err?").startswith("201,")
+    assert float(client.ok(":Read:Rate? 1")) == pytest.approx(50.0)
+    assert client.ask(":Interlock:Close 1")[0] != 0
+    assert client.ask(":Mode:Rate 1")[0] != 0
     clock.advance_to(20.0)
-    assert float(client.ask(":read:rate? 1")) == 0.0
+    assert float(client.ok(":Read:Rate? 1")) == 0.0
     sim.faults.clear("interlock_open")
-    assert client.ask(":interlock? 1") == "0"  # still open until closed by command
-    assert client.ask(":interlock:close 1;:mode:rate 1;:syst:err?") == '0,"No error"'
+    assert client.ok(":Interlock? 1") == "Open"  # still open until closed by command
+    client.ok(":Interlock:Reset;:Interlock:Close 1;:Mode:Rate 1")
 
 
 def test_stop_is_idempotent_and_closes_clients(physics):
     server = SimulatedAcutrol(physics).start()
-    c = LineClient(server.host, server.port)
-    assert c.ask("*IDN?")
+    c = FrameClient(server.host, server.port)
+    assert c.ok("*IDN?")
     port = server.port
     server.stop()
     server.stop()
@@ -244,7 +253,7 @@ def test_stop_is_idempotent_and_closes_clients(physics):
 def test_stop_interrupts_a_pending_late_reply(physics):
     server = SimulatedAcutrol(physics).start()
     server.faults.arm("late_reply", delay_s=30.0)
-    c = LineClient(server.host, server.port)
+    c = FrameClient(server.host, server.port)
     c.send("*IDN?")
     time.sleep(0.1)
     stopper = threading.Thread(target=server.stop)

@@ -1,4 +1,4 @@
-"""The ACUTROL3000 driver against the simulated table over real TCP through pyvisa-py."""
+"""The ACUTROL3000 driver against the simulated table (TM-8004 framing) over real TCP through pyvisa-py."""
 
 import math
 import socket
@@ -39,9 +39,7 @@ def physics(clock):
 
 @pytest.fixture
 def sim(physics):
-    """The SCPI error-queue dialect (named alternative); the default dialect of the public
-    script is tested in test_acutrol_script_dialect.py."""
-    with SimulatedAcutrol(physics, idn=IDN, dialect="scpi-error-queue") as server:
+    with SimulatedAcutrol(physics, idn=IDN) as server:
         yield server
 
 
@@ -58,7 +56,6 @@ def table(sim, retries):
         timeout_s=0.3,
         retry=RetryPolicy(attempts=3, backoff_s=0.01),
         on_retry=lambda attempt, exc: retries.append(exc),
-        dialect=sim.dialect.name,
     )
     yield driver
     driver.close()
@@ -108,18 +105,18 @@ def test_out_of_range_demand_is_refused_with_table_command_and_reply(table, phys
     error = caught.value
     assert not error.transient
     assert error.instrument == "table"
-    assert error.command == ":demand:rate 1, 700.000000"
-    assert error.reply.startswith("-222,")
-    assert "table: :demand:rate 1, 700.000000" in str(error)
+    assert error.command == ":Demand:Rate 1,700.000000"
+    assert error.reply.startswith("error 2 (Parameter out of range)")   # :Query:Error? 2
+    assert "table: :Demand:Rate 1,700.000000" in str(error)
     assert physics.demand_dps == 10.0
-    table.set_rate_dps(20.0)              # the queue was drained: the next demand is clean
+    table.set_rate_dps(20.0)              # *ESR? was read (and so cleared): the next is clean
     assert physics.demand_dps == 20.0
 
 
 def test_acceleration_limit_beyond_the_table_is_refused(table):
-    with pytest.raises(InstrumentProtocolError, match="limit:acc") as caught:
+    with pytest.raises(InstrumentProtocolError, match=":Limit:Acceleration R,1,150") as caught:
         table.set_acceleration_limit_dps2(150.0)
-    assert caught.value.reply.startswith("-222,")
+    assert caught.value.reply.startswith("error 2 ") and not caught.value.transient
     with pytest.raises(ValueError, match="table"):
         table.set_acceleration_limit_dps2(math.nan)
 
@@ -127,8 +124,8 @@ def test_acceleration_limit_beyond_the_table_is_refused(table):
 def test_motion_with_the_interlock_open_is_a_safety_error(table):
     with pytest.raises(InstrumentSafetyError) as caught:
         table.set_rate_mode()
-    assert caught.value.command == ":mode:rate 1"
-    assert caught.value.reply.startswith("201,")
+    assert caught.value.command == ":Mode:Rate 1"
+    assert caught.value.reply.startswith("error 3 (Interlock open)")
     assert "interlock open" in str(caught.value)
 
 
@@ -147,14 +144,14 @@ def test_a_lost_reply_is_retried_and_reported(table, sim, retries):
     sim.faults.arm("no_reply")
     assert table.read_rate_dps() == pytest.approx(0.0, abs=5 * NOISE_DPS)
     assert len(retries) == 1 and isinstance(retries[0], InstrumentTimeout)
-    assert retries[0].command == ":read:rate? 1"
+    assert retries[0].command == ":Read:Rate? 1"
 
 
 def test_a_silent_table_times_out_naming_table_and_command(table, sim):
     sim.faults.arm("no_reply", count=None)
     with pytest.raises(InstrumentTimeout) as caught:
         table.read_position_deg()
-    assert str(caught.value).startswith("table: :read:pos? 1: no reply within 0.3 s")
+    assert str(caught.value).startswith("table: :Read:Position? 1: no reply within 0.3 s")
     assert sim.faults.history.count("no_reply") == 3   # every attempt of the policy was made
 
 
@@ -175,12 +172,12 @@ def test_a_garbled_reply_is_retried_then_reported_as_unreadable(table, sim, retr
     sim.faults.arm("garbled_reply", count=None)
     with pytest.raises(InstrumentProtocolError) as caught:
         table.read_rate_dps()
-    assert caught.value.command == ":read:rate? 1"
-    assert caught.value.reply.startswith("\x15")
+    assert caught.value.command == ":Read:Rate? 1"
+    assert "\x15" in caught.value.reply
     assert "unreadable reply" in str(caught.value)
 
 
-def test_a_garbled_error_query_repeats_the_idempotent_setting(table, sim, physics):
+def test_a_garbled_acknowledgement_repeats_the_idempotent_setting(table, sim, physics):
     table.close_interlock()
     table.set_rate_mode()
     sim.faults.arm("garbled_reply")
@@ -205,23 +202,25 @@ def test_a_table_that_keeps_dropping_the_line_is_a_connection_error(table, sim):
 
 
 def test_an_execution_error_is_attempted_again_per_the_retries(table, sim, retries, physics):
-    """Issue 9: a -200 execution error (SCPI class -2xx: may pass) is retried, and journaled."""
+    """Issue 9: a refusal that is not a bad message (*ESR? bit 2 clear) may pass: retried, journaled."""
     table.close_interlock()
     sim.faults.arm("error_reply")
     table.set_rate_mode()
     assert len(retries) == 1
-    assert retries[0].reply.startswith("-200,") and retries[0].command == ":mode:rate 1"
+    assert retries[0].reply.startswith("error 5 (Execution error)")
+    assert retries[0].command == ":Mode:Rate 1"
     assert physics.mode == MODE_RATE
 
 
 def test_a_command_error_is_a_refusal_not_retried(table, sim, retries, physics):
-    """SCPI class -1xx (syntax/parameter): the same bytes would fail again."""
+    """*ESR? bit 2, a bad device-dependent message (TM-8004 Table 1 p. 18): the same bytes
+    would fail again."""
     table.close_interlock()
-    sim.faults.arm("error_reply", code=-102, message="Syntax error")
+    sim.faults.arm("error_reply", code=2, bad_message=True)
     with pytest.raises(InstrumentProtocolError) as caught:
         table.set_rate_mode()
-    assert caught.value.reply.startswith("-102,")
-    assert caught.value.command == ":mode:rate 1"
+    assert caught.value.reply.startswith("error 2 (Parameter out of range)")
+    assert caught.value.command == ":Mode:Rate 1"
     assert not caught.value.transient and retries == []
     assert physics.mode == MODE_OFF
 
