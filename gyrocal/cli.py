@@ -235,6 +235,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", default=None, help="write the summary here as JSON")
     p.set_defaults(func=_lazy("gyrocal.orchestrator.decode_capture", "cmd_decode"))
 
+    p = sub.add_parser("station", help="a station's instruments")
+    ssub = p.add_subparsers(dest="station_command", required=True, metavar="STATION_COMMAND")
+    s = ssub.add_parser("check", help="connect to each instrument, move nothing, report what a "
+                                      "run relies on (exit 3 naming each problem)")
+    s.add_argument("station", help="station file with the instruments' addresses")
+    s.add_argument("--only", choices=("chamber", "table", "gyro"), default=None)
+    s.add_argument("--json", default=None, metavar="OUT", help="write the report as JSON here")
+    s.set_defaults(func=_lazy("gyrocal.orchestrator.station_check", "cmd_station_check"))
+
     p = sub.add_parser("sim", help="simulated instruments")
     ssub = p.add_subparsers(dest="sim_command", required=True, metavar="SIM_COMMAND")
     s = ssub.add_parser("serve", help="serve simulated instruments until Ctrl-C")

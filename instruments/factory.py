@@ -44,6 +44,38 @@ class Instruments:
                 inst.close()
 
 
+def open_chamber(config, address: str, on_retry=None) -> Chamber:
+    """The chamber driver ``config`` (a station's ChamberConfig) names, at ``address``."""
+    retry = RetryPolicy(attempts=config.retries)
+    if config.driver == "watlow_f4":
+        baud = _SOCKET_BAUD if address.startswith("socket://") else config.baudrate
+        return WatlowF4(address, unit_id=config.unit_id, timeout_s=config.timeout_s,
+                        retry=retry, baudrate=baud, parity=config.parity,
+                        stop_bits=config.stop_bits, limit_input=config.limit_input,
+                        on_retry=on_retry)
+    if config.driver == "watlow_f4t":
+        return WatlowF4T(address, unit_id=config.unit_id, timeout_s=config.timeout_s,
+                         retry=retry, word_order=config.word_order, on_retry=on_retry)
+    raise ValueError(f"unknown chamber driver {config.driver!r}")  # the loader refuses these
+
+
+def open_table(config, address: str, on_retry=None) -> Acutrol3000Table:
+    """The rate-table driver of ``config`` (a station's TableConfig), at ``address``."""
+    return Acutrol3000Table(address, axis=config.axis, timeout_s=config.timeout_s,
+                            retry=RetryPolicy(attempts=config.retries), on_retry=on_retry,
+                            dialect=config.dialect)
+
+
+def open_gyro(config, port: str, sample_rate_hz: float | None = None) -> Stim300Gyro:
+    """The gyro driver of ``config`` (a station's GyroConfig) on ``port``."""
+    fs_hz = float(sample_rate_hz or config.sample_rate_hz)
+    return Stim300Gyro(port, baudrate=config.baudrate, sample_rate_hz=fs_hz,
+                       with_temperature=config.with_temperature, lsb=config.rate_lsb,
+                       timeout_s=config.timeout_s, axis=config.axis, crlf=config.crlf,
+                       datagram=config.datagram,
+                       accelerometer_range_g=config.accelerometer_range_g)
+
+
 def open_instruments(station, clock: Clock, addresses=None,
                      on_retry: RetryHook | None = None,
                      sample_rate_hz: float | None = None) -> Instruments:
@@ -59,38 +91,17 @@ def open_instruments(station, clock: Clock, addresses=None,
         return lambda attempt, exc: on_retry(role, attempt, exc)
 
     c, t, g = station.chamber, station.table, station.gyro
-    chamber_addr = addresses.chamber if addresses else c.address
-    table_addr = addresses.table if addresses else t.address
-    gyro_port = addresses.gyro if addresses else g.port
     opened: list = []
     try:
-        chamber_retry = RetryPolicy(attempts=c.retries)
-        if c.driver == "watlow_f4":
-            baud = _SOCKET_BAUD if chamber_addr.startswith("socket://") else c.baudrate
-            chamber = WatlowF4(chamber_addr, unit_id=c.unit_id, timeout_s=c.timeout_s,
-                               retry=chamber_retry, baudrate=baud, parity=c.parity,
-                               stop_bits=c.stop_bits, limit_input=c.limit_input,
-                               on_retry=hook("chamber"))
-        elif c.driver == "watlow_f4t":
-            chamber = WatlowF4T(chamber_addr, unit_id=c.unit_id, timeout_s=c.timeout_s,
-                                retry=chamber_retry, word_order=c.word_order,
-                                on_retry=hook("chamber"))
-        else:  # the station loader already refuses unknown drivers
-            raise ValueError(f"unknown chamber driver {c.driver!r}")
+        chamber = open_chamber(c, addresses.chamber if addresses else c.address, hook("chamber"))
         opened.append(chamber)
-        table = Acutrol3000Table(table_addr, axis=t.axis, timeout_s=t.timeout_s,
-                                 retry=RetryPolicy(attempts=t.retries), on_retry=hook("table"),
-                                 dialect=t.dialect)
+        table = open_table(t, addresses.table if addresses else t.address, hook("table"))
         opened.append(table)
-        fs_hz = float(sample_rate_hz or g.sample_rate_hz)
-        gyro = Stim300Gyro(gyro_port, baudrate=g.baudrate, sample_rate_hz=fs_hz,
-                           with_temperature=g.with_temperature, lsb=g.rate_lsb,
-                           timeout_s=g.timeout_s, axis=g.axis, crlf=g.crlf, datagram=g.datagram,
-                           accelerometer_range_g=g.accelerometer_range_g)
+        gyro = open_gyro(g, addresses.gyro if addresses else g.port, sample_rate_hz)
         opened.append(gyro)
     except BaseException:
         for inst in opened:
             with contextlib.suppress(Exception):
                 inst.close()
         raise
-    return Instruments(chamber, table, gyro, clock, fs_hz)
+    return Instruments(chamber, table, gyro, clock, gyro.sample_rate_hz)

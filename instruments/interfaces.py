@@ -35,6 +35,20 @@ class ChamberStatus:
 
 
 @dataclass(frozen=True)
+class ChamberUnits:
+    """How a controller speaks temperatures on its bus, as read from it (not as configured)."""
+
+    fahrenheit: bool
+    decimals: int | None     # implied decimals of an integer register; None for floats
+    source: str              # the registers it was read from, e.g. "registers 901, 606"
+
+
+@runtime_checkable
+class ReportsUnits(Protocol):
+    def read_units(self) -> ChamberUnits: ...
+
+
+@dataclass(frozen=True)
 class TableStatus:
     rate_dps: float
     position_deg: float

@@ -54,7 +54,7 @@ from pymodbus.framer import FramerType
 from gyrocal.instruments.chamber.modbus_link import ModbusLink
 from gyrocal.instruments.chamber.register_map import Encoding, Register, register_table
 from gyrocal.instruments.errors import InstrumentError, InstrumentProtocolError
-from gyrocal.instruments.interfaces import ChamberStatus, Identity
+from gyrocal.instruments.interfaces import ChamberStatus, ChamberUnits, Identity
 from gyrocal.instruments.retry import RetryPolicy
 
 F4_MODEL_NUMBER = 5270
@@ -183,6 +183,11 @@ class WatlowF4:
                 f"reads {decimals}; expected 0..3", reply=str(decimals))
         self.decimals = decimals
         self.fahrenheit = int(self._link.read(F4_REGISTERS["temperature_units"])) == 0
+
+    def read_units(self) -> ChamberUnits:
+        """Units (901) and input 1 decimals (606), read from the controller now."""
+        self._read_units()
+        return ChamberUnits(self.fahrenheit, self.decimals, "registers 901, 606")
 
     def _to_c(self, value: float) -> float:
         return (value - 32.0) / 1.8 if self.fahrenheit else value

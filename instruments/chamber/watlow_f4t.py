@@ -40,7 +40,7 @@ from pymodbus.framer import FramerType
 from gyrocal.instruments.chamber.modbus_link import ModbusLink
 from gyrocal.instruments.chamber.register_map import Encoding, Register, register_table
 from gyrocal.instruments.errors import InstrumentError
-from gyrocal.instruments.interfaces import ChamberStatus, Identity
+from gyrocal.instruments.interfaces import ChamberStatus, ChamberUnits, Identity
 from gyrocal.instruments.retry import RetryPolicy
 
 F4T_REGISTERS: dict[str, Register] = register_table(
@@ -159,6 +159,11 @@ class WatlowF4T:
                     "controller's front panel (Settings > Global)", reply=str(code))
             self._fahrenheit = code == DISPLAY_UNITS_F
         return self._fahrenheit
+
+    def read_units(self) -> ChamberUnits:
+        """Display Units (1328), read from the controller now; values are float32."""
+        self._fahrenheit = None
+        return ChamberUnits(self.fahrenheit, None, "register 1328")
 
     def _read_c(self, name: str) -> float:
         fahrenheit = self.fahrenheit          # the units first: 1328 is read once, before any value

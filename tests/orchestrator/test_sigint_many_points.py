@@ -13,8 +13,9 @@ After each exit the simulator is asked directly - not through gyrocal and not
 through the proxy - what it is doing: the chamber's set point register
 (Watlow F4 register 300, set point 1, deci-degrees; F4 Series User's Manual,
 Modbus register list; Espec ChamberConnectLibrary reads the same register)
-and the table's measured rate (``:read:rate 1`` answered as the public
-ACUTROL TCP script reads it: CR LF line, 8-character prefix). Both must be at
+and the table's measured rate (``:Read:Rate? 1``, TM-8004 §4.10.5 p. 169, its
+reply framed as TM-8004 §2 / TM-9374A §3.4.2 say: little-endian error code and
+message length, then the message). Both must be at
 the safe values, and the console must say so in the words the issue asks for.
 """
 
@@ -24,6 +25,7 @@ import os
 import re
 import signal
 import socket
+import struct
 import subprocess
 import sys
 import time
@@ -100,13 +102,15 @@ def read_simulator(chamber: tuple[str, int], table: tuple[str, int]) -> tuple[fl
     """The simulator's chamber set point (°C) and table rate (deg/s), asked directly."""
     setpoint_c = read_f4_register_c(chamber, 300)
     with socket.create_connection(table, timeout=2) as sock:
-        sock.sendall(b":read:rate 1\r\n")
-        line = b""
-        while not line.endswith(b"\r\n"):
+        sock.sendall(b":Read:Rate? 1\n")
+        data = b""
+        while len(data) < 8 or len(data) < 8 + struct.unpack("<ii", data[:8])[1]:
             chunk = sock.recv(1024)
             assert chunk, "table closed the connection"
-            line += chunk
-    rate_dps = float(line[8:].decode().strip())
+            data += chunk
+    code, length = struct.unpack("<ii", data[:8])
+    assert code == 0, code
+    rate_dps = float(data[8:8 + length].rstrip(b"\x00").decode())
     return setpoint_c, rate_dps
 
 
