@@ -15,7 +15,7 @@ Sources for the register map (holding registers, 0-based protocol addresses):
   manual, ch. 9 Modbus register list: 201 + 12·(N−1) "Digital Input N, Status"
   (read; 0 low, 1 high; p. 9.4) and 1061 + 2·(N−1) "Condition, Digital Input
   N" (0 low, 1 high; p. 9.3; Setup Page table p. 6.17: the condition that
-  triggers the input); features p. 7.3: the input's event lasts as long as
+  triggers the input); features pp. 7.3-7.4: the input's event lasts as long as
   that state exists. Espec's driver agrees since its fix 13600df (its
   ``__get_digital_input`` returns state ≠ condition and files such an input
   under *inactive* alarms). An earlier release of this driver read
@@ -204,7 +204,7 @@ class WatlowF4:
 
     def limit_tripped(self) -> bool:
         """True when the limit controller's digital input is active: its status EQUALS its
-        condition (F4P manual pp. 9.3-9.4, 6.17, 7.3). A value other than 0/1 is a fault."""
+        condition (F4P manual pp. 9.3-9.4, 6.17, 7.3-7.4). A value other than 0/1 is a fault."""
         if self._limit_registers is None:
             return False
         status_reg, condition_reg = self._limit_registers

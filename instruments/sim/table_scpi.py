@@ -179,7 +179,7 @@ class AcutrolInterpreter:
         }
 
     def latch_bad_message(self) -> None:
-        """``*ESR?`` bit 2: a bad device-dependent message was received (Table 1, p. 18)."""
+        """``*ESR?`` bit 2: a bad device-dependent message was received (Table 1, p. 19)."""
         with self._lock:
             self._esr |= proto.ESR_BAD_MESSAGE
 

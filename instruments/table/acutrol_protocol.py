@@ -23,7 +23,7 @@ Reply framing over TCP (``frame_reply`` / ``ReplyHeader``):
 reads exactly ``length`` bytes after the header and drops trailing NULs, so a
 reply framed either way with its NUL inside the count is read correctly.
 
-Errors (§4.9.1 p. 163, §3.3 p. 14, §3.10 p. 19, Table 1 p. 18): error code 0
+Errors (§4.9.1 p. 163, §3.3 p. 14, §3.10 p. 19, Table 1 p. 19): error code 0
 is success; the text of any other code comes from ``:Query:Error? <code>``.
 The code list itself is "TBD" in TM-8004 (§6.1 p. 213), so the driver never
 interprets a code's number: ``*STB?`` bit 0 (summary of the system
@@ -53,7 +53,7 @@ HEADER = struct.Struct("<ii")
 #: ``*STB?`` bits (TM-8004 §3.10, p. 19).
 STB_SYSTEM_INTERLOCKS = 1 << 0
 STB_ERROR_QUEUE = 1 << 7
-#: ``*ESR?`` bits (TM-8004 Table 1, p. 18).
+#: ``*ESR?`` bits (TM-8004 Table 1, p. 19).
 ESR_MIS_SERVO_FAULT = 1 << 0
 ESR_BAD_MESSAGE = 1 << 2
 ESR_AXIS_TIMED_OUT = 1 << 5

@@ -91,7 +91,7 @@ def test_f4_driver_reads_run_state_and_limit_input_not_register_200_as_alarm(f4_
 # Watlow Series F4P user's manual, ch. 9 Modbus registers: digital input N status at
 # 201 + 12 (N-1), 0 low / 1 high (p. 9.4); its condition at 1061 + 2 (N-1), 0 low / 1 high
 # (p. 9.3; Setup Page table p. 6.17: the state that triggers the input). An input is active
-# while its state equals its condition (features, p. 7.3). Espec's driver agrees since 13600df.
+# while its state equals its condition (features, pp. 7.3-7.4). Espec's driver agrees since 13600df.
 @pytest.mark.parametrize(("limit_input", "condition", "state", "tripped"), [
     (1, 1, 0, False),      # triggers on high, contact low: healthy
     (1, 1, 1, True),       # triggers on high, contact high: tripped

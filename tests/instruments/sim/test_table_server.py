@@ -139,7 +139,7 @@ def test_bad_messages_are_refused_and_flagged_in_the_event_status(client, line):
     client.ok(":Interlock:Close 1;:Mode:Rate 1")
     code, message = client.ask(line)
     assert code != 0 and message == ""
-    assert int(client.ok("*ESR?")) & 0b100                       # Table 1 p. 18: bit 2
+    assert int(client.ok("*ESR?")) & 0b100                       # Table 1 p. 19: bit 2
     assert client.ok("*ESR?") == "0"                             # §3.3: reading clears it
     assert client.ok(f":Query:Error? {code}") != ""              # §4.9.1 p. 163
 

@@ -170,7 +170,7 @@ def test_a_refusal_with_the_interlock_bit_in_the_status_byte_is_a_safety_error()
         (":Mode:Rate 1", reply(code=17)),
         (":Query:Error? 17", reply("Axis not servoed")),
         ("*STB?", reply("65")),
-        ("*ESR?", reply("1")),                         # Table 1 p. 18: bit 0 MIS servo fault
+        ("*ESR?", reply("1")),                         # Table 1 p. 19: bit 0 MIS servo fault
     ]
     with pytest.raises(InstrumentSafetyError) as caught:
         run(script, lambda t: t.set_rate_mode())
@@ -179,7 +179,7 @@ def test_a_refusal_with_the_interlock_bit_in_the_status_byte_is_a_safety_error()
 
 
 def test_a_bad_message_is_a_refusal_not_worth_repeating():
-    """*ESR? bit 2 (Table 1 p. 18): bad device-dependent message, e.g. axis out of range."""
+    """*ESR? bit 2 (Table 1 p. 19): bad device-dependent message, e.g. axis out of range."""
     script = [
         (":Utility:Lockout ON", reply()),
         (":Demand:Rate 1,9999.000000", reply(code=4)),

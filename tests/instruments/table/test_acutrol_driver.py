@@ -213,7 +213,7 @@ def test_an_execution_error_is_attempted_again_per_the_retries(table, sim, retri
 
 
 def test_a_command_error_is_a_refusal_not_retried(table, sim, retries, physics):
-    """*ESR? bit 2, a bad device-dependent message (TM-8004 Table 1 p. 18): the same bytes
+    """*ESR? bit 2, a bad device-dependent message (TM-8004 Table 1 p. 19): the same bytes
     would fail again."""
     table.close_interlock()
     sim.faults.arm("error_reply", code=2, bad_message=True)
