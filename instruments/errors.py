@@ -71,7 +71,7 @@ class InstrumentConnectionError(InstrumentError):
 
 
 class InstrumentProtocolError(InstrumentError):
-    """A reply that does not parse, or a protocol-level refusal (Modbus exception, SCPI error)."""
+    """A reply that does not parse, or a protocol-level refusal (Modbus exception, ACUTROL error code)."""
 
 
 class InstrumentSafetyError(InstrumentError):

@@ -2,7 +2,7 @@
 
 ``gyrocal run --sim`` and ``gyrocal sim serve`` build one of these from a
 station file's ``simulation:`` section. The servers are the same ones the
-tests talk to — a Modbus server, a SCPI socket server, a pseudo-terminal —
+tests talk to — a Modbus server, an ACUTROL command-language socket server, a pseudo-terminal —
 so a dry run exercises the real drivers end to end. The simulated gyro sees
 the table's true rate and angle and the chamber's true air temperature at
 each frame time, through the measurement model in ``models/``.

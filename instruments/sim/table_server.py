@@ -33,7 +33,7 @@ import struct
 import threading
 
 from gyrocal.instruments.sim.faults import FaultInjector
-from gyrocal.instruments.sim.table_scpi import ERR_EXECUTION, AcutrolInterpreter, parse_line
+from gyrocal.instruments.sim.table_acl import ERR_EXECUTION, AcutrolInterpreter, parse_line
 from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS, frame_reply
 from gyrocal.models.table import TablePhysics
 
@@ -95,7 +95,7 @@ class _Connection(socketserver.BaseRequestHandler):
 
 
 class SimulatedAcutrol:
-    """SCPI rate-table server answering from ``physics`` at the clock's now."""
+    """ACUTROL3000 (ACL over TCP) rate-table server answering from ``physics`` at the clock's now."""
 
     def __init__(
         self,
