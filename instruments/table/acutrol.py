@@ -212,7 +212,7 @@ class Acutrol3000Table:
         if stb & proto.STB_SYSTEM_INTERLOCKS or "interlock" in detail.lower():
             raise InstrumentSafetyError(self.name, text, "refused: interlock open", reply=reply)
         raise InstrumentProtocolError(self.name, text, "refused by the table", reply=reply,
-                                      transient=not esr & proto.ESR_BAD_MESSAGE)
+                                      transient=not (esr & proto.ESR_BAD_MESSAGE))
 
     def _refusal_context(self, code: int) -> tuple[str, int, int]:
         """(error text, *STB?, *ESR?) — best effort: a failing follow-up never hides the refusal."""

@@ -46,6 +46,7 @@ def station_with(tmp_path: Path, **sections: dict) -> Path:
 def test_the_simulated_station_is_fit_and_reported(tmp_path: Path, capsys) -> None:
     out = tmp_path / "check.json"
     with served_station(tmp_path / "live.yaml") as live:
+        station = yaml.safe_load(live.read_text())
         code = main(["station", "check", str(live), "--json", str(out)])
     printed = capsys.readouterr()
     assert code == EXIT_OK, printed
@@ -59,9 +60,9 @@ def test_the_simulated_station_is_fit_and_reported(tmp_path: Path, capsys) -> No
     assert table["identity"].count(",") == 3 and table["interlock"] in ("Open", "Close")
     assert table["mode"] == "off" and abs(table["rate_dps"]) < 0.05
     gyro = report["instruments"]["gyro"]["facts"]
-    station = yaml.safe_load(live.read_text()) if live.exists() else None
-    assert gyro["frames_valid"] > 0 and gyro["crc_errors"] == 0
-    assert station is None or gyro["sample_rate_hz_by_counter"] == station["gyro"]["sample_rate_hz"]
+    assert gyro["frames_valid"] > 0 and gyro["crc_errors"] == 0 and gyro["lost_frames"] == 0
+    assert gyro["sample_rate_hz_by_counter"] == station["gyro"]["sample_rate_hz"]
+    assert gyro["status_bits_seen"] == "0x00"
     assert len(gyro["gyro_mean"]) == 3
     assert "every instrument fit for a run" in printed.out
 
