@@ -1,6 +1,6 @@
 """Dry run of the overnight procedure against the simulated instruments, timed as a whole.
 
-The real protocol servers (Modbus chamber, SCPI table, gyro on a pty) run in
+The real protocol servers (Modbus chamber, ACUTROL table, gyro on a pty) run in
 the same process as the orchestrator on simulated time; this measures how
 many times faster than real time a night passes, and the peak memory, for
 the README. The reference it beats is the wall clock: the procedure's ETA.
