@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from gyrocal.errors import EXIT_FAULT, EXIT_OK, BadInput
-from gyrocal.instruments.errors import InstrumentError
+from gyrocal.instruments.errors import InstrumentConnectionError, InstrumentError, InstrumentTimeout
 from gyrocal.instruments.factory import open_chamber, open_gyro, open_table
 from gyrocal.instruments.interfaces import Chamber, ReportsUnits
 from gyrocal.instruments.table.acutrol import Acutrol3000Table
@@ -117,7 +117,8 @@ def _checked(role: str, driver: str, address: str, work: Callable[[], RoleCheck]
         return work()
     except InstrumentError as exc:
         result = RoleCheck(role, driver, address)
-        result.problems.append(f"no usable answer: {exc}")
+        silent = isinstance(exc, (InstrumentConnectionError, InstrumentTimeout))
+        result.problems.append(f"no usable answer: {exc}" if silent else str(exc))
         return result
 
 

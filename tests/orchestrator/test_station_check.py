@@ -62,7 +62,7 @@ def test_the_simulated_station_is_fit_and_reported(tmp_path: Path, capsys) -> No
     gyro = report["instruments"]["gyro"]["facts"]
     assert gyro["frames_valid"] > 0 and gyro["crc_errors"] == 0 and gyro["lost_frames"] == 0
     assert gyro["sample_rate_hz_by_counter"] == station["gyro"]["sample_rate_hz"]
-    assert gyro["status_bits_seen"] == "0x00"
+    assert gyro["datagram"].startswith("0x94") and gyro["gyro_status_bits_seen"] == "0x00"
     assert len(gyro["gyro_mean"]) == 3
     assert "every instrument fit for a run" in printed.out
 
@@ -133,6 +133,32 @@ def test_an_instrument_that_does_not_answer_is_a_problem_not_a_traceback(tmp_pat
     err = capsys.readouterr().err
     assert code == EXIT_FAULT
     assert "chamber: no usable answer:" in err and "Traceback" not in err
+
+
+def test_a_0x93_unit_at_250_hz_then_a_wrong_declaration(tmp_path: Path, capsys) -> None:
+    """TS1524: 0x93 carries rate, acceleration and inclination (Table 5-21); at 250 Hz the
+    counter steps 8 (§7.5.2.2.18). Declared right: fit, with the accelerometer and
+    inclinometer means (a level unit: about +1 g on one axis). Declared 0x94: exit 3 naming
+    what the unit sends and what the station declares."""
+    station = station_with(tmp_path, gyro={"datagram": 0x93, "sample_rate_hz": 250,
+                                           "with_temperature": False})
+    with served_station(tmp_path / "live.yaml", station=str(station)) as live:
+        code = main(["station", "check", str(live), "--only", "gyro", "--json",
+                     str(tmp_path / "g.json")])
+        wrong = tmp_path / "wrong.yaml"
+        wrong.write_text(live.read_text().replace("datagram: 147", "datagram: 148")
+                         .replace("with_temperature: false", "with_temperature: true"))
+        assert "datagram: 148" in wrong.read_text()
+        code_wrong = main(["station", "check", str(wrong), "--only", "gyro"])
+    printed = capsys.readouterr()
+    assert code == EXIT_OK, printed
+    gyro = json.loads((tmp_path / "g.json").read_text())["instruments"]["gyro"]["facts"]
+    assert gyro["datagram"].startswith("0x93") and gyro["counter_step"] == 8
+    assert gyro["sample_rate_hz_by_counter"] == 250.0
+    assert max(abs(a) for a in gyro["accelerometer_mean_g"]) == pytest.approx(1.0, abs=0.05)
+    assert len(gyro["inclinometer_mean_g"]) == 3
+    assert code_wrong == EXIT_FAULT
+    assert "the unit sends 0x93" in printed.err and "the station declares 0x94" in printed.err
 
 
 def test_a_station_with_sim_addresses_is_bad_input(capsys) -> None:
