@@ -218,7 +218,7 @@ STATION_CHAMBER = Section(
 STATION_TABLE = Section(
     "table", "table",
     "The rate table. Driver `acutrol3000` (ACUTROL3000 command language over a raw TCP "
-    "socket: address `TCPIP0::10.0.0.5::5025::SOCKET`, or a serial/GPIB VISA resource); "
+    "socket, TM-8004; port 9878, TM-9384C §1: address `TCPIP0::10.0.0.5::9878::SOCKET`); "
     "`sim` as the address: a simulated table started by `--sim`.",
     (
         Key("driver", _choice(sta.TABLE_DRIVERS), "which controller"),
