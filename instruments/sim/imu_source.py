@@ -83,6 +83,11 @@ class ImuPhysicsSource:
         mix = np.eye(3) + self.model.misalignment_rad(float(np.mean(chamber)))
         return body @ mix.T, chamber, angle
 
+    def reseed(self, seed: np.random.SeedSequence) -> None:
+        """One child stream per axis."""
+        for sim, child in zip(self.simulators, seed.spawn(len(self.simulators)), strict=True):
+            sim.reseed(child)
+
     def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         t_s = np.asarray(t_s, dtype=float)
         first = self.simulators[0]
