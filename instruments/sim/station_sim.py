@@ -66,15 +66,23 @@ class GyroPhysicsSource:
     def reseed(self, seed: np.random.SeedSequence) -> None:
         self.simulator.reseed(seed)
 
-    def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def inputs_at(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Table rate, chamber air temperature and table angle at the frame times."""
+        return self._inputs(t_s)
+
+    def emit(self, t_s: np.ndarray, inputs: tuple[np.ndarray, np.ndarray, np.ndarray]
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """The model's output for frames at ``t_s`` seeing ``inputs`` (a gap is skipped first)."""
         sim = self.simulator
         gap_s = float(t_s[0]) - sim.t_next_s
         if gap_s > 0.5 / sim.fs_hz:
             sim.skip_to(float(t_s[0]), self._inputs, self.skip_step_s)
             self.skipped_s += gap_s
-        rate, chamber, angle = self._inputs(t_s)
-        samples = sim.generate(rate, chamber, angle)
+        samples = sim.generate(*inputs)
         return samples.gyro, samples.sensor_temp_c
+
+    def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.emit(t_s, self._inputs(t_s))
 
 
 @dataclass(frozen=True)
