@@ -115,7 +115,7 @@ def test_idle_time_leaves_only_the_last_frames_and_reading_time_every_frame():
     assert len(data) == 18 * 300, "100 tail frames + 200 read frames, nothing more"
     counters = np.frombuffer(data, np.uint8)[11::18].astype(int)   # 0x90: counter at offset 11
     k_expected = np.arange(30000 - 100, 30200)
-    assert np.array_equal(counters, k_expected % 256)
+    assert np.array_equal(counters, (k_expected * round(2000 / FS_HZ)) % 256)   # TS1524 §7.5.2.2.18
     raw = np.array([int.from_bytes(data[i + 1:i + 4], "big", signed=True)
                     for i in range(0, len(data), 18)])
     assert np.array_equal(raw, np.rint(source(k_expected / FS_HZ)[0] / LSB))
