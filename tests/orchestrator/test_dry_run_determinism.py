@@ -27,10 +27,11 @@ REPO = Path(__file__).resolve().parents[2]
 SMOKE = REPO / "procedures" / "smoke.yaml"
 
 #: journal fields that may differ between two runs of one seed
-JOURNAL_FREE = {"wall_time", "prev_sha256", "sha256", "run_id", "identity", "address", "files"}
+JOURNAL_FREE = {"wall_time", "ended_at", "prev_sha256", "sha256", "run_id", "identity", "address",
+                "files"}
 #: results.json keys that name the run or a wall time, or the loopback addresses
-RESULTS_FREE = {"run_id", "started_at", "steps_done_at", "report_built_at", "first_wall_time",
-                "last_wall_time", "address"}
+RESULTS_FREE = {"run_id", "started_at", "steps_started_at", "steps_done_at", "ended_at",
+                "report_built_at", "first_wall_time", "last_wall_time", "address"}
 
 
 def columns(run_dir: Path) -> dict[str, dict[str, np.ndarray]]:
