@@ -84,7 +84,9 @@ def bench_end_to_end(n_frames: int, block_samples: int, with_temperature: bool):
             got = lost = crc = 0
             t0 = time.perf_counter()
             while got < n_frames:
-                block = gyro.read_samples(min(block_samples, n_frames - got))
+                want = min(block_samples, n_frames - got)
+                clock.elapse_reading(want / fs_hz)      # as the orchestrator does on simulated time
+                block = gyro.read_samples(want)
                 got += len(block)
                 lost += block.lost_frames
                 crc += block.crc_errors

@@ -12,12 +12,7 @@ truth at the measured temperature.
 from __future__ import annotations
 
 import argparse
-import json
-import resource
-import subprocess
 import sys
-import tempfile
-import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -27,7 +22,11 @@ PROCEDURE = "procedures/imu-5-temps-3-mountings.yaml"
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--repeat", type=int, default=3, help="runs; the median is reported")
     args = parser.parse_args()
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from dry_run_phases import load_note, median_runs, phase_table, pty_floor_s, timed_dry_run
 
     from gyrocal.models.imu_model import ImuModel, load_any_model
     from gyrocal.orchestrator.plan import expand_plan
@@ -37,24 +36,25 @@ def main() -> int:
     plan = expand_plan(procedure)
     model = load_any_model(procedure.station.simulation.gyro_model)
     assert isinstance(model, ImuModel)
-    with tempfile.TemporaryDirectory(prefix="gyrocal-imu-") as tmp:
-        out = Path(tmp) / "run"
-        start = time.perf_counter()
-        proc = subprocess.run([sys.executable, "-m", "gyrocal", "run", str(REPO / PROCEDURE),
-                               "--sim", "--out", str(out), "--seed", str(args.seed)],
-                              cwd=REPO, capture_output=True, text=True)
-        wall_s = time.perf_counter() - start
-        peak_kib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-        if proc.returncode not in (0, 1):
-            print(proc.stdout, proc.stderr, file=sys.stderr)
-            return proc.returncode
-        results = json.loads((out / "report" / "results.json").read_text())
+    load_before = load_note()
+    runs = [timed_dry_run(REPO, PROCEDURE, args.seed) for _ in range(args.repeat)]
+    run = median_runs(runs)
+    wall_s, results = run.wall_s, run.results
+    peak_kib = max(r.peak_rss_mib for r in runs) * 1024
+    fs_hz = procedure.defaults.sample_rate_hz
+    floor_s = pty_floor_s(run.samples, fs_hz, procedure.station.gyro.with_temperature,
+                          max(1, int(10.0 * fs_hz)))
 
     print(f"procedure               {PROCEDURE}")
     print(f"steps                   {len(plan.steps)} ({sum(s.kind == 'remount' for s in plan.steps)} remounts)")
     print(f"plan ETA                {plan.total_s / 3600:.2f} h")
-    print(f"wall time incl. report  {wall_s:.1f} s ({plan.total_s / wall_s:,.0f}× real time)")
+    print(f"wall time incl. report  {wall_s:.1f} s ({plan.total_s / wall_s:,.0f}× real time; median of "
+          f"{len(runs)}: {', '.join(f'{r.wall_s:.1f}' for r in runs)})")
     print(f"peak RSS                {peak_kib / 1024:.0f} MiB")
+    print("phases of the median run")
+    for name, value in phase_table(run, floor_s):
+        print(f"{name:<40}  {value}")
+    print(f"machine                 {load_before} before, {load_note()} after")
     print()
     print(f"{'temp °C':>8}  {'worst |ΔSF| ppm':>16}  {'worst |ΔE| µrad':>16}  {'largest u(SF) ppm':>18}  "
           f"{'largest u(E) µrad':>18}")

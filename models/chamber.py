@@ -214,6 +214,10 @@ class ChamberPhysics:
         when_s = self.clock.now_s() if t_s is None else float(t_s)
         return float(self.air_temperature_c(when_s)[0])
 
+    def reseed(self, seed: np.random.SeedSequence) -> None:
+        """Measurement noise drawn from ``seed`` from now on (a dry run's attempt)."""
+        self._rng = np.random.default_rng(seed)
+
     def temperature_c(self, t_s: float | None = None) -> float:
         """Measured process value: air temperature plus measurement noise."""
         true_c = self.true_temperature_c(t_s)

@@ -3,16 +3,24 @@
 Overnight procedures must dry-run in seconds with the *same* driver and
 orchestrator code that runs against hardware. The only thing that differs is
 the clock: a :class:`RealClock` follows the wall clock (optionally sped up),
-a :class:`SimClock` is advanced by whoever would otherwise wait — the
-orchestrator's ``sleep`` while it waits for a chamber, or the simulated gyro as
-its frames are consumed. Simulators evaluate their physics at ``now_s()``.
+a :class:`SimClock` is advanced only by the controller, in its own thread —
+``sleep`` while it waits for a chamber, ``elapse_reading`` while it reads a
+stream. Simulators evaluate their physics at ``now_s()``, and a simulated
+stream subscribes to the clock to produce exactly the frames of the time that
+elapsed. Nobody else moves simulated time, so the same commands give the same
+times, the same physics and (with the same seeds) the same samples, however
+the threads are scheduled.
 """
 
 from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from typing import Protocol
+
+#: Called as (from_s, to_s, reading) in the advancing thread, after simulated time moved.
+AdvanceListener = Callable[[float, float, bool], None]
 
 
 class Clock(Protocol):
@@ -23,6 +31,9 @@ class Clock(Protocol):
 
     def sleep(self, dt_s: float) -> None:
         """Wait ``dt_s`` seconds of this clock's time."""
+
+    def elapse_reading(self, dt_s: float) -> None:
+        """Let ``dt_s`` pass while a stream is read (a real read takes that time itself)."""
 
     @property
     def simulated(self) -> bool:
@@ -49,22 +60,29 @@ class RealClock:
         if dt_s > 0:
             time.sleep(dt_s / self.speed)
 
+    def elapse_reading(self, dt_s: float) -> None:
+        """Nothing to do: on real time the read itself waits for its samples."""
+
     def wait_until(self, t_s: float) -> None:
         """Block until the clock reads at least ``t_s`` (used to pace streams)."""
         self.sleep(t_s - self.now_s())
 
 
 class SimClock:
-    """Simulated time: it moves only when :meth:`advance_to` or :meth:`sleep` is called.
+    """Simulated time: it moves only when the controller sleeps or reads a stream.
 
-    Thread-safe and monotonic. Several producers may advance it (the gyro
-    stream while frames are read, the orchestrator while it waits); time is
-    the maximum of what they asked for, so nobody moves it backwards.
+    Thread-safe and monotonic. Listeners (simulated streams) are told of each
+    advance in the advancing thread, so what a stream produces is a function
+    of the controller's calls alone; ``reading`` says whether the controller
+    is reading the stream over that span (every frame is wanted) or waiting
+    for something else (only the most recent frames matter, as in a UART
+    nobody reads).
     """
 
     def __init__(self, start_s: float = 0.0) -> None:
         self._now_s = float(start_s)
         self._cond = threading.Condition()
+        self._listeners: list[AdvanceListener] = []
 
     @property
     def simulated(self) -> bool:
@@ -74,24 +92,52 @@ class SimClock:
         with self._cond:
             return self._now_s
 
-    def advance_to(self, t_s: float) -> float:
+    def subscribe(self, listener: AdvanceListener) -> None:
+        """Call ``listener(from_s, to_s, reading)`` after every advance."""
+        with self._cond:
+            self._listeners.append(listener)
+
+    def unsubscribe(self, listener: AdvanceListener) -> None:
+        with self._cond:
+            if listener in self._listeners:
+                self._listeners.remove(listener)
+
+    def advance_to(self, t_s: float, reading: bool = False) -> float:
         """Move time forward to ``t_s`` (no-op if already later); returns the new time."""
         with self._cond:
-            if t_s > self._now_s:
+            before_s = self._now_s
+            if t_s > before_s:
                 self._now_s = float(t_s)
                 self._cond.notify_all()
-            return self._now_s
+            after_s = self._now_s
+            listeners = list(self._listeners)
+        if after_s > before_s:
+            for listener in listeners:
+                listener(before_s, after_s, reading)
+        return after_s
 
     def sleep(self, dt_s: float) -> None:
         if dt_s > 0:
-            with self._cond:
-                self._now_s += float(dt_s)
-                self._cond.notify_all()
+            self._advance_by(float(dt_s), reading=False)
+
+    def elapse_reading(self, dt_s: float) -> None:
+        """Advance by ``dt_s`` while a stream is read: its frames of the span are produced."""
+        if dt_s > 0:
+            self._advance_by(float(dt_s), reading=True)
+
+    def _advance_by(self, dt_s: float, reading: bool) -> None:
+        with self._cond:
+            before_s = self._now_s
+            self._now_s = before_s + dt_s
+            after_s = self._now_s
+            self._cond.notify_all()
+            listeners = list(self._listeners)
+        for listener in listeners:
+            listener(before_s, after_s, reading)
 
     def wait_until(self, t_s: float, timeout_s: float | None = None) -> bool:
         """Block (in wall time) until someone advances the clock to ``t_s``.
 
-        Simulated producers that must not run ahead of their consumer use it.
         Returns False on timeout.
         """
         with self._cond:

@@ -96,6 +96,10 @@ class GyroSimulator:
         self._index = 0
         self._state: ModelState | None = None
 
+    def reseed(self, seed: np.random.SeedSequence) -> None:
+        """Noise drawn from ``seed`` from the next sample on (the noise states carry on)."""
+        self._noise.reseed(seed)
+
     @property
     def samples_emitted(self) -> int:
         return self._index

@@ -287,6 +287,20 @@ class NoiseGenerator:
         if markov is not None and markov[0] > 0:
             self.terms["markov"] = GaussMarkov(markov[0], markov[1], fs_hz, slot["markov"])
 
+    def reseed(self, seed: np.random.SeedSequence) -> None:
+        """Draw from ``seed`` from now on; every filter, walk and Markov state carries on.
+
+        One child stream per slot (and per flicker process), as at construction,
+        so adding a term never changes another's draws.
+        """
+        slot = dict(zip(_SLOTS, seed.spawn(len(_SLOTS)), strict=True))
+        for name, term in self.terms.items():
+            holders = ([p for group in term.groups for p in group.processes]
+                       if isinstance(term, FlickerNoise) else [term])
+            for holder, child in zip(holders, slot[name].spawn(len(holders)), strict=True):
+                if hasattr(holder, "_rng"):
+                    holder._rng = np.random.default_rng(child)
+
     def generate(self, n: int) -> np.ndarray:
         """The next ``n`` samples of w(t), deg/h (zeros when the model is noise-free)."""
         out = np.zeros(n)

@@ -210,6 +210,10 @@ class TablePhysics:
         """Whole signed revolutions since the session start (truncated toward zero)."""
         return int(float(self.angle_deg(t_s)) / 360.0)
 
+    def reseed(self, seed: np.random.SeedSequence) -> None:
+        """Measurement noise drawn from ``seed`` from now on (a dry run's attempt)."""
+        self._rng = np.random.default_rng(seed)
+
     def read_rate_dps(self) -> float:
         """Rate readback now: the true rate plus the encoder electronics' noise."""
         with self._lock:

@@ -56,7 +56,8 @@ class Acquisition:
 
     def __init__(self, instruments: Instruments, clock: RealClock | SimClock, folder: RunFolder,
                  journal: Journal, progress: Progress, policy: AcquisitionPolicy,
-                 poll_chamber: Callable[[], float], elapsed_s: Callable[[], float]) -> None:
+                 poll_chamber: Callable[[], float], elapsed_s: Callable[[], float],
+                 on_attempt: Callable[[str, int], None] | None = None) -> None:
         self.inst = instruments
         self.clock = clock
         self.folder = folder
@@ -65,6 +66,9 @@ class Acquisition:
         self.policy = policy
         self.poll_chamber = poll_chamber
         self.elapsed_s = elapsed_s
+        #: told (step id, attempt) before an attempt's first sample: a dry run derives its
+        #: simulators' random draws from them, so a seed reproduces every sample
+        self.on_attempt = on_attempt
 
     def read_timeout_s(self, block_s: float) -> float:
         """Wall seconds a gyro read of ``block_s`` clock seconds may take before it times out.
@@ -90,6 +94,8 @@ class Acquisition:
         block_n = max(1, min(chunk_n, int(self.policy.block_s * fs)))
         result = StepResult(step.step_id, attempt)
         gyro = self.inst.gyro
+        if self.on_attempt is not None:
+            self.on_attempt(step.step_id, attempt)
         gyro.flush()
         # On a real clock the stream is checked against wall time (instruments/gyro/
         # plausibility.py): n samples cannot come faster than the unit makes them.
@@ -114,6 +120,7 @@ class Acquisition:
         timeout_s = self.read_timeout_s(block_n / fs)
         while result.samples < n_total:
             want = min(block_n, n_total - result.samples)
+            self.clock.elapse_reading(want / fs)
             block = gyro.read_samples(want, timeout_s=timeout_s)
             result.samples += len(block)
             result.lost_frames += block.lost_frames

@@ -359,10 +359,8 @@ def _resume_locked(args: argparse.Namespace, folder: RunFolder, held: contextlib
     held.enter_context(_station_locks(procedure, sim))
     resumes = int(manifest.get("resumes", 0)) + 1
     folder.update_manifest(resumes=resumes, pid=os.getpid())
-    if sim:
-        # A fresh simulator noise stream per resume: a restarted rig does not replay its noise.
-        base = seed if seed is not None else (procedure.station.simulation.seed or 0)
-        seed = base + 7919 * resumes
+    # A dry run keeps its seed: every attempt draws from (seed, step id, attempt), and a
+    # resumed session's attempts are new attempts, so nothing is replayed.
     signer = run_signer(getattr(args, "signing_key", None), procedure.station.signing_key)
     return _execute(folder, procedure, plan, clock, sim, seed, signer=signer,
                     on_sim_started=args.on_sim_started)
@@ -533,7 +531,8 @@ def _execute_journaled(folder: RunFolder, journal, procedure: Procedure, plan: P
                                progress=Progress(), on_finished=on_finished,
                                before_step=before_step,
                                operator=_fixture_operator(procedure, folder, simulated),
-                               mountings={m.name: m.up for m in procedure.mountings})
+                               mountings={m.name: m.up for m in procedure.mountings},
+                               on_attempt=None if simulated is None else simulated.begin_attempt)
             if closing is not None:
                 closing.arm()      # from here until the seal, a signal waits for the close
             try:

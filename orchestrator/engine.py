@@ -89,6 +89,7 @@ class RunEngine:
         before_step: Callable[[PlanStep], None] | None = None,
         operator: FixtureOperator | None = None,
         mountings: Mapping[str, Mounting] | None = None,
+        on_attempt: Callable[[str, int], None] | None = None,
     ) -> None:
         self.folder = folder
         self.operator = operator            # who turns the IMU fixture (remount steps)
@@ -115,7 +116,8 @@ class RunEngine:
         self.acquisition = Acquisition(
             instruments, self.clock, folder, self.journal, self.progress,
             AcquisitionPolicy(policy.chunk_s, policy.block_s, policy.read_timeout_margin_s),
-            poll_chamber=self.conditions.poll_chamber, elapsed_s=self._elapsed)
+            poll_chamber=self.conditions.poll_chamber, elapsed_s=self._elapsed,
+            on_attempt=on_attempt)
         #: one executor per step kind (a registry, not a chain of string tests)
         self._executors: dict[StepKind, Callable[[PlanStep], None]] = {
             StepKind.RAMP: self.conditions.ramp,
@@ -251,8 +253,9 @@ class RunEngine:
         table.set_rate_mode()
         probe = self.inst.gyro
         probe.flush()
-        block = probe.read_samples(max(1, int(self.inst.sample_rate_hz * 0.1)),
-                                   timeout_s=self.policy.read_timeout_margin_s)
+        n_probe = max(1, int(self.inst.sample_rate_hz * 0.1))
+        self.clock.elapse_reading(n_probe / self.inst.sample_rate_hz)
+        block = probe.read_samples(n_probe, timeout_s=self.policy.read_timeout_margin_s)
         self.conditions.table_dps = table.read_rate_dps()
         self.conditions.chamber_c = status.temperature_c
         self.journal.append(JournalEvent.PREFLIGHT_OK, chamber_c=status.temperature_c,

@@ -226,6 +226,7 @@ class RemountExecutor:
         gyro = self.inst.gyro
         gyro.flush()
         n = max(8, int(self.inst.sample_rate_hz * CHECK_READ_S))
+        self.acquisition.clock.elapse_reading(n / self.inst.sample_rate_hz)
         block = gyro.read_samples(n, timeout_s=self.acquisition.read_timeout_s(CHECK_READ_S))
         self.conditions.set_table_rate(0.0)
         rate_xyz = block.rate_xyz

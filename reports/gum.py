@@ -19,7 +19,8 @@ from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
-from scipy import stats
+from scipy import fft as scipy_fft
+from scipy import special, stats
 
 COVERAGE_PROBABILITY = 0.95
 
@@ -108,10 +109,10 @@ def coverage_factor(dof_eff: float, p: float = COVERAGE_PROBABILITY) -> float:
     return float(stats.t.ppf(0.5 + p / 2.0, max(dof_eff, 1.0)))
 
 
-#: Draws of the JCGM 101 coverage factor; fixed seed, so a report (and `verify`, which
-#: recomputes it) gives the same k every time. 100,000 draws: k to about ±0.5 %.
-COVERAGE_DRAWS = 100_000
-COVERAGE_SEED = 20080917      # JCGM 101:2008's date: any fixed seed would do
+#: Grid of the coverage factor's convolution: cells per u_c, and how far out (in u_c beyond
+#: the rectangular half-widths) each distribution is kept before its tails are folded in.
+COVERAGE_CELLS_PER_U = 40
+COVERAGE_REACH_U = 40.0
 
 
 def combine(value: float, contributions: Sequence[Contribution]) -> Uncertainty:
@@ -136,21 +137,56 @@ def combine(value: float, contributions: Sequence[Contribution]) -> Uncertainty:
 
 def linear_coverage_factor(contributions: Sequence[Contribution], u_c: float,
                            p: float = COVERAGE_PROBABILITY) -> float:
-    """k such that ±k·u_c holds ``p`` of Σ c_i·X_i (JCGM 101, applied to the linearised model)."""
-    rng = np.random.default_rng(COVERAGE_SEED)
-    total = np.zeros(COVERAGE_DRAWS)
-    for c in contributions:
-        if c.u_contribution == 0.0:
-            continue
-        if c.distribution == "rectangular":
-            half = c.u_contribution * math.sqrt(3.0)
-            total += rng.uniform(-half, half, COVERAGE_DRAWS)
-        elif c.kind is EvalType.A and not math.isinf(c.dof):
-            # JCGM 101 6.4.9.2: a type A mean is t_ν scaled by its standard uncertainty
-            total += c.u_contribution * rng.standard_t(max(c.dof, 1.0), COVERAGE_DRAWS)
-        else:
-            total += c.u_contribution * rng.standard_normal(COVERAGE_DRAWS)
-    return float(np.quantile(np.abs(total), p)) / u_c
+    """k such that ±k·u_c holds ``p`` of Σ c_i·X_i (JCGM 101, applied to the linearised model).
+
+    The distribution of the sum is computed, not sampled: each X_i (rectangular,
+    normal, or for a type A mean t_ν scaled by its u, JCGM 101 6.4.9.2) is put on
+    a common grid as exact cell probabilities (differences of its CDF; the tails
+    beyond the grid folded into its end cells) and the cells are convolved by
+    FFT. Putting every X_i on the cell centres adds about n·h²/12 of variance
+    (h = u_c/40) and the mass is spread linearly within a cell: k to about 5e-4
+    (closed forms in tests/reports/test_gum_coverage.py), inside the ±0.5 % of
+    the 100,000 Monte Carlo draws it replaces (~10 ms a call; this ~0.3 ms),
+    and the same on every machine and in ``verify``, with no seed.
+    """
+    parts = [c for c in contributions if c.u_contribution > 0.0]
+    if not parts or u_c <= 0.0:
+        return coverage_factor(math.inf, p)
+    h = u_c / COVERAGE_CELLS_PER_U
+    reach = sum(c.u_contribution * math.sqrt(3.0) for c in parts
+                if c.distribution == "rectangular") + COVERAGE_REACH_U * u_c
+    half_cells = int(math.ceil(reach / h))
+    inner = (np.arange(-half_cells, half_cells + 1) + 0.5) * h      # upper edges but the last
+    size = len(parts) * 2 * half_cells + 1
+    n_fft = int(scipy_fft.next_fast_len(size, real=True))
+    spectrum = np.ones(n_fft // 2 + 1, dtype=complex)
+    for c in parts:
+        upper = _cdf(c, inner[half_cells:-1])          # x > 0; the distributions are symmetric
+        cdf = np.concatenate(([0.0], 1.0 - upper[::-1], upper, [1.0]))
+        spectrum *= scipy_fft.rfft(np.diff(cdf), n_fft)
+    mass = np.clip(scipy_fft.irfft(spectrum, n_fft)[:size], 0.0, None)
+    centre = size // 2
+    folded = mass[centre:].copy()
+    folded[1:] += mass[:centre][::-1]
+    cumulative = np.cumsum(folded) / mass.sum()
+    i = int(np.searchsorted(cumulative, p))
+    below = cumulative[i - 1] if i > 0 else 0.0
+    # cell i spans |y| in [(i - 1/2) h, (i + 1/2) h] (cell 0: [0, h/2]); linear within it
+    lower = max(i - 0.5, 0.0) * h
+    width = (i + 0.5) * h - lower
+    y = lower + width * (p - below) / max(cumulative[i] - below, 1e-300)
+    return float(y / u_c)
+
+
+def _cdf(c: Contribution, x: np.ndarray) -> np.ndarray:
+    """CDF of the contribution c_i·X_i at ``x`` (the linearised model's own distributions)."""
+    u = c.u_contribution
+    if c.distribution == "rectangular":
+        half = u * math.sqrt(3.0)
+        return np.clip((x + half) / (2.0 * half), 0.0, 1.0)
+    if c.kind is EvalType.A and not math.isinf(c.dof):
+        return special.stdtr(max(c.dof, 1.0), x / u)
+    return special.ndtr(x / u)
 
 
 def propagate(func: Callable[[dict[str, float]], float], inputs: Sequence[Input],

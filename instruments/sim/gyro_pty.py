@@ -25,12 +25,18 @@ frame holds). Time follows the shared clock:
   (issue 28: a writer behind the clock on a loaded host handed the reader,
   just after its flush, frames sampled while the table was still
   accelerating — the first 80-90 samples of a dwell, SF 1000-3000 ppm off).
-* ``SimClock``: time moves as fast as the consumer reads. Before producing a
-  block the writer jumps forward if someone else advanced the clock past it
-  (those frames were never read by anybody, so they appear as a counter
-  gap), writes the block — blocking while the pty buffer is full, which is
-  the back-pressure that keeps the gyro from running ahead of its reader —
-  and then advances the clock to the end of the block.
+* ``SimClock``: the stream follows what the controller asks (the clock
+  calls :meth:`SimulatedGyroPort._on_advance` in the controller's thread).
+  While the controller reads (``clock.elapse_reading``) every frame of the
+  elapsed span is made, in order, and handed to a delivery thread that only
+  moves bytes into the pty (blocking while the reader is behind); frames a
+  fault loses or corrupts are made up by the frames that follow, as the
+  real unit keeps streaming while its reader waits. While the controller
+  waits for something else (``clock.sleep``) nobody reads: the frames older
+  than the last :data:`_IDLE_TAIL_S` are skipped (a counter gap), what was
+  still queued is dropped and the pty's input is flushed, as in a UART
+  nobody reads. Frames are made in the controller's thread, so which frames
+  exist and what they say depends only on its calls, never on scheduling.
 
 Faults (armed on the :class:`FaultInjector`; see :data:`FAULTS`):
 
@@ -59,7 +65,10 @@ import struct
 import termios
 import threading
 import tty
+from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -79,11 +88,33 @@ FAULTS = ("corrupt_frames", "lose_frames", "garbage", "stall", "saturate")
 
 #: frame times → (rate: (n,) for a single-axis gyro or (n, 3) for an IMU, temperature or None)
 GyroSource = Callable[[np.ndarray], tuple[np.ndarray, "np.ndarray | None"]]
+#: what a staged source's frames see (table rate, chamber temperature, table angle; per frame)
+SourceInputs = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+@runtime_checkable
+class StagedGyroSource(Protocol):
+    """A source whose physics is read apart from its (costly) gyro model.
+
+    On simulated time the port reads the physics a span's frames see in the
+    controller's thread (cheap, and fixed before the controller can command
+    anything new) and leaves the model, the noise and the encoding to its own
+    thread, beside the reader. A plain :data:`GyroSource` must then be a pure
+    function of the frame times.
+    """
+
+    def inputs_at(self, t_s: np.ndarray) -> SourceInputs:
+        """The physics at the frame times ``t_s``."""
+
+    def emit(self, t_s: np.ndarray, inputs: SourceInputs) -> tuple[np.ndarray, np.ndarray | None]:
+        """The gyro's output for frames at ``t_s`` that see ``inputs`` (continues its state)."""
 
 _POLL_S = 0.05          # how often blocking waits look at the stop flag
 _REAL_BLOCK_WALL_S = 0.01      # real clock: a block spans at most this much wall time
 _REAL_MAX_LAG_S = 2.0          # real clock: frames older than this (clock s) behind the clock are dropped
 _EPS_FRAMES = 1e-6      # tolerance when converting clock time to a frame number
+_IDLE_TAIL_S = 0.1      # simulated clock, nobody reading: the frames of this last span are sent
+_WRITE_BYTES = 1 << 16  # simulated clock: bytes handed to the pty per write
 
 
 class SimulatedGyroPort:
@@ -139,6 +170,10 @@ class SimulatedGyroPort:
         self._flushed_k = -(2**62)      # frames before this one were flushed by the reader
         self.port_name = os.ttyname(self._slave_fd)
         self._closed = False
+        self._out = bytearray()         # simulated clock: bytes made, not yet in the pty
+        self._out_lock = threading.Condition()
+        self._spans: deque[_Span] = deque()   # simulated clock: read spans not yet made
+        self._making = False                  # the stream thread is making a span
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -146,6 +181,9 @@ class SimulatedGyroPort:
         if self._closed:
             raise RuntimeError("simulated gyro: cannot start after stop()")
         if self._thread is None:
+            if isinstance(self.clock, SimClock):
+                self.next_frame = max(self.next_frame, self._frames_before(self.clock.now_s()))
+                self.clock.subscribe(self._on_advance)
             self._thread = threading.Thread(target=self._run, name="sim-gyro-pty", daemon=True)
             self._thread.start()
         return self
@@ -153,6 +191,10 @@ class SimulatedGyroPort:
     def stop(self) -> None:
         """Stop the writer, join it and close both pty ends (safe to call twice)."""
         self._stop.set()
+        if isinstance(self.clock, SimClock):
+            self.clock.unsubscribe(self._on_advance)
+        with self._out_lock:
+            self._out_lock.notify_all()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
         if not self._closed:
@@ -175,6 +217,9 @@ class SimulatedGyroPort:
     # ------------------------------------------------------------------ writer
 
     def _run(self) -> None:
+        if isinstance(self.clock, SimClock):
+            self._deliver()
+            return
         # Start at the current time: a session clock may have run for hours,
         # and a real gyro does not replay the frames from before it was on.
         k_now = math.floor(self.clock.now_s() * self.sample_rate_hz + _EPS_FRAMES)
@@ -187,6 +232,147 @@ class SimulatedGyroPort:
         except BaseException as exc:  # noqa: BLE001 - reported through .error, thread must end
             if not self._stop.is_set():
                 self.error = exc
+
+    # ------------------------------------------------------------------ simulated clock
+
+    def _frames_before(self, t_s: float) -> int:
+        """Number of grid frames k with t_k = k / fs earlier than ``t_s``."""
+        return math.ceil(t_s * self.sample_rate_hz - _EPS_FRAMES)
+
+    def _on_advance(self, from_s: float, to_s: float, reading: bool) -> None:
+        """The controller moved simulated time to ``to_s``: the frames of the span.
+
+        Runs in the controller's thread, before its call returns. Which frames
+        exist, and the physics each one sees, are fixed here, from its calls
+        alone; the model and the encoding of a read span run on the stream
+        thread in order (:meth:`_make_span`), so two runs with one seed give
+        the same bytes however the threads are scheduled.
+        """
+        if self._stop.is_set():
+            return
+        try:
+            self._wait_made()
+            if reading:
+                self._queue_read_span(to_s - from_s)
+            else:
+                self._make_idle_tail(self._frames_before(to_s))
+        except Exception as exc:  # noqa: BLE001 - reported through .error; the driver sees silence
+            self.error = exc
+            self._stop.set()
+
+    def _queue_read_span(self, span_s: float) -> None:
+        """Every frame of ``span_s`` (counted from the span, so n / fs seconds make n frames)."""
+        span = int(round(span_s * self.sample_rate_hz))
+        if span <= 0:
+            return
+        k = np.arange(self.next_frame, self.next_frame + span, dtype=np.int64)
+        inputs = (self.source.inputs_at(k / self.sample_rate_hz)
+                  if isinstance(self.source, StagedGyroSource) else None)
+        with self._out_lock:
+            self._spans.append(_Span(k, inputs))
+            self._making = True
+            self._out_lock.notify_all()
+
+    def _wait_made(self) -> None:
+        """Block until every queued span is made (its frame numbers are then final)."""
+        with self._out_lock:
+            while (self._spans or self._making) and not self._stop.is_set():
+                self._out_lock.wait(_POLL_S)
+
+    def _make_span(self, span: _Span) -> None:
+        """Frames of a read span, then as many more as faults made unreadable.
+
+        Make-up frames come in whole blocks (a surplus stays with the reader) and
+        see the conditions of the span's last frame (the controller may command
+        new ones as soon as its read is complete); a stream that loses nearly
+        everything is not made up past twice the span: the reader then times
+        out, as it would on the rig.
+        """
+        wanted, made, total = span.k.size, 0, span.k.size
+        while wanted > 0 and made < 2 * total + 2 * self.block_frames and not self._stop.is_set():
+            k0 = self.next_frame
+            if made < total:
+                rows = slice(made, made + min(self.block_frames, wanted))
+                inputs = None if span.inputs is None else tuple(x[rows] for x in span.inputs)
+                size = rows.stop - rows.start
+            else:
+                size = self.block_frames
+                inputs = None if span.inputs is None else tuple(
+                    np.repeat(x[-1:], size, axis=0) for x in span.inputs)
+            k = np.arange(k0, k0 + size, dtype=np.int64)
+            before = self.injected["lose_frames"] + self.injected["corrupt_frames"]
+            data, _, _ = self._encode_block(k, inputs)
+            self.next_frame = k0 + size
+            made += size
+            wanted -= size - (self.injected["lose_frames"] + self.injected["corrupt_frames"] - before)
+            with self._out_lock:
+                self._out += data
+            if not self.faults.is_armed("stall"):
+                self._write_some()      # the reader starts on this block while the next is made
+
+    def reseed(self, seed: np.random.SeedSequence) -> None:
+        """Draw the injected garbage from ``seed`` from now on (a dry run's attempt)."""
+        self._wait_made()
+        self._rng = np.random.default_rng(seed)
+
+    def _make_idle_tail(self, k_end: int) -> None:
+        """Nobody reads: only the last frames are in the UART; older ones are gone."""
+        tail = max(1, int(round(_IDLE_TAIL_S * self.sample_rate_hz)))
+        self.next_frame = max(self.next_frame, k_end - tail)
+        if k_end <= self.next_frame:
+            return
+        k = np.arange(self.next_frame, k_end, dtype=np.int64)
+        data, _, _ = self._encode_block(k)
+        self.next_frame = k_end
+        with self._out_lock:
+            # Written here, under the lock, so nothing of it can arrive after the
+            # controller's next flush; what does not fit is lost, as in a full UART.
+            self._out.clear()
+            termios.tcflush(self._slave_fd, termios.TCIFLUSH)
+            with contextlib.suppress(BlockingIOError):
+                os.write(self._master_fd, data)
+
+    def _write_some(self) -> int:
+        """One non-blocking write of what is made; returns the bytes written."""
+        with self._out_lock:
+            if not self._out:
+                return 0
+            try:
+                written = os.write(self._master_fd, self._out[:_WRITE_BYTES])
+            except BlockingIOError:
+                return 0
+            del self._out[:written]
+            self.frames_written += written // self.layout.length
+            return written
+
+    def _deliver(self) -> None:
+        """The stream thread: make the queued read spans, move the bytes into the pty."""
+        try:
+            while not self._stop.is_set():
+                with self._out_lock:
+                    if not self._spans and not self._out:
+                        self._out_lock.wait(_POLL_S)
+                        continue
+                    span = self._spans.popleft() if self._spans else None
+                if span is not None:
+                    self._make_span(span)
+                    with self._out_lock:
+                        self._making = bool(self._spans)
+                        self._out_lock.notify_all()
+                    continue
+                if self._stalled():
+                    continue
+                if not self._write_some():
+                    select.select([], [self._master_fd], [], _POLL_S)
+        except OSError as exc:
+            if not self._stop.is_set():
+                self.error = exc
+        except Exception as exc:  # noqa: BLE001 - reported through .error; the driver sees silence
+            self.error = exc
+        finally:
+            with self._out_lock:
+                self._making = False
+                self._out_lock.notify_all()
 
     def _stalled(self) -> bool:
         """Honour an armed ``stall``; True if the writer waited (loop again)."""
@@ -228,16 +414,12 @@ class SimulatedGyroPort:
         fs = self.sample_rate_hz
         k_now = math.floor(self.clock.now_s() * fs + _EPS_FRAMES)
         self.next_frame = max(self.next_frame, self._note_flush())
-        if isinstance(self.clock, SimClock):
-            self.next_frame = max(self.next_frame, k_now)
-            n_frames = self.block_frames
-        else:
-            self.next_frame = max(self.next_frame, k_now - self._max_lag_frames())
-            n_frames = min(self.block_frames, self._real_frames(_REAL_BLOCK_WALL_S))
+        self.next_frame = max(self.next_frame, k_now - self._max_lag_frames())
+        n_frames = min(self.block_frames, self._real_frames(_REAL_BLOCK_WALL_S))
         k0 = self.next_frame
         k = np.arange(k0, k0 + n_frames, dtype=np.int64)
         t_end_s = (k0 + n_frames) / fs
-        if not isinstance(self.clock, SimClock) and not self._wait_real_time(t_end_s):
+        if not self._wait_real_time(t_end_s):
             return
         data, n_garbage, k_first = self._encode_block(k)
         self.next_frame = k0 + n_frames
@@ -245,16 +427,17 @@ class SimulatedGyroPort:
         if written is None:
             return
         self.frames_written += written
-        if isinstance(self.clock, SimClock):
-            self.clock.advance_to(t_end_s)
 
-    def _encode_block(self, k: np.ndarray) -> tuple[bytes, int, int]:
+    def _encode_block(self, k: np.ndarray, inputs: SourceInputs | None = None
+                      ) -> tuple[bytes, int, int]:
         """Frames for grid indices ``k`` with the armed faults applied.
 
+        ``inputs``: the physics a staged source's frames see, read beforehand.
         Returns (bytes, garbage prefix length, grid index of the first frame written).
         """
         t_s = k / self.sample_rate_hz
-        rate_out, temp_c = self.source(t_s)
+        rate_out, temp_c = (self.source(t_s) if inputs is None
+                            else self.source.emit(t_s, inputs))
         rate_out = np.asarray(rate_out, dtype=np.float64)
         if rate_out.ndim == 2:      # a three-axis IMU source: every axis as it is
             rate = np.array(rate_out, dtype=np.float64, copy=True).reshape(k.size, 3)
@@ -313,25 +496,18 @@ class SimulatedGyroPort:
     def _write_all(self, data: bytes, frames_from: int, k_first: int) -> int | None:
         """Blocking write into the master, with ``select`` so that stop() is prompt.
 
-        Returns the number of frames written, None if stopped. Frames sampled
-        before the reader's last input flush are never written (see
-        :meth:`_note_flush`). On a real clock, frames more than
+        Returns the number of frames written, None if stopped (real clock
+        only). Frames sampled before the reader's last input flush are never
+        written (see :meth:`_note_flush`), and frames more than
         :data:`_REAL_MAX_LAG_S` older than the clock are dropped (a real unit
-        would have sent them long ago). On a SimClock,
-        frames whose time the clock has already passed are stale: while the
-        writer waited for the reader, someone else moved time on (the
-        orchestrator changed the table rate, settled, and flushed its input),
-        so those frames describe conditions that no longer hold and would be
-        read as the first samples of the next step. At every frame boundary
-        the writer therefore skips the frames older than the clock; a frame
-        in progress is always completed, so no garbage is made.
+        would have sent them long ago); a frame in progress is always
+        completed, so no garbage is made.
         """
         length = self.layout.length
         view = memoryview(data)
         position = 0
         skipped = 0
-        simulated = isinstance(self.clock, SimClock)
-        lag_frames = 0 if simulated else self._max_lag_frames()
+        lag_frames = self._max_lag_frames()
         while position < len(data):
             if self._stop.is_set():
                 return None
@@ -360,3 +536,12 @@ class SimulatedGyroPort:
                     return None
                 raise
         return (len(data) - frames_from) // length - skipped
+
+
+@dataclass(frozen=True)
+class _Span:
+    """A read span queued for the stream thread: its frame numbers and, for a staged
+    source, the physics those frames see."""
+
+    k: np.ndarray
+    inputs: SourceInputs | None

@@ -83,7 +83,18 @@ class ImuPhysicsSource:
         mix = np.eye(3) + self.model.misalignment_rad(float(np.mean(chamber)))
         return body @ mix.T, chamber, angle
 
-    def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def reseed(self, seed: np.random.SeedSequence) -> None:
+        """One child stream per axis."""
+        for sim, child in zip(self.simulators, seed.spawn(len(self.simulators)), strict=True):
+            sim.reseed(child)
+
+    def inputs_at(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(input rate per axis (n, 3), chamber °C, table angle), in the fixture's mounting now."""
+        return self.axis_inputs(np.asarray(t_s, dtype=float))
+
+    def emit(self, t_s: np.ndarray, inputs: tuple[np.ndarray, np.ndarray, np.ndarray]
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """All three axes for frames at ``t_s`` seeing ``inputs`` (a gap is skipped first)."""
         t_s = np.asarray(t_s, dtype=float)
         first = self.simulators[0]
         if float(t_s[0]) - first.t_next_s > 0.5 / first.fs_hz:
@@ -92,7 +103,7 @@ class ImuPhysicsSource:
                     rates, chamber, angle = self.axis_inputs(grid)
                     return rates[:, axis], chamber, angle
                 sim.skip_to(float(t_s[0]), inputs_at, self.skip_step_s)
-        rates, chamber, angle = self.axis_inputs(t_s)
+        rates, chamber, angle = inputs
         outputs = []
         sensor = None
         for axis, sim in enumerate(self.simulators):
@@ -100,3 +111,7 @@ class ImuPhysicsSource:
             outputs.append(samples.gyro)
             sensor = samples.sensor_temp_c if sensor is None else sensor
         return np.stack(outputs, axis=1), sensor
+
+    def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        t_s = np.asarray(t_s, dtype=float)
+        return self.emit(t_s, self.axis_inputs(t_s))

@@ -35,6 +35,7 @@ from gyrocal.models.clock import RealClock, SimClock
 from gyrocal.models.gyro_model import GyroModel
 from gyrocal.models.gyro_sim import GyroSimulator
 from gyrocal.models.imu_model import ImuModel, load_any_model
+from gyrocal.models.seeding import attempt_seed
 from gyrocal.models.table import TablePhysics
 
 #: Seed offsets so the chamber, table and gyro noise streams are independent.
@@ -62,15 +63,26 @@ class GyroPhysicsSource:
                 np.asarray(self.chamber.air_temperature_c(t_q), dtype=float),
                 np.asarray(self.table.angle_deg(t_q), dtype=float))
 
-    def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def reseed(self, seed: np.random.SeedSequence) -> None:
+        self.simulator.reseed(seed)
+
+    def inputs_at(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Table rate, chamber air temperature and table angle at the frame times."""
+        return self._inputs(t_s)
+
+    def emit(self, t_s: np.ndarray, inputs: tuple[np.ndarray, np.ndarray, np.ndarray]
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """The model's output for frames at ``t_s`` seeing ``inputs`` (a gap is skipped first)."""
         sim = self.simulator
         gap_s = float(t_s[0]) - sim.t_next_s
         if gap_s > 0.5 / sim.fs_hz:
             sim.skip_to(float(t_s[0]), self._inputs, self.skip_step_s)
             self.skipped_s += gap_s
-        rate, chamber, angle = self._inputs(t_s)
-        samples = sim.generate(rate, chamber, angle)
+        samples = sim.generate(*inputs)
         return samples.gyro, samples.sensor_temp_c
+
+    def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.emit(t_s, self._inputs(t_s))
 
 
 @dataclass(frozen=True)
@@ -161,6 +173,22 @@ class SimulatedStation:
                 accelerometer_range_g=gyro_cfg.accelerometer_range_g,
             )
         self._started = False
+
+    def begin_attempt(self, step_id: str, attempt: int) -> None:
+        """Every simulator draws from (seed, step id, attempt) from here (``models/seeding.py``).
+
+        Called by the run before an attempt's first sample, in the controller's
+        thread: with the stream made on demand (``gyro_pty.py``), two runs with
+        one seed give the same samples bit for bit, however long a simulator
+        idled before the attempt.
+        """
+        if self.seed is None:       # no seed: fresh entropy, nothing to reproduce
+            return
+        chamber, table, gyro, pty = attempt_seed(self.seed, step_id, attempt).spawn(4)
+        self.chamber_physics.reseed(chamber)
+        self.table_physics.reseed(table)
+        self.source.reseed(gyro)
+        self.gyro_port.reseed(pty)
 
     @property
     def addresses(self) -> SimAddresses:

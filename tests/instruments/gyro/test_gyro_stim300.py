@@ -58,6 +58,12 @@ def rig():
         sim.stop()
 
 
+def take(clock, gyro, n, timeout_s=5.0):
+    """What the orchestrator does on simulated time: let n frames' time pass, read them."""
+    clock.elapse_reading(n / FS_HZ)
+    return gyro.read_samples(n, timeout_s=timeout_s)
+
+
 def frame_numbers(block):
     k = np.rint(block.rate / LSB).astype(np.int64)
     assert np.array_equal(block.counter, (k % 256).astype(np.uint8)), "rate and counter disagree"
@@ -72,23 +78,146 @@ def test_driver_satisfies_the_gyro_stream_protocol(rig):
     assert identity.address == sim.port_name and "0x90" in identity.description
 
 
-def test_sim_clock_advances_as_the_driver_reads(rig):
+def test_sim_clock_stream_gives_the_frames_of_the_time_the_reader_lets_pass(rig):
     clock = SimClock()
     sim, gyro = rig(clock, with_temperature=True, block_frames=64)
     gyro.flush()
-    blocks = [gyro.read_samples(5000, timeout_s=10) for _ in range(4)]
+    blocks = [take(clock, gyro, 5000, timeout_s=10) for _ in range(4)]
     k = np.concatenate([frame_numbers(b) for b in blocks])
-    assert np.array_equal(np.diff(k), np.ones(k.size - 1)), "frames must be consecutive"
+    assert np.array_equal(k, np.arange(20000)), "every frame of the elapsed time, in order"
     assert all(b.lost_frames == b.crc_errors == b.garbage_bytes == 0 for b in blocks)
     assert np.array_equal(np.concatenate([b.index for b in blocks]), np.arange(k.size))
     temp = np.concatenate([b.temperature_c for b in blocks])
     expected_temp = np.rint((20.0 + 0.5 * np.sin(k / FS_HZ)) * 256) / 256
     assert np.array_equal(temp, expected_temp)
-    # Simulated time is where the reader is, give or take what sits in the
-    # pty buffer (~18 KiB) plus the block being written.
-    read_until_s = (k[-1] + 1) / FS_HZ
-    slack_s = (20480 / 14 + 2 * 64) / FS_HZ
-    assert read_until_s - 64 / FS_HZ <= clock.now_s() <= read_until_s + slack_s
+    # Nobody but the reader moved simulated time: it is exactly where the reading ended.
+    assert clock.now_s() == pytest.approx(20000 / FS_HZ, abs=1e-9)
+    time.sleep(0.05)
+    assert clock.now_s() == pytest.approx(20000 / FS_HZ, abs=1e-9)
+
+
+def test_surplus_samples_carry_over_to_the_next_call(rig):
+    clock = SimClock()
+    sim, gyro = rig(clock)
+    clock.elapse_reading(3008 / FS_HZ)
+    first = gyro.read_samples(7)
+    second = gyro.read_samples(3000)
+    third = gyro.read_samples(1)
+    k = np.concatenate([frame_numbers(b) for b in (first, second, third)])
+    assert [len(first), len(second), len(third)] == [7, 3000, 1]
+    assert np.array_equal(np.diff(k), np.ones(k.size - 1))
+    assert np.concatenate([first.index, second.index, third.index]).tolist() == list(range(3008))
+
+
+def test_flush_after_the_controller_waited_gives_fresh_frames(rig):
+    clock = SimClock()
+    sim, gyro = rig(clock)
+    take(clock, gyro, 500)
+    clock.sleep(10.0)                   # the orchestrator waiting for a chamber: nobody reads
+    gyro.flush()
+    block = take(clock, gyro, 3000)
+    k = frame_numbers(block)
+    assert block.index[0] == 0
+    # The frames made while nobody read are gone; the first one read is the first
+    # frame after the wait, and none is missing after it.
+    assert np.array_equal(k, 500 + int(10.0 * FS_HZ) + np.arange(3000))
+
+
+@pytest.mark.parametrize("n_faulty", [1, 5, 200])
+def test_corrupt_frames_are_counted_and_never_returned(rig, n_faulty):
+    faults = FaultInjector(FAULTS)
+    clock = SimClock()
+    sim, gyro = rig(clock, faults=faults)
+    k_before = frame_numbers(take(clock, gyro, 100))[-1]
+    faults.arm("corrupt_frames", count=n_faulty)
+    blocks = [take(clock, gyro, 1000) for _ in range(5)]
+    k = np.concatenate([frame_numbers(b) for b in blocks])   # every sample is a true frame
+    assert sim.injected["corrupt_frames"] == n_faulty
+    assert sum(b.crc_errors for b in blocks) == n_faulty
+    assert sum(b.lost_frames for b in blocks) == n_faulty == (k[-1] - k_before) - k.size
+    assert sum(b.garbage_bytes for b in blocks) == 0
+
+
+def test_lost_frames_are_counted_from_the_counter(rig):
+    faults = FaultInjector(FAULTS)
+    clock = SimClock()
+    sim, gyro = rig(clock, faults=faults)
+    k_before = frame_numbers(take(clock, gyro, 100))[-1]
+    faults.arm("lose_frames", count=7)
+    blocks = [take(clock, gyro, 1000) for _ in range(5)]
+    k = np.concatenate([frame_numbers(b) for b in blocks])
+    assert sim.injected["lose_frames"] == 7
+    assert sum(b.lost_frames for b in blocks) == 7 == (k[-1] - k_before) - k.size
+    assert sum(b.crc_errors + b.garbage_bytes for b in blocks) == 0
+
+
+def test_garbage_is_skipped_and_every_byte_accounted_for(rig):
+    faults = FaultInjector(FAULTS)
+    clock = SimClock()
+    sim, gyro = rig(clock, faults=faults)
+    take(clock, gyro, 100)
+    faults.arm("garbage", count=4, n_bytes=53)
+    blocks = [take(clock, gyro, 1000) for _ in range(5)]
+    k = np.concatenate([frame_numbers(b) for b in blocks])
+    assert np.array_equal(np.diff(k), np.ones(k.size - 1)), "garbage must not cost a frame"
+    assert sim.injected["garbage_bytes"] == 4 * 53
+    # A random identifier byte followed by a frame length of garbage is a
+    # "CRC error" span; either way every injected byte is accounted for.
+    skipped = sum(b.garbage_bytes + 18 * b.crc_errors for b in blocks)   # 0x90 is 18 bytes
+    assert skipped == 4 * 53
+    assert sum(b.lost_frames for b in blocks) == 0
+
+
+def test_saturated_frames_are_flagged_at_full_scale(rig):
+    faults = FaultInjector(FAULTS)
+    clock = SimClock()
+    sim, gyro = rig(clock, faults=faults)
+    take(clock, gyro, 100)
+    faults.arm("saturate", count=4)
+    block = take(clock, gyro, 5000)
+    flagged = block.flagged
+    assert np.array_equal(flagged, (block.status & 0x10) != 0)      # datasheet bit 4: overload
+    assert block.flagged_count == 4
+    assert int(flagged.sum()) == 4 == sim.injected["saturate"]
+    assert np.all(block.rate[flagged] == RAW_FULL_SCALE * LSB)
+    k = np.rint(block.rate[~flagged] / LSB).astype(np.int64)
+    assert np.array_equal(block.counter[~flagged], (k % 256).astype(np.uint8))
+    assert block.lost_frames == 0 and block.crc_errors == 0
+
+
+def test_stall_raises_a_clear_timeout_and_the_stream_resumes(rig):
+    faults = FaultInjector(FAULTS)
+    clock = SimClock()
+    sim, gyro = rig(clock, faults=faults)
+    before = take(clock, gyro, 100)
+    faults.arm("stall", count=None)
+    with pytest.raises(InstrumentTimeout) as caught:
+        take(clock, gyro, 2000, timeout_s=0.3)
+    error = caught.value
+    assert error.instrument == "gyro" and error.transient
+    assert "read_samples(n=2000" in str(error)
+    assert "of 2000 samples within 0.3 s" in str(error) and sim.port_name in str(error)
+    faults.clear("stall")
+    after = gyro.read_samples(2000, timeout_s=5)    # the frames of the time already let pass
+    k_after = frame_numbers(after)
+    assert np.array_equal(np.diff(k_after), np.ones(k_after.size - 1))
+    # Samples decoded before the timeout were kept for this call, and nothing
+    # was lost: a stalled SimClock gyro loses no frames.
+    assert after.lost_frames == 0
+    assert after.index[0] == before.index[-1] + 1
+    assert k_after[0] == frame_numbers(before)[-1] + 1
+
+
+def test_timed_stall_is_ridden_out_within_the_timeout(rig):
+    faults = FaultInjector(FAULTS)
+    clock = SimClock()
+    sim, gyro = rig(clock, faults=faults)
+    take(clock, gyro, 10)
+    faults.arm("stall", count=1, duration_s=0.3)
+    block = take(clock, gyro, 30000, timeout_s=10)
+    k = frame_numbers(block)
+    assert np.array_equal(np.diff(k), np.ones(k.size - 1))
+    assert sim.injected["stalls"] == 1
 
 
 def test_real_clock_paces_frames_and_never_sends_them_early(rig):
@@ -102,129 +231,10 @@ def test_real_clock_paces_frames_and_never_sends_them_early(rig):
         assert clock.now_s() >= (k[-1] + 1) / FS_HZ
 
 
-def test_surplus_samples_carry_over_to_the_next_call(rig):
-    sim, gyro = rig(SimClock())
-    first = gyro.read_samples(7)
-    second = gyro.read_samples(3000)
-    third = gyro.read_samples(1)
-    k = np.concatenate([frame_numbers(b) for b in (first, second, third)])
-    assert [len(first), len(second), len(third)] == [7, 3000, 1]
-    assert np.array_equal(np.diff(k), np.ones(k.size - 1))
-    assert np.concatenate([first.index, second.index, third.index]).tolist() == list(range(3008))
-
-
-def test_flush_after_someone_else_advanced_the_clock_gives_fresh_frames(rig):
+def test_gyro_gone_is_a_connection_error(rig):
     clock = SimClock()
     sim, gyro = rig(clock)
-    gyro.read_samples(500)
-    time.sleep(0.1)                     # let the writer block on the full pty buffer
-    clock.sleep(10.0)                   # e.g. the orchestrator waiting for a chamber
-    gyro.flush()
-    block = gyro.read_samples(3000)
-    k = frame_numbers(block)
-    assert block.index[0] == 0
-    fresh = k >= 10.0 * FS_HZ
-    # At most the one frame that was half-written when time jumped is stale;
-    # the writer drops the rest of its stale block.
-    assert np.count_nonzero(~fresh) <= 1
-    assert np.array_equal(np.diff(k[fresh]), np.ones(np.count_nonzero(fresh) - 1))
-
-
-@pytest.mark.parametrize("n_faulty", [1, 5, 200])
-def test_corrupt_frames_are_counted_and_never_returned(rig, n_faulty):
-    faults = FaultInjector(FAULTS)
-    sim, gyro = rig(SimClock(), faults=faults)
-    gyro.read_samples(100)
-    faults.arm("corrupt_frames", count=n_faulty)
-    blocks = [gyro.read_samples(1000) for _ in range(5)]
-    k = np.concatenate([frame_numbers(b) for b in blocks])   # every sample is a true frame
-    assert sim.injected["corrupt_frames"] == n_faulty
-    assert sum(b.crc_errors for b in blocks) == n_faulty
-    assert sum(b.lost_frames for b in blocks) == n_faulty == (k[-1] - k[0] + 1) - k.size
-    assert sum(b.garbage_bytes for b in blocks) == 0
-
-
-def test_lost_frames_are_counted_from_the_counter(rig):
-    faults = FaultInjector(FAULTS)
-    sim, gyro = rig(SimClock(), faults=faults)
-    gyro.read_samples(100)
-    faults.arm("lose_frames", count=7)
-    blocks = [gyro.read_samples(1000) for _ in range(5)]
-    k = np.concatenate([frame_numbers(b) for b in blocks])
-    assert sim.injected["lose_frames"] == 7
-    assert sum(b.lost_frames for b in blocks) == 7 == (k[-1] - k[0] + 1) - k.size
-    assert sum(b.crc_errors + b.garbage_bytes for b in blocks) == 0
-
-
-def test_garbage_is_skipped_and_every_byte_accounted_for(rig):
-    faults = FaultInjector(FAULTS)
-    sim, gyro = rig(SimClock(), faults=faults)
-    gyro.read_samples(100)
-    faults.arm("garbage", count=4, n_bytes=53)
-    blocks = [gyro.read_samples(1000) for _ in range(5)]
-    k = np.concatenate([frame_numbers(b) for b in blocks])
-    assert np.array_equal(np.diff(k), np.ones(k.size - 1)), "garbage must not cost a frame"
-    assert sim.injected["garbage_bytes"] == 4 * 53
-    # A random identifier byte followed by a frame length of garbage is a
-    # "CRC error" span; either way every injected byte is accounted for.
-    skipped = sum(b.garbage_bytes + 18 * b.crc_errors for b in blocks)   # 0x90 is 18 bytes
-    assert skipped == 4 * 53
-    assert sum(b.lost_frames for b in blocks) == 0
-
-
-def test_saturated_frames_are_flagged_at_full_scale(rig):
-    faults = FaultInjector(FAULTS)
-    sim, gyro = rig(SimClock(), faults=faults)
-    gyro.read_samples(100)
-    faults.arm("saturate", count=4)
-    block = gyro.read_samples(5000)
-    flagged = block.flagged
-    assert np.array_equal(flagged, (block.status & 0x10) != 0)      # datasheet bit 4: overload
-    assert block.flagged_count == 4
-    assert int(flagged.sum()) == 4 == sim.injected["saturate"]
-    assert np.all(block.rate[flagged] == RAW_FULL_SCALE * LSB)
-    k = np.rint(block.rate[~flagged] / LSB).astype(np.int64)
-    assert np.array_equal(block.counter[~flagged], (k % 256).astype(np.uint8))
-    assert block.lost_frames == 0 and block.crc_errors == 0
-
-
-def test_stall_raises_a_clear_timeout_and_the_stream_resumes(rig):
-    faults = FaultInjector(FAULTS)
-    sim, gyro = rig(SimClock(), faults=faults)
-    before = gyro.read_samples(100)
-    faults.arm("stall", count=None)
-    with pytest.raises(InstrumentTimeout) as caught:
-        for _ in range(100):            # drain what was already buffered
-            gyro.read_samples(2000, timeout_s=0.3)
-    error = caught.value
-    assert error.instrument == "gyro" and error.transient
-    assert "read_samples(n=2000" in str(error)
-    assert "of 2000 samples within 0.3 s" in str(error) and sim.port_name in str(error)
-    faults.clear("stall")
-    after = gyro.read_samples(3000, timeout_s=5)
-    k_after = frame_numbers(after)
-    assert np.array_equal(np.diff(k_after), np.ones(k_after.size - 1))
-    # Samples decoded before the timeout were kept for this call, and nothing
-    # was lost: a stalled SimClock gyro loses no frames.
-    assert after.lost_frames == 0
-    assert after.index[0] == before.index[-1] + 1
-    assert k_after[0] == frame_numbers(before)[-1] + 1
-
-
-def test_timed_stall_is_ridden_out_within_the_timeout(rig):
-    faults = FaultInjector(FAULTS)
-    sim, gyro = rig(SimClock(), faults=faults)
-    gyro.read_samples(10)
-    faults.arm("stall", count=1, duration_s=0.3)
-    block = gyro.read_samples(30000, timeout_s=10)
-    k = frame_numbers(block)
-    assert np.array_equal(np.diff(k), np.ones(k.size - 1))
-    assert sim.injected["stalls"] == 1
-
-
-def test_gyro_gone_is_a_connection_error(rig):
-    sim, gyro = rig(SimClock())
-    gyro.read_samples(10)
+    take(clock, gyro, 10)
     sim.stop()
     with pytest.raises((InstrumentConnectionError, InstrumentTimeout)) as caught:
         for _ in range(100):

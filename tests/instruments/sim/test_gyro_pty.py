@@ -70,8 +70,10 @@ def minimal_decode_0x94(data: bytes):
 
 
 def test_simulator_speaks_the_documented_layout_to_an_independent_reader():
-    with SimulatedGyroPort(source, SimClock(), sample_rate_hz=FS_HZ, with_temperature=True,
+    clock = SimClock()
+    with SimulatedGyroPort(source, clock, sample_rate_hz=FS_HZ, with_temperature=True,
                            lsb=LSB, block_frames=50) as sim:
+        clock.elapse_reading(600 / FS_HZ)
         data = read_raw(sim.port_name, 25 * 600)
     frames = minimal_decode_0x94(data)
     assert len(frames) >= 590
@@ -92,28 +94,31 @@ def test_simulator_speaks_the_documented_layout_to_an_independent_reader():
     assert {f[1] for f in frames} == {0} and {f[4] for f in frames} == {250}
 
 
-def test_without_a_reader_simulated_time_stops_at_the_buffer():
-    """Back-pressure: the gyro cannot run ahead of a reader that is not reading."""
+def test_simulated_time_moves_only_with_the_controller():
+    """Only the controller moves a SimClock; a running gyro neither moves it nor sends ahead."""
     clock = SimClock()
     with SimulatedGyroPort(source, clock, sample_rate_hz=FS_HZ, lsb=LSB, block_frames=32) as sim:
-        time.sleep(0.3)
-        held_s = clock.now_s()
         time.sleep(0.2)
-        assert clock.now_s() == held_s
-        assert 0 < held_s <= (20480 / 18 + 2 * 32) / FS_HZ
+        assert clock.now_s() == 0.0 and sim.next_frame == 0
+        assert read_raw(sim.port_name, 18, timeout_s=0.2) == b""
         assert sim.running
     assert not sim.running
 
 
-def test_stop_is_prompt_idempotent_and_closes_the_pty():
-    sim = SimulatedGyroPort(source, SimClock(), sample_rate_hz=FS_HZ, lsb=LSB).start()
-    time.sleep(0.1)                                   # writer now blocks on a full buffer
-    sim.stop()
-    sim.stop()
-    assert not sim.running
-    assert sim.error is None
-    with pytest.raises(RuntimeError, match="cannot start after stop"):
-        sim.start()
+def test_idle_time_leaves_only_the_last_frames_and_reading_time_every_frame():
+    """While nobody reads, only the last 0.1 s is in the UART; while read, every frame."""
+    clock = SimClock()
+    with SimulatedGyroPort(source, clock, sample_rate_hz=FS_HZ, lsb=LSB, block_frames=32) as sim:
+        clock.sleep(30.0)                              # e.g. a soak: nobody reads
+        clock.elapse_reading(200 / FS_HZ)              # then a read of 200 frames
+        data = read_raw(sim.port_name, 18 * 300, timeout_s=2)
+    assert len(data) == 18 * 300, "100 tail frames + 200 read frames, nothing more"
+    counters = np.frombuffer(data, np.uint8)[11::18].astype(int)   # 0x90: counter at offset 11
+    k_expected = np.arange(30000 - 100, 30200)
+    assert np.array_equal(counters, (k_expected * round(2000 / FS_HZ)) % 256)   # TS1524 §7.5.2.2.18
+    raw = np.array([int.from_bytes(data[i + 1:i + 4], "big", signed=True)
+                    for i in range(0, len(data), 18)])
+    assert np.array_equal(raw, np.rint(source(k_expected / FS_HZ)[0] / LSB))
 
 
 def test_real_clock_stream_starts_at_the_current_time_and_is_paced():
@@ -147,7 +152,9 @@ def test_source_without_temperature_is_reported_as_the_writer_error():
         ended.set()
         return np.zeros_like(t_s), None
 
-    with SimulatedGyroPort(rate_only, SimClock(), with_temperature=True) as sim:
+    clock = SimClock()
+    with SimulatedGyroPort(rate_only, clock, with_temperature=True) as sim:
+        clock.elapse_reading(0.01)
         ended.wait(2)
         for _ in range(100):
             if not sim.running:

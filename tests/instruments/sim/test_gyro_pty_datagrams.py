@@ -29,12 +29,14 @@ def source(t_s):
 @pytest.mark.parametrize("fs_hz", [125.0, 2000.0])
 def test_every_declared_type_is_served_and_read_back(identifier, fs_hz):
     kind = NORMAL_MODE_TYPES[identifier]
-    sim = SimulatedGyroPort(source, SimClock(), sample_rate_hz=fs_hz, lsb=LSB, block_frames=32,
+    clock = SimClock()
+    sim = SimulatedGyroPort(source, clock, sample_rate_hz=fs_hz, lsb=LSB, block_frames=32,
                             datagram=identifier, accelerometer_range_g=30)
     gyro = Stim300Gyro(sim.port_name, sample_rate_hz=fs_hz, lsb=LSB, datagram=identifier,
                        accelerometer_range_g=30, timeout_s=10)
     try:
         sim.start()
+        clock.elapse_reading(100 / fs_hz)      # the controller lets 100 frames' time pass
         block = gyro.read_samples(100)
     finally:
         gyro.close()
