@@ -308,6 +308,11 @@ STATION_ROOT = Section(
             Key("latitude_deg", _num(-90.0, 90.0), "sets the Earth-rate component removed "
                 "from the bias"),
             Key("address", _text(), "postal address (certificate)", False),
+            Key("height_m", _num(-500.0, 9000.0), "ellipsoidal height, m: local gravity for "
+                "accelerometer calibration (WGS-84 normal gravity with its second-order height "
+                "correction, NGA TR8350.2 eq. 4-1 and 4-3)", False, "0"),
+            Key("gravity_mps2", _num(9.7, 9.9), "measured local gravity, m/s²; replaces the "
+                "normal-gravity formula and its ±100 mGal anomaly allowance", False),
         )), "the lab"),
         Key("chamber", STATION_CHAMBER, "temperature chamber"),
         Key("table", STATION_TABLE, "rate table"),
@@ -606,6 +611,40 @@ MODEL_V2 = Section(
             "model-v2-misalignment-tempco", "misalignment_tempco_urad_per_c",
             "Temperature coefficients of the same elements; an element left out is 0.", tuple(Key(p, _num(), f"E_{p} per °C", False, "0") for p in _MATRIX_PAIRS)),
             "E_ij change per °C, µrad/°C", False),
+        Key("accelerometers", Section(
+            "model-v2-accelerometers", "accelerometers",
+            "The accelerometer triad, in g (9.80665 m/s²): output_i = (1 + k_i(T))·f_in,i + "
+            "b_i(T) + noise, f_in,i = f_i + Σ M_ij(T)·f_j, k_i(T) = 1e-6·(sf_error_ppm + "
+            "sf_tempco_ppm_per_c·ΔT), b_i(T) = 1e-3·(bias_mg + bias_tempco_mg_per_c·ΔT); "
+            "white noise of the given velocity random walk. Left out: ideal accelerometers.",
+            (
+                Key("axes", Section("model-v2-acc-axes", "accelerometers.axes",
+                    "The three accelerometers, all required.", tuple(
+                        Key(a, Section(f"model-v2-acc-axis-{a}", f"accelerometers.axes.{a}",
+                            f"Accelerometer {a}; a key left out is 0.", (
+                                Key("bias_mg", _num(), "bias at T0, mg", False, "0"),
+                                Key("bias_tempco_mg_per_c", _num(), "bias change per °C, mg/°C",
+                                    False, "0"),
+                                Key("sf_error_ppm", _num(), "scale-factor error at T0, ppm",
+                                    False, "0"),
+                                Key("sf_tempco_ppm_per_c", _num(), "scale-factor change per "
+                                    "°C, ppm/°C", False, "0"),
+                                Key("vrw_mps_per_rth", _num(0.0), "velocity random walk, "
+                                    "m/s/√h", False, "0"),
+                            )), f"accelerometer {a}") for a in AXES)),
+                    "the three accelerometers"),
+                Key("misalignment_urad", Section(
+                    "model-v2-acc-misalignment", "accelerometers.misalignment_urad",
+                    "M_ij: accelerometer i senses M_ij of the specific force along j; an element "
+                    "left out is 0.", tuple(Key(p, _num(), f"M_{p}", False, "0")
+                                            for p in _MATRIX_PAIRS)), "M_ij at T0, µrad", False),
+                Key("misalignment_tempco_urad_per_c", Section(
+                    "model-v2-acc-misalignment-tempco",
+                    "accelerometers.misalignment_tempco_urad_per_c",
+                    "Temperature coefficients of the same elements; an element left out is 0.",
+                    tuple(Key(p, _num(), f"M_{p} per °C", False, "0") for p in _MATRIX_PAIRS)),
+                    "M_ij change per °C, µrad/°C", False),
+            )), "accelerometer triad (seeds/003 §3.2)", False),
     ))
 
 PROCEDURE = Language(

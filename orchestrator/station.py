@@ -25,6 +25,7 @@ from gyrocal.instruments.gyro.datagram_types import (
     parse_identifier,
 )
 from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
+from gyrocal.models.gravity import STANDARD_GRAVITY_MPS2, local_gravity_g
 from gyrocal.orchestrator.notify import NotifyTarget, parse_notify
 from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
 from gyrocal.orchestrator.schema import (
@@ -79,6 +80,16 @@ class Site:
     name: str
     latitude_deg: float   # sets the Earth-rate component the analysis removes
     address: str | None = None   # the lab's address, printed on the calibration certificate
+    height_m: float = 0.0        # ellipsoidal height: local gravity (models/gravity.py)
+    #: a measured local gravity (m/s²) replaces the normal-gravity formula, and its anomaly term
+    gravity_mps2: float | None = None
+
+    @property
+    def gravity_g(self) -> float:
+        """Local gravity in standard g: measured if declared, else WGS-84 normal gravity."""
+        if self.gravity_mps2 is not None:
+            return self.gravity_mps2 / STANDARD_GRAVITY_MPS2
+        return local_gravity_g(self.latitude_deg, self.height_m)
 
 
 #: ``uncertainty`` section keys: ± half-widths (rectangular) of the reference accuracies the
@@ -289,7 +300,9 @@ def _uncertainty(ctx: Context, parent: Fields) -> dict[str, float] | None:
 def _site(ctx: Context, parent: Fields) -> Site:
     fields = _section(ctx, parent, "site")
     site = Site(fields.take("name", text), fields.take("latitude_deg", number(-90.0, 90.0)),
-                fields.take("address", text, required=False))
+                fields.take("address", text, required=False),
+                fields.take("height_m", number(-500.0, 9000.0), required=False, default=0.0),
+                fields.take("gravity_mps2", number(9.7, 9.9), required=False))
     fields.finish()
     return site
 

@@ -138,7 +138,7 @@ class SimulatedStation:
             self.source = ImuPhysicsSource(
                 self.model, self.sample_rate_hz, self.seed + _SEED_GYRO, self.table_physics,
                 self.chamber_physics, station.site.latitude_deg, self.fixture,
-                start_s=clock.now_s())
+                start_s=clock.now_s(), gravity_g=station.site.gravity_g)
         else:
             self.gyro_simulator = GyroSimulator(self.model, self.sample_rate_hz,
                                                 seed=self.seed + _SEED_GYRO)
@@ -159,6 +159,8 @@ class SimulatedStation:
                 faults=self.gyro_faults, block_frames=gyro_block_frames, seed=self.seed + _SEED_PTY,
                 axis=axis_index(gyro_cfg.axis), crlf=gyro_cfg.crlf, datagram=gyro_cfg.datagram,
                 accelerometer_range_g=gyro_cfg.accelerometer_range_g,
+                specific_force=(self.source.specific_force
+                                if isinstance(self.source, ImuPhysicsSource) else None),
             )
         self._started = False
 
