@@ -299,6 +299,16 @@ def _clock(seconds: float) -> str:
     return f"{hours:d}:{rest // 60:02d}:{rest % 60:02d}"
 
 
+def _remount_line(plan: Plan) -> list[str]:
+    """How often the operator must come to the table: each remount waits for `gyrocal confirm`."""
+    remounts = [s for s in plan.steps if s.kind == "remount"]
+    if not remounts:
+        return []
+    names = list(dict.fromkeys(s.mounting for s in remounts))
+    return [f"{len(remounts)} remounts by the operator ({len(names)} mountings: "
+            f"{', '.join(str(n) for n in names)}); the run waits at each for `gyrocal confirm`"]
+
+
 def format_plan(plan: Plan) -> str:
     """The plan as a fixed-width table an operator can check before starting the night."""
     header = ("#", "step", "kind", "setpoint", "rate", "move+settle", "logged/hold", "expected",
@@ -332,6 +342,7 @@ def format_plan(plan: Plan) -> str:
     lines += [
         "",
         f"{len(plan.steps)} steps; gyro data logged {format_duration(plan.logged_s())}",
+        *_remount_line(plan),
         f"ETA {format_duration(plan.total_s)} (worst case {format_duration(plan.max_total_s)} "
         "if every soak waits its maximum), then "
         f"{format_duration(plan.finish_s)} to return to the safe state",
