@@ -58,12 +58,25 @@ sequence:
 
 
 @pytest.fixture(scope="module")
-def accel(tmp_path_factory) -> dict:
+def run_dir(tmp_path_factory) -> Path:
     tmp = tmp_path_factory.mktemp("acc")
     (tmp / "acc.yaml").write_text(PROCEDURE)
     out = tmp / "run"
     assert main(["run", str(tmp / "acc.yaml"), "--sim", "--out", str(out), "--seed", "3"]) == EXIT_OK
-    return json.loads((out / "report" / "results.json").read_text())["imu"]["accelerometers"]
+    return out
+
+
+@pytest.fixture(scope="module")
+def accel(run_dir: Path) -> dict:
+    return json.loads((run_dir / "report" / "results.json").read_text())["imu"]["accelerometers"]
+
+
+def test_the_report_shows_the_accelerometer_calibration(run_dir: Path, accel) -> None:
+    html = (run_dir / "report" / "report.html").read_text()
+    assert "Accelerometers from gravity (IEEE Std 1293 six-position method)" in html
+    assert "WGS-84 normal gravity at 50.46° and 120 m: 9.810742 m/s²" in html
+    assert "positions +X, +Y, +Z, -X, -Y, -Z" in html
+    assert "acc_m_xy_urad" in html
 
 
 def test_dry_run_recovers_bias_scale_factor_and_misalignment_at_every_temperature(accel) -> None:
