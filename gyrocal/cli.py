@@ -206,6 +206,13 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--units", default="deg/s", choices=["deg/s", "deg/h", "rad/s"])
     a.add_argument("--scale-factor", type=float, default=1.0)
     a.add_argument("--json", dest="json_out")
+    a.add_argument("--filter", choices=["kalman", "adaptive-kalman"], default=None,
+                   help="also run this denoising filter over the record and report the Allan "
+                   "terms before and after (a diagnostic: nothing is written back)")
+    a.add_argument("--filter-tau-s", type=float, default=1.0,
+                   help="the filter's time constant, s (sets its process noise q; default 1)")
+    a.add_argument("--forgetting", type=float, default=0.999,
+                   help="adaptive-kalman: the Sage-Husa forgetting factor b (default 0.999)")
     a.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_analyze_allan"))
 
     p = sub.add_parser("discrepancy", help="find what the model lacks to explain the measured data")
