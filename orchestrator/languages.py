@@ -281,6 +281,17 @@ SIMULATION = Section(
         )), "chamber physics"),
         Key("table", Section("simulation-table", "simulation.table", "Table physics.", (
             Key("rate_noise_dps", _q(RATE, 0.0), "rate readback noise", False, "0"),
+            Key("drive_lines", ListOf(Section(
+                "simulation-table-drive-line", "simulation.table.drive_lines[]",
+                "One line the powered drive puts into the gyro at rest (the vendor notes saw "
+                "12.48, 24.96 and 37.44 Hz); added while the simulated interlock is closed.", (
+                    Key("frequency_hz", _num(0.0), "frequency, Hz"),
+                    Key("amplitude_dph", _num(0.0), "0-to-peak amplitude at the gyro's input, "
+                        "deg/h"),
+                )), min_items=0), "lines of the powered drive (single-axis simulated gyro)",
+                False),
+            Key("drive_noise_dph", _num(0.0), "extra white noise per sample while the drive is "
+                "powered, deg/h (1 σ)", False, "0"),
         )), "table physics"),
     ))
 

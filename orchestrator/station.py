@@ -25,6 +25,7 @@ from gyrocal.instruments.gyro.datagram_types import (
     parse_identifier,
 )
 from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
+from gyrocal.models.drive_interference import DriveLine
 from gyrocal.models.gravity import STANDARD_GRAVITY_MPS2, local_gravity_g
 from gyrocal.orchestrator.notify import NotifyTarget, parse_notify
 from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
@@ -199,6 +200,9 @@ class ChamberPhysics:
 @dataclass(frozen=True)
 class TablePhysics:
     rate_noise_dps: float
+    #: what the powered drive adds to the gyro at rest (models/drive_interference.py)
+    drive_lines: tuple[DriveLine, ...] = ()
+    drive_noise_dph: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -295,6 +299,27 @@ def _uncertainty(ctx: Context, parent: Fields) -> dict[str, float] | None:
                 for key in UNCERTAINTY_KEYS}
     fields.finish()
     return {k: v for k, v in declared.items() if v is not None}
+
+
+def _drive_lines(ctx: Context, parent: Fields) -> tuple[DriveLine, ...]:
+    """``simulation.table.drive_lines``: [{frequency_hz, amplitude_dph}, …]."""
+    present, raw = parent.raw("drive_lines")
+    if not present:
+        return ()
+    if not isinstance(raw, list):
+        ctx.report(parent.child("drive_lines"), "must be a list of {frequency_hz, amplitude_dph}")
+        return ()
+    lines = []
+    for index, item in enumerate(raw):
+        fields = Fields(ctx, (*parent.child("drive_lines"), index), item, "a drive line")
+        if not fields.valid:
+            continue
+        frequency = fields.take("frequency_hz", number(0.0))
+        amplitude = fields.take("amplitude_dph", number(0.0))
+        fields.finish()
+        if frequency is not None and amplitude is not None:
+            lines.append(DriveLine(frequency, amplitude))
+    return tuple(lines)
 
 
 def _site(ctx: Context, parent: Fields) -> Site:
@@ -500,7 +525,9 @@ def _simulation(ctx: Context, where: KeyPath, value: object, base_dir: Path) -> 
     )
     ch.finish()
     tb = _section(ctx, fields, "table")
-    table = TablePhysics(tb.take("rate_noise_dps", quantity(RATE, 0.0), required=False, default=0.0))
+    table = TablePhysics(tb.take("rate_noise_dps", quantity(RATE, 0.0), required=False, default=0.0),
+                         _drive_lines(ctx, tb),
+                         tb.take("drive_noise_dph", number(0.0), required=False, default=0.0))
     tb.finish()
     fields.finish()
     return SimulationConfig(gyro_model, seed, chamber, table)
