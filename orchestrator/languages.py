@@ -390,6 +390,15 @@ TEST_ALLAN = Section(
     "(and a Markov term when one shows). Hours, not minutes: B needs τ of ~1000 s and the "
     "record should be ten times longer.", _HOLD_KEYS)
 
+TEST_INTERFERENCE = Section(
+    "test-table_interference", "test kind: table_interference",
+    "Table-induced interference (the vendor notes' turntable test): two statics of "
+    "`duration`, first with the table's drive powered holding zero rate (`.powered`, a "
+    "static), then with the drive off (`.off`: the interlock is opened, read back open, "
+    "and closed again afterwards). The report's `table_interference` compares them: the "
+    "drift (std of 1-s means) and its ratio, and the spectral lines the drive adds "
+    "(frequency, 0-to-peak amplitude in both records).", _HOLD_KEYS)
+
 SCHEDULE = Section(
     "test-sf_sweep-schedule", "sf_sweep schedule",
     "Rates generated instead of listed: `count` rates from `start_dps` to `stop_dps`, "
@@ -433,7 +442,9 @@ TEMPERATURE_STEP = Section(
         Key("soak", SOAK_STEP, "when the chamber counts as stable", False, "defaults.soak"),
         Key("label", _text(), "a name shown in the plan and the report", False),
         Key("tests", ListOf(Variants("kind", (("static", TEST_STATIC), ("sf_sweep", TEST_SWEEP),
-                                              ("allan", TEST_ALLAN))), min_items=0),
+                                              ("allan", TEST_ALLAN),
+                                              ("table_interference", TEST_INTERFERENCE))),
+                      min_items=0),
             "what is measured at this temperature, in order (an empty list just soaks)", False),
     ))
 

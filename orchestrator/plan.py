@@ -23,6 +23,7 @@ from gyrocal.orchestrator.procedure import (
     Procedure,
     StaticTest,
     SweepTest,
+    TableInterferenceTest,
     TemperatureStep,
 )
 from gyrocal.orchestrator.record.step_kind import StepKind
@@ -95,7 +96,8 @@ def _rate_tag(rate_dps: float) -> str:
 
 def _test_tags(step: TemperatureStep) -> list[str]:
     """``sf``, ``static``, ``allan``; numbered (``sf1``, ``sf2``) when a kind repeats in a step."""
-    base = {"sf_sweep": "sf", "static": "static", "allan": "allan"}
+    base = {"sf_sweep": "sf", "static": "static", "allan": "allan",
+            "table_interference": "interference"}
     kinds = [base[test.kind] for test in step.tests]
     seen: dict[str, int] = {}
     tags = []
@@ -199,6 +201,12 @@ class _Expander:
                 if isinstance(test, StaticTest | AllanTest):
                     self.add(step_id=f"{prefix}.{tag}{suffix}", kind=StepKind(test.kind), direction="",
                              duration_s=test.duration_s, settle_s=test.settle_s, **base)
+                    continue
+                if isinstance(test, TableInterferenceTest):
+                    # the drive powered at zero rate, then off: reports/interference.py pairs them
+                    for half, kind in (("powered", StepKind.STATIC), ("off", StepKind.DRIVE_OFF)):
+                        self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=kind, direction="",
+                                 duration_s=test.duration_s, settle_s=test.settle_s, **base)
                     continue
                 self.sweep(prefix, tag, suffix, test, base)
 
