@@ -141,6 +141,17 @@ Scale factor S<sub>ii</sub>; misalignment E<sub>ij</sub> = S<sub>ij</sub>/S<sub>
 {% endif %}
 {% endif %}
 
+{% if r.table_interference %}
+<h2>Table-induced interference (drive powered vs off)</h2>
+{% for p in r.table_interference %}
+<p>{{ p.powered_step }} (drive powered, at rest) against {{ p.off_step }} (drive off, interlock open), {{ fmt(p.setpoint_c) }} °C:
+drift (standard deviation of {{ fmt(p.drift_tau_s) }} s means) {{ fmt(p.drift_powered_dph, 4) }} deg/h powered, {{ fmt(p.drift_off_dph, 4) }} deg/h off — ratio {{ fmt(p.drift_ratio, 3) }}.</p>
+{% if p.lines %}<table><tr><th>Line (Hz)</th><th>Amplitude powered (deg/h, 0-to-peak)</th><th>Amplitude off (deg/h)</th><th>Harmonic of the lowest</th></tr>
+{% for l in p.lines %}<tr><td>{{ fmt(l.frequency_hz, 6) }}</td><td>{{ fmt(l.amplitude_dph, 4) }}</td><td>{{ fmt(l.amplitude_off_dph, 3) }}</td><td>{{ l.harmonic if l.harmonic else "—" }}</td></tr>{% endfor %}
+</table>{% else %}<p>No spectral line stands out of the powered record.</p>{% endif %}
+{% endfor %}
+{% endif %}
+
 <h2>Run history (journal)</h2>
 <p>{{ r.journal.event_count }} events; {{ r.journal.retries }} retries, {{ r.journal.faults }} faults, {{ r.journal.bad_steps }} bad (repeated) steps.</p>
 <table><tr><th>#</th><th>Event</th><th>Details</th></tr>

@@ -70,3 +70,10 @@ def test_the_interlock_is_opened_read_back_and_closed_again(run: Path) -> None:
     off_at = names.index(("table_drive", "T01.interference.off"))
     assert names.index(("step_started", "T01.interference.off")) > off_at
     assert main(["verify", str(run)]) == 0
+
+
+def test_the_report_page_shows_the_comparison(run: Path) -> None:
+    html = (run / "report" / "report.html").read_text()
+    assert "Table-induced interference (drive powered vs off)" in html
+    assert "T01.interference.off (drive off, interlock open)" in html
+    assert "<td>12.48" in html and "Harmonic of the lowest" in html
