@@ -206,7 +206,30 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--units", default="deg/s", choices=["deg/s", "deg/h", "rad/s"])
     a.add_argument("--scale-factor", type=float, default=1.0)
     a.add_argument("--json", dest="json_out")
+    a.add_argument("--filter", choices=["kalman", "adaptive-kalman"], default=None,
+                   help="also run this denoising filter over the record and report the Allan "
+                   "terms before and after (a diagnostic: nothing is written back)")
+    a.add_argument("--filter-tau-s", type=float, default=1.0,
+                   help="the filter's time constant, s (sets its process noise q; default 1)")
+    a.add_argument("--forgetting", type=float, default=0.999,
+                   help="adaptive-kalman: the Sage-Husa forgetting factor b (default 0.999)")
     a.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_analyze_allan"))
+
+    a = asub.add_parser("interference", help="table-induced interference: drive powered vs off",
+                        description="Compares a static logged with the rate table's drive "
+                        "powered and holding zero rate against one with the drive off: the "
+                        "drift ratio and the spectral lines the drive adds (frequency, amplitude).")
+    a.add_argument("powered", help="log (CSV/Parquet) or run folder: the drive powered, at rest")
+    a.add_argument("off", help="log or run folder: the drive off (interlock open)")
+    a.add_argument("--column", default=None, help="the rate column (as for analyze allan)")
+    a.add_argument("--rate-hz", type=float, default=None,
+                   help="sample rate, for logs without a time column")
+    a.add_argument("--units", default="deg/s", choices=["deg/s", "deg/h", "rad/s"])
+    a.add_argument("--scale-factor", type=float, default=1.0)
+    a.add_argument("--drift-tau-s", type=float, default=1.0,
+                   help="drift is the std of the records' means over this time (default 1 s)")
+    a.add_argument("--json", dest="json_out")
+    a.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_analyze_interference"))
 
     p = sub.add_parser("discrepancy", help="find what the model lacks to explain the measured data")
     p.add_argument("--model", required=True)

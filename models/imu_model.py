@@ -43,12 +43,13 @@ import numpy as np
 
 from gyrocal.inputs import InputError, load_yaml
 from gyrocal.models.gyro_model import GyroModel, ModelError, _mapping, _number, _Where, parse_model
+from gyrocal.models.imu_accel import AccelerometerModel, parse_accelerometers
 
 AXES = ("x", "y", "z")
 EARTH_RATE_DPH = 15.041067          # sidereal rotation, deg/h (gyro-model.md)
 _PAIRS = tuple(f"{a}{b}" for a in AXES for b in AXES if a != b)
 _TOP_KEYS = ("version", "name", "output_units", "reference_temp_c", "axes",
-             "misalignment_urad", "misalignment_tempco_urad_per_c")
+             "misalignment_urad", "misalignment_tempco_urad_per_c", "accelerometers")
 _AXIS_INHERITED = ("output_units", "reference_temp_c")
 
 
@@ -67,6 +68,8 @@ class ImuModel:
     reference_temp_c: float = 0.0
     name: str = ""
     output_units: str = "deg/s"
+    #: the accelerometer triad (``imu_accel.py``); None: the file declares none (reads ideal)
+    accelerometers: AccelerometerModel | None = None
 
     def misalignment_rad(self, temp_c: float) -> np.ndarray:
         """E(T) in rad (3 × 3, zero diagonal)."""
@@ -160,6 +163,16 @@ def body_rate_dps(mounting: Mounting, table_rate_dps: np.ndarray, table_angle_de
     return table @ mounting.imu_from_table().T
 
 
+def specific_force_imu_g(mounting: Mounting, gravity_g: float) -> np.ndarray:
+    """What a perfect accelerometer triad at rest reads in ``mounting``: gravity's reaction, up.
+
+    The table axis is vertical, so the specific force is +gravity along it in
+    the table frame whatever the table angle; the IMU sits at the table's
+    centre, so turning adds no centripetal term (an offset r would add ω²r).
+    """
+    return mounting.up_vector() * float(gravity_g)
+
+
 def vertical_earth_rate_dps(latitude_deg: float) -> float:
     return EARTH_RATE_DPH / 3600.0 * math.sin(math.radians(latitude_deg))
 
@@ -217,6 +230,8 @@ def parse_imu_model(data: Any, source: str = "<model>",
         reference_temp_c=reference,
         name=str(top.get("name") or ""),
         output_units=models[0].output_units,
+        accelerometers=(None if top.get("accelerometers") is None else
+                        parse_accelerometers(top["accelerometers"], reference, where)),
     )
 
 

@@ -125,6 +125,7 @@ class RunEngine:
             StepKind.STATIC: self._log_step,
             StepKind.ALLAN: self._log_step,
             StepKind.DWELL: self._log_step,
+            StepKind.DRIVE_OFF: self._drive_off_step,
         }
         if operator is not None:
             self._executors[StepKind.REMOUNT] = self._remount_executor().execute
@@ -300,6 +301,31 @@ class RunEngine:
     # -- remount (multi-axis IMU) --------------------------------------------------------------
     def _elapsed(self) -> float:
         return self.clock.now_s() - self._t_run_start
+
+    def _drive_off_step(self, step: PlanStep) -> None:
+        """A static with the table's drive off: open the interlock, read it back open, log,
+        then close it and re-enter rate mode at rest (read back closed).
+
+        The table is at rest (the powered half came first); opening the interlock
+        unpowers the drive, which is what the comparison needs and is itself safe. A
+        fault while it is open leaves it open (safe); resume closes it at preflight.
+        """
+        table = self.inst.table
+        self.conditions.set_table_rate(0.0)
+        table.open_interlock()
+        if table.interlock_closed():
+            raise RunFaultError(f"table: {step.step_id}: the interlock did not open (read back "
+                                "closed); the drive-off static cannot be logged")
+        self.journal.append(JournalEvent.TABLE_DRIVE, step_id=step.step_id, drive="off",
+                            interlock_closed=False)
+        self._log_step(step)
+        table.close_interlock()
+        if not table.interlock_closed():
+            raise RunFaultError(f"table: after {step.step_id}: the interlock did not close again")
+        table.set_rate_mode()
+        table.set_rate_dps(0.0)
+        self.journal.append(JournalEvent.TABLE_DRIVE, step_id=step.step_id, drive="on",
+                            interlock_closed=True)
 
     def _log_step(self, step: PlanStep) -> None:
         """Log a step; a bad attempt (frame loss, a gyro read that failed) is repeated.

@@ -194,6 +194,10 @@ class GatedTable(_Gated[RateTable]):
         with self._gate.held():
             self.inner.close_interlock()
 
+    def open_interlock(self) -> None:
+        with self._gate.held():
+            self.inner.open_interlock()
+
     def set_rate_mode(self) -> None:
         with self._gate.held():
             self.inner.set_rate_mode()

@@ -281,6 +281,17 @@ SIMULATION = Section(
         )), "chamber physics"),
         Key("table", Section("simulation-table", "simulation.table", "Table physics.", (
             Key("rate_noise_dps", _q(RATE, 0.0), "rate readback noise", False, "0"),
+            Key("drive_lines", ListOf(Section(
+                "simulation-table-drive-line", "simulation.table.drive_lines[]",
+                "One line the powered drive puts into the gyro at rest (the vendor notes saw "
+                "12.48, 24.96 and 37.44 Hz); added while the simulated interlock is closed.", (
+                    Key("frequency_hz", _num(0.0), "frequency, Hz"),
+                    Key("amplitude_dph", _num(0.0), "0-to-peak amplitude at the gyro's input, "
+                        "deg/h"),
+                )), min_items=0), "lines of the powered drive (single-axis simulated gyro)",
+                False),
+            Key("drive_noise_dph", _num(0.0), "extra white noise per sample while the drive is "
+                "powered, deg/h (1 σ)", False, "0"),
         )), "table physics"),
     ))
 
@@ -308,6 +319,11 @@ STATION_ROOT = Section(
             Key("latitude_deg", _num(-90.0, 90.0), "sets the Earth-rate component removed "
                 "from the bias"),
             Key("address", _text(), "postal address (certificate)", False),
+            Key("height_m", _num(-500.0, 9000.0), "ellipsoidal height, m: local gravity for "
+                "accelerometer calibration (WGS-84 normal gravity with its second-order height "
+                "correction, NGA TR8350.2 eq. 4-1 and 4-3)", False, "0"),
+            Key("gravity_mps2", _num(9.7, 9.9), "measured local gravity, m/s²; replaces the "
+                "normal-gravity formula and its ±100 mGal anomaly allowance", False),
         )), "the lab"),
         Key("chamber", STATION_CHAMBER, "temperature chamber"),
         Key("table", STATION_TABLE, "rate table"),
@@ -374,6 +390,15 @@ TEST_ALLAN = Section(
     "(and a Markov term when one shows). Hours, not minutes: B needs τ of ~1000 s and the "
     "record should be ten times longer.", _HOLD_KEYS)
 
+TEST_INTERFERENCE = Section(
+    "test-table_interference", "test kind: table_interference",
+    "Table-induced interference (the vendor notes' turntable test): two statics of "
+    "`duration`, first with the table's drive powered holding zero rate (`.powered`, a "
+    "static), then with the drive off (`.off`: the interlock is opened, read back open, "
+    "and closed again afterwards). The report's `table_interference` compares them: the "
+    "drift (std of 1-s means) and its ratio, and the spectral lines the drive adds "
+    "(frequency, 0-to-peak amplitude in both records).", _HOLD_KEYS)
+
 SCHEDULE = Section(
     "test-sf_sweep-schedule", "sf_sweep schedule",
     "Rates generated instead of listed: `count` rates from `start_dps` to `stop_dps`, "
@@ -417,7 +442,9 @@ TEMPERATURE_STEP = Section(
         Key("soak", SOAK_STEP, "when the chamber counts as stable", False, "defaults.soak"),
         Key("label", _text(), "a name shown in the plan and the report", False),
         Key("tests", ListOf(Variants("kind", (("static", TEST_STATIC), ("sf_sweep", TEST_SWEEP),
-                                              ("allan", TEST_ALLAN))), min_items=0),
+                                              ("allan", TEST_ALLAN),
+                                              ("table_interference", TEST_INTERFERENCE))),
+                      min_items=0),
             "what is measured at this temperature, in order (an empty list just soaks)", False),
     ))
 
@@ -606,6 +633,40 @@ MODEL_V2 = Section(
             "model-v2-misalignment-tempco", "misalignment_tempco_urad_per_c",
             "Temperature coefficients of the same elements; an element left out is 0.", tuple(Key(p, _num(), f"E_{p} per °C", False, "0") for p in _MATRIX_PAIRS)),
             "E_ij change per °C, µrad/°C", False),
+        Key("accelerometers", Section(
+            "model-v2-accelerometers", "accelerometers",
+            "The accelerometer triad, in g (9.80665 m/s²): output_i = (1 + k_i(T))·f_in,i + "
+            "b_i(T) + noise, f_in,i = f_i + Σ M_ij(T)·f_j, k_i(T) = 1e-6·(sf_error_ppm + "
+            "sf_tempco_ppm_per_c·ΔT), b_i(T) = 1e-3·(bias_mg + bias_tempco_mg_per_c·ΔT); "
+            "white noise of the given velocity random walk. Left out: ideal accelerometers.",
+            (
+                Key("axes", Section("model-v2-acc-axes", "accelerometers.axes",
+                    "The three accelerometers, all required.", tuple(
+                        Key(a, Section(f"model-v2-acc-axis-{a}", f"accelerometers.axes.{a}",
+                            f"Accelerometer {a}; a key left out is 0.", (
+                                Key("bias_mg", _num(), "bias at T0, mg", False, "0"),
+                                Key("bias_tempco_mg_per_c", _num(), "bias change per °C, mg/°C",
+                                    False, "0"),
+                                Key("sf_error_ppm", _num(), "scale-factor error at T0, ppm",
+                                    False, "0"),
+                                Key("sf_tempco_ppm_per_c", _num(), "scale-factor change per "
+                                    "°C, ppm/°C", False, "0"),
+                                Key("vrw_mps_per_rth", _num(0.0), "velocity random walk, "
+                                    "m/s/√h", False, "0"),
+                            )), f"accelerometer {a}") for a in AXES)),
+                    "the three accelerometers"),
+                Key("misalignment_urad", Section(
+                    "model-v2-acc-misalignment", "accelerometers.misalignment_urad",
+                    "M_ij: accelerometer i senses M_ij of the specific force along j; an element "
+                    "left out is 0.", tuple(Key(p, _num(), f"M_{p}", False, "0")
+                                            for p in _MATRIX_PAIRS)), "M_ij at T0, µrad", False),
+                Key("misalignment_tempco_urad_per_c", Section(
+                    "model-v2-acc-misalignment-tempco",
+                    "accelerometers.misalignment_tempco_urad_per_c",
+                    "Temperature coefficients of the same elements; an element left out is 0.",
+                    tuple(Key(p, _num(), f"M_{p} per °C", False, "0") for p in _MATRIX_PAIRS)),
+                    "M_ij change per °C, µrad/°C", False),
+            )), "accelerometer triad (seeds/003 §3.2)", False),
     ))
 
 PROCEDURE = Language(

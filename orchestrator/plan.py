@@ -23,6 +23,7 @@ from gyrocal.orchestrator.procedure import (
     Procedure,
     StaticTest,
     SweepTest,
+    TableInterferenceTest,
     TemperatureStep,
 )
 from gyrocal.orchestrator.record.step_kind import StepKind
@@ -95,7 +96,8 @@ def _rate_tag(rate_dps: float) -> str:
 
 def _test_tags(step: TemperatureStep) -> list[str]:
     """``sf``, ``static``, ``allan``; numbered (``sf1``, ``sf2``) when a kind repeats in a step."""
-    base = {"sf_sweep": "sf", "static": "static", "allan": "allan"}
+    base = {"sf_sweep": "sf", "static": "static", "allan": "allan",
+            "table_interference": "interference"}
     kinds = [base[test.kind] for test in step.tests]
     seen: dict[str, int] = {}
     tags = []
@@ -200,6 +202,12 @@ class _Expander:
                     self.add(step_id=f"{prefix}.{tag}{suffix}", kind=StepKind(test.kind), direction="",
                              duration_s=test.duration_s, settle_s=test.settle_s, **base)
                     continue
+                if isinstance(test, TableInterferenceTest):
+                    # the drive powered at zero rate, then off: reports/interference.py pairs them
+                    for half, kind in (("powered", StepKind.STATIC), ("off", StepKind.DRIVE_OFF)):
+                        self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=kind, direction="",
+                                 duration_s=test.duration_s, settle_s=test.settle_s, **base)
+                    continue
                 self.sweep(prefix, tag, suffix, test, base)
 
     def remount(self, step_id: str, spec: MountingSpec, index: int, step: TemperatureStep) -> None:
@@ -299,6 +307,16 @@ def _clock(seconds: float) -> str:
     return f"{hours:d}:{rest // 60:02d}:{rest % 60:02d}"
 
 
+def _remount_line(plan: Plan) -> list[str]:
+    """How often the operator must come to the table: each remount waits for `gyrocal confirm`."""
+    remounts = [s for s in plan.steps if s.kind == "remount"]
+    if not remounts:
+        return []
+    names = list(dict.fromkeys(s.mounting for s in remounts))
+    return [f"{len(remounts)} remounts by the operator ({len(names)} mountings: "
+            f"{', '.join(str(n) for n in names)}); the run waits at each for `gyrocal confirm`"]
+
+
 def format_plan(plan: Plan) -> str:
     """The plan as a fixed-width table an operator can check before starting the night."""
     header = ("#", "step", "kind", "setpoint", "rate", "move+settle", "logged/hold", "expected",
@@ -332,6 +350,7 @@ def format_plan(plan: Plan) -> str:
     lines += [
         "",
         f"{len(plan.steps)} steps; gyro data logged {format_duration(plan.logged_s())}",
+        *_remount_line(plan),
         f"ETA {format_duration(plan.total_s)} (worst case {format_duration(plan.max_total_s)} "
         "if every soak waits its maximum), then "
         f"{format_duration(plan.finish_s)} to return to the safe state",

@@ -54,7 +54,7 @@ PROCEDURE_VERSION = 1
 OUTPUT_UNITS = ("deg/s", "deg/h", "rad/s", "V", "LSB")
 DIRECTIONS = ("both", "positive", "negative")
 SPACINGS = ("linear", "log")
-TEST_KINDS = ("static", "sf_sweep", "allan")
+TEST_KINDS = ("static", "sf_sweep", "allan", "table_interference")
 MAX_LIST = 1000           # rates per sweep, steps per sequence: beyond this it is a typo
 MAX_DURATION_S = 7 * 86400.0
 #: Floors below which a ramp or an acceleration is a typo, not a choice: 0.01 °C/min is 0.6 °C
@@ -147,6 +147,18 @@ class StaticTest:
 
 
 @dataclass(frozen=True)
+class TableInterferenceTest:
+    """Two statics at rest: the table's drive powered holding zero rate, then off (interlock
+    open); the report compares them (drift ratio, spectral lines: reports/interference.py)."""
+
+    duration_s: float
+    settle_s: float
+    repeats: int
+    label: str | None
+    kind: str = "table_interference"
+
+
+@dataclass(frozen=True)
 class AllanTest:
     """A long static hold for the Allan variance (noise terms Q, N, B, K, R)."""
 
@@ -173,7 +185,7 @@ class SweepTest:
     kind: str = "sf_sweep"
 
 
-Test = StaticTest | AllanTest | SweepTest
+Test = StaticTest | AllanTest | SweepTest | TableInterferenceTest
 
 
 @dataclass(frozen=True)
@@ -691,7 +703,7 @@ class _Parser:
                                  default=defaults.settle_s if defaults.settle_s is not None else 0.0)
             duration_s = fields.take("duration", _duration())
             fields.finish()
-            cls = StaticTest if kind == "static" else AllanTest
+            cls = {"static": StaticTest, "allan": AllanTest}.get(kind, TableInterferenceTest)
             return cls(duration_s, settle, repeats, label)
 
         settle = self.inherit(fields, "settle", _duration(positive=False), defaults.settle_s,

@@ -25,6 +25,8 @@ from gyrocal.instruments.gyro.datagram_types import (
     parse_identifier,
 )
 from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
+from gyrocal.models.drive_interference import DriveLine
+from gyrocal.models.gravity import STANDARD_GRAVITY_MPS2, local_gravity_g
 from gyrocal.orchestrator.notify import NotifyTarget, parse_notify
 from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
 from gyrocal.orchestrator.schema import (
@@ -79,6 +81,16 @@ class Site:
     name: str
     latitude_deg: float   # sets the Earth-rate component the analysis removes
     address: str | None = None   # the lab's address, printed on the calibration certificate
+    height_m: float = 0.0        # ellipsoidal height: local gravity (models/gravity.py)
+    #: a measured local gravity (m/s²) replaces the normal-gravity formula, and its anomaly term
+    gravity_mps2: float | None = None
+
+    @property
+    def gravity_g(self) -> float:
+        """Local gravity in standard g: measured if declared, else WGS-84 normal gravity."""
+        if self.gravity_mps2 is not None:
+            return self.gravity_mps2 / STANDARD_GRAVITY_MPS2
+        return local_gravity_g(self.latitude_deg, self.height_m)
 
 
 #: ``uncertainty`` section keys: ± half-widths (rectangular) of the reference accuracies the
@@ -188,6 +200,9 @@ class ChamberPhysics:
 @dataclass(frozen=True)
 class TablePhysics:
     rate_noise_dps: float
+    #: what the powered drive adds to the gyro at rest (models/drive_interference.py)
+    drive_lines: tuple[DriveLine, ...] = ()
+    drive_noise_dph: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -286,10 +301,33 @@ def _uncertainty(ctx: Context, parent: Fields) -> dict[str, float] | None:
     return {k: v for k, v in declared.items() if v is not None}
 
 
+def _drive_lines(ctx: Context, parent: Fields) -> tuple[DriveLine, ...]:
+    """``simulation.table.drive_lines``: [{frequency_hz, amplitude_dph}, …]."""
+    present, raw = parent.raw("drive_lines")
+    if not present:
+        return ()
+    if not isinstance(raw, list):
+        ctx.report(parent.child("drive_lines"), "must be a list of {frequency_hz, amplitude_dph}")
+        return ()
+    lines = []
+    for index, item in enumerate(raw):
+        fields = Fields(ctx, (*parent.child("drive_lines"), index), item, "a drive line")
+        if not fields.valid:
+            continue
+        frequency = fields.take("frequency_hz", number(0.0))
+        amplitude = fields.take("amplitude_dph", number(0.0))
+        fields.finish()
+        if frequency is not None and amplitude is not None:
+            lines.append(DriveLine(frequency, amplitude))
+    return tuple(lines)
+
+
 def _site(ctx: Context, parent: Fields) -> Site:
     fields = _section(ctx, parent, "site")
     site = Site(fields.take("name", text), fields.take("latitude_deg", number(-90.0, 90.0)),
-                fields.take("address", text, required=False))
+                fields.take("address", text, required=False),
+                fields.take("height_m", number(-500.0, 9000.0), required=False, default=0.0),
+                fields.take("gravity_mps2", number(9.7, 9.9), required=False))
     fields.finish()
     return site
 
@@ -487,7 +525,9 @@ def _simulation(ctx: Context, where: KeyPath, value: object, base_dir: Path) -> 
     )
     ch.finish()
     tb = _section(ctx, fields, "table")
-    table = TablePhysics(tb.take("rate_noise_dps", quantity(RATE, 0.0), required=False, default=0.0))
+    table = TablePhysics(tb.take("rate_noise_dps", quantity(RATE, 0.0), required=False, default=0.0),
+                         _drive_lines(ctx, tb),
+                         tb.take("drive_noise_dph", number(0.0), required=False, default=0.0))
     tb.finish()
     fields.finish()
     return SimulationConfig(gyro_model, seed, chamber, table)

@@ -64,6 +64,7 @@ from gyrocal.reports.decision import instrument_blockers, overall_verdict
 from gyrocal.reports.dwell import Dwell, SegmentDrift, dwell_mean, segment_drift
 from gyrocal.reports.gum import batch_mean_sem
 from gyrocal.reports.imu.section import imu_section
+from gyrocal.reports.interference_section import interference_section
 from gyrocal.reports.results import evaluate_acceptance, finite_or_none, results_bytes
 from gyrocal.reports.sanity import check_physics
 from gyrocal.reports.scale_factor import ScaleFactorResult, analyze_scale_factor
@@ -448,6 +449,8 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
         "allan": _allan(data, nominal_sf, notes),
         "compensation": _compensation(sweep["scale_factor"], bias["bias"], notes),
         "imu": _imu(data, notes),
+        "table_interference": interference_section(data.folder.path, data.plan, data.events,
+                                                   nominal_sf, notes),
         "earth_rate_removed_dph": earth_dph,
         "reference_temp_c": REFERENCE_TEMP_C,
         **_provenance(data, notes),

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -110,3 +111,20 @@ def polynomial(temps_c: Sequence[float], values: Sequence[float],
         loo_residual_max=float(np.max(np.abs(loo))),
         coefficients=[float(c) for c in coeffs],
     )
+
+
+def tables_json(points: Sequence[Sequence[float]]) -> dict[str, Any] | None:
+    """Piecewise-linear and polynomial tables of (temperature, value) points, as results.json
+    gives them (with leave-one-out residuals); None below 3 finite points."""
+    if len(points) < 3 or not all(np.isfinite(v) for _, v in points):
+        return None
+    temps = [p[0] for p in points]
+    values = [p[1] for p in points]
+    out = {}
+    for table in (piecewise_linear(temps, values),
+                  polynomial(temps, values, degree=min(2, len(points) - 2))):
+        out[table.kind] = {"points": table.to_pairs(), "coefficients": table.coefficients,
+                           "residual_rms": table.residual_rms,
+                           "loo_residual_rms": table.loo_residual_rms,
+                           "loo_residual_max": table.loo_residual_max}
+    return out

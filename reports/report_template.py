@@ -121,6 +121,35 @@ Scale factor S<sub>ii</sub>; misalignment E<sub>ij</sub> = S<sub>ij</sub>/S<sub>
 <td>{{ fmt(c.tables.piecewise_linear.loo_residual_rms, 3) if c.tables else "n/a" }}</td>
 <td>{{ fmt(c.tables[c.tables.keys()|reject("equalto", "piecewise_linear")|first].loo_residual_rms, 3) if c.tables else "n/a" }}</td></tr>{% endfor %}
 </table>
+{% set acc = r.imu.accelerometers %}{% if acc %}
+<h3>Accelerometers from gravity (IEEE Std 1293 six-position method)</h3>
+<p>Local gravity {{ fmt(acc.gravity.g, 9) }} g: {{ acc.gravity.source }}. Bias b<sub>i</sub> in mg; scale-factor error K<sub>ii</sub> − 1 in ppm (its u includes the gravity's {{ fmt(acc.gravity.u_rel_ppm, 2) }} ppm); misalignment M<sub>ij</sub> = K<sub>ij</sub>/K<sub>ii</sub> in µrad. ± values are standard uncertainties.</p>
+{% for t in acc.temperatures %}
+<h4>{{ fmt(t.temp_c) }} °C (setpoint {{ fmt(t.setpoint_c) }} °C; positions {{ t.positions|join(", ") }}; {{ t.dof }} dof per axis)</h4>
+<table><tr><th>Accelerometer</th><th>Bias (mg)</th><th>SF error (ppm)</th><th>M to x (µrad)</th><th>M to y (µrad)</th><th>M to z (µrad)</th></tr>
+{% for a in ["x", "y", "z"] %}<tr><td>{{ a }}</td><td>{{ fmt(t.bias_mg[a], 5) }} ± {{ fmt(t.u_bias_mg[a], 2) }}</td><td>{{ fmt(t.sf_error_ppm[a], 4) }} ± {{ fmt(t.u_sf_ppm[a], 2) }}</td>
+{% for b in ["x", "y", "z"] %}<td>{% if a == b %}—{% else %}{{ fmt(t.misalignment_urad[a ~ b], 5) }} ± {{ fmt(t.u_misalignment_urad[a ~ b], 2) }}{% endif %}</td>{% endfor %}</tr>{% endfor %}
+</table>
+{% endfor %}
+<p>Check: residual specific force after compensation (RMS over the six statics, µg) —
+{% for c in acc.check %}{{ fmt(c.temp_c) }} °C: {% for a in ["x", "y", "z"] %}{{ a }} {{ fmt(c.in_sample.rms_ug[a], 3) if c.in_sample else "n/a" }} (leave-one-out {{ fmt(c.leave_one_out.rms_ug[a], 3) if c.leave_one_out else "n/a" }}){% if not loop.last %}, {% endif %}{% endfor %}{% if not loop.last %}; {% endif %}{% endfor %}.</p>
+<table><tr><th>Element</th>{% for t in acc.temperatures %}<th>{{ fmt(t.temp_c, 3) }} °C</th>{% endfor %}<th>leave-one-out RMS</th><th>polynomial LOO RMS</th></tr>
+{% for name, c in acc.compensation.items() %}<tr><td>{{ name }}</td>{% for p in c.points %}<td>{{ fmt(p[1], 6) }}</td>{% endfor %}
+<td>{{ fmt(c.tables.piecewise_linear.loo_residual_rms, 3) if c.tables else "n/a" }}</td>
+<td>{{ fmt(c.tables[c.tables.keys()|reject("equalto", "piecewise_linear")|first].loo_residual_rms, 3) if c.tables else "n/a" }}</td></tr>{% endfor %}
+</table>
+{% endif %}
+{% endif %}
+
+{% if r.table_interference %}
+<h2>Table-induced interference (drive powered vs off)</h2>
+{% for p in r.table_interference %}
+<p>{{ p.powered_step }} (drive powered, at rest) against {{ p.off_step }} (drive off, interlock open), {{ fmt(p.setpoint_c) }} °C:
+drift (standard deviation of {{ fmt(p.drift_tau_s) }} s means) {{ fmt(p.drift_powered_dph, 4) }} deg/h powered, {{ fmt(p.drift_off_dph, 4) }} deg/h off — ratio {{ fmt(p.drift_ratio, 3) }}.</p>
+{% if p.lines %}<table><tr><th>Line (Hz)</th><th>Amplitude powered (deg/h, 0-to-peak)</th><th>Amplitude off (deg/h)</th><th>Harmonic of the lowest</th></tr>
+{% for l in p.lines %}<tr><td>{{ fmt(l.frequency_hz, 6) }}</td><td>{{ fmt(l.amplitude_dph, 4) }}</td><td>{{ fmt(l.amplitude_off_dph, 3) }}</td><td>{{ l.harmonic if l.harmonic else "—" }}</td></tr>{% endfor %}
+</table>{% else %}<p>No spectral line stands out of the powered record.</p>{% endif %}
+{% endfor %}
 {% endif %}
 
 <h2>Run history (journal)</h2>

@@ -81,7 +81,7 @@ from gyrocal.instruments.gyro.datagram import (
     layout_of,
 )
 from gyrocal.instruments.sim.faults import FaultInjector
-from gyrocal.instruments.sim.gyro_frames import encode_sim_frames
+from gyrocal.instruments.sim.gyro_frames import SpecificForceSource, encode_sim_frames
 from gyrocal.models.clock import RealClock, SimClock
 
 FAULTS = ("corrupt_frames", "lose_frames", "garbage", "stall", "saturate")
@@ -135,6 +135,7 @@ class SimulatedGyroPort:
         crlf: bool = False,
         datagram: int | None = None,
         accelerometer_range_g: int = DEFAULT_ACCELEROMETER_RANGE_G,
+        specific_force: SpecificForceSource | None = None,
     ) -> None:
         if not sample_rate_hz > 0:
             raise ValueError(f"sample_rate_hz must be > 0, got {sample_rate_hz!r}")
@@ -147,6 +148,8 @@ class SimulatedGyroPort:
         self.layout = layout_for(with_temperature, crlf) if datagram is None else layout_of(datagram, crlf)
         self.with_temperature = self.layout.with_temperature
         self.accelerometer_range_g = int(accelerometer_range_g)
+        # an IMU's accelerometers (imu_source.py); None: level and at rest, +1 g on z
+        self.specific_force = specific_force
         self.crlf = bool(crlf)
         self.axis = int(axis)       # the simulated unit is single-axis: its output on this axis, 0 on the others
         self.lsb = float(lsb)
@@ -438,6 +441,7 @@ class SimulatedGyroPort:
         t_s = k / self.sample_rate_hz
         rate_out, temp_c = (self.source(t_s) if inputs is None
                             else self.source.emit(t_s, inputs))
+        force = None if self.specific_force is None else self.specific_force(t_s, temp_c)
         rate_out = np.asarray(rate_out, dtype=np.float64)
         if rate_out.ndim == 2:      # a three-axis IMU source: every axis as it is
             rate = np.array(rate_out, dtype=np.float64, copy=True).reshape(k.size, 3)
@@ -459,7 +463,7 @@ class SimulatedGyroPort:
 
         frames = encode_sim_frames(k, rate, temp_c, layout=self.layout, lsb=self.lsb,
                                    latency_us=self.latency_us, sample_rate_hz=self.sample_rate_hz,
-                                   accelerometer_range_g=self.accelerometer_range_g)
+                                   accelerometer_range_g=self.accelerometer_range_g, force=force)
         # Flip the middle rate byte: never the identifier, so the span still
         # looks like a frame and must be caught by the CRC.
         frames[n_lost : n_lost + n_corrupt, RATE_OFFSET + 3 * self.axis + 1] ^= 0xFF

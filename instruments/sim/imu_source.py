@@ -19,8 +19,9 @@ import threading
 import numpy as np
 
 from gyrocal.instruments.sim.faults import FaultInjector
+from gyrocal.instruments.sim.gyro_frames import SpecificForce
 from gyrocal.models.gyro_sim import GyroSimulator
-from gyrocal.models.imu_model import ImuModel, Mounting, body_rate_dps
+from gyrocal.models.imu_model import ImuModel, Mounting, body_rate_dps, specific_force_imu_g
 
 FIXTURE_FAULTS = ("wrong_mount",)
 #: Where the fixture stands before the first remount: IMU +Z up (how it ships).
@@ -57,8 +58,11 @@ class ImuPhysicsSource:
 
     def __init__(self, model: ImuModel, fs_hz: float, seed: int, table, chamber,
                  latitude_deg: float, fixture: SimulatedFixture, start_s: float,
-                 skip_step_s: float = 1.0) -> None:
+                 skip_step_s: float = 1.0, gravity_g: float = 1.0) -> None:
         self.model = model
+        self.fs_hz = float(fs_hz)
+        self.gravity_g = float(gravity_g)        # local gravity in standard g (models/gravity.py)
+        self._acc_rng = np.random.default_rng(seed + 104729)
         self.simulators = [GyroSimulator(axis, fs_hz, seed=seed + 7919 * i)
                            for i, axis in enumerate(model.axes)]
         self.table = table
@@ -115,3 +119,22 @@ class ImuPhysicsSource:
     def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         t_s = np.asarray(t_s, dtype=float)
         return self.emit(t_s, self.axis_inputs(t_s))
+
+    def specific_force(self, t_s: np.ndarray, sensor_temp_c: np.ndarray | None) -> SpecificForce:
+        """The acceleration channels for frames at ``t_s``: gravity in the current mounting.
+
+        The accelerometers see the specific force through their own errors
+        (``models/imu_accel.py``) at the block's mean sensor temperature (a
+        block is seconds long; the errors move by µg per kelvin); the
+        inclinometers, which the model does not describe, read it as it is.
+        """
+        n = np.asarray(t_s).size
+        truth = np.broadcast_to(specific_force_imu_g(self.fixture.mounting, self.gravity_g), (n, 3))
+        acc = self.model.accelerometers
+        if acc is None:
+            return SpecificForce(np.array(truth), np.array(truth))
+        if sensor_temp_c is not None:
+            temp_c = float(np.mean(sensor_temp_c))
+        else:
+            temp_c = float(np.mean(self._state(np.asarray(t_s, dtype=float))[1]))
+        return SpecificForce(acc.indicate(truth, temp_c, self.fs_hz, self._acc_rng), np.array(truth))

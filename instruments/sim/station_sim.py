@@ -32,6 +32,7 @@ from gyrocal.instruments.sim.table_server import FAULTS as TABLE_FAULTS
 from gyrocal.instruments.sim.table_server import SimulatedAcutrol
 from gyrocal.models.chamber import ChamberPhysics
 from gyrocal.models.clock import RealClock, SimClock
+from gyrocal.models.drive_interference import DriveInterference
 from gyrocal.models.gyro_model import GyroModel
 from gyrocal.models.gyro_sim import GyroSimulator
 from gyrocal.models.imu_model import ImuModel, load_any_model
@@ -39,15 +40,18 @@ from gyrocal.models.seeding import attempt_seed
 from gyrocal.models.table import TablePhysics
 
 #: Seed offsets so the chamber, table and gyro noise streams are independent.
-_SEED_CHAMBER, _SEED_TABLE, _SEED_GYRO, _SEED_PTY = 101, 202, 303, 404
+_SEED_CHAMBER, _SEED_TABLE, _SEED_GYRO, _SEED_PTY, _SEED_DRIVE = 101, 202, 303, 404, 505
 
 
 class GyroPhysicsSource:
     """Feeds the simulated gyro: model output for the table/chamber state at each frame time."""
 
     def __init__(self, simulator: GyroSimulator, table: TablePhysics, chamber: ChamberPhysics,
-                 start_s: float, skip_step_s: float = 1.0) -> None:
+                 start_s: float, skip_step_s: float = 1.0,
+                 interference: DriveInterference | None = None) -> None:
         self.simulator = simulator
+        #: what the table's drive adds while powered (interlock closed); None: nothing
+        self.interference = interference
         self.table = table
         self.chamber = chamber
         self.start_s = float(start_s)
@@ -79,7 +83,10 @@ class GyroPhysicsSource:
             sim.skip_to(float(t_s[0]), self._inputs, self.skip_step_s)
             self.skipped_s += gap_s
         samples = sim.generate(*inputs)
-        return samples.gyro, samples.sensor_temp_c
+        gyro = samples.gyro
+        if self.interference is not None and self.table.interlock_closed:
+            gyro = gyro + self.interference(t_s) / 3600.0 * sim.model.scale_factor
+        return gyro, samples.sensor_temp_c
 
     def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.emit(t_s, self._inputs(t_s))
@@ -150,12 +157,16 @@ class SimulatedStation:
             self.source = ImuPhysicsSource(
                 self.model, self.sample_rate_hz, self.seed + _SEED_GYRO, self.table_physics,
                 self.chamber_physics, station.site.latitude_deg, self.fixture,
-                start_s=clock.now_s())
+                start_s=clock.now_s(), gravity_g=station.site.gravity_g)
         else:
             self.gyro_simulator = GyroSimulator(self.model, self.sample_rate_hz,
                                                 seed=self.seed + _SEED_GYRO)
+            table_sim = sim.table
+            drive = DriveInterference(table_sim.drive_lines, table_sim.drive_noise_dph,
+                                      self.sample_rate_hz, self.seed + _SEED_DRIVE)
             self.source = GyroPhysicsSource(self.gyro_simulator, self.table_physics,
-                                            self.chamber_physics, start_s=clock.now_s())
+                                            self.chamber_physics, start_s=clock.now_s(),
+                                            interference=drive if drive.active else None)
         if gyro_block_frames is None:
             # Per block the model is evaluated once (its fixed cost is ~0.2 ms), so blocks must
             # be large; 512 frames (0.26 s at 2 kHz, 2 s at 250 Hz) keeps that cost under 1 µs a
@@ -171,6 +182,8 @@ class SimulatedStation:
                 faults=self.gyro_faults, block_frames=gyro_block_frames, seed=self.seed + _SEED_PTY,
                 axis=axis_index(gyro_cfg.axis), crlf=gyro_cfg.crlf, datagram=gyro_cfg.datagram,
                 accelerometer_range_g=gyro_cfg.accelerometer_range_g,
+                specific_force=(self.source.specific_force
+                                if isinstance(self.source, ImuPhysicsSource) else None),
             )
         self._started = False
 

@@ -108,6 +108,11 @@ class Acutrol3000Table:
     def read_mode(self) -> proto.TableMode:
         return self._query(proto.MODE_QUERY)
 
+    def open_interlock(self) -> None:
+        """Open the interlock: the drive is unpowered and the table coasts to rest (a
+        deliberate drive-off static, ``table_interference``)."""
+        self._setting(proto.INTERLOCK_OPEN)
+
     def set_rate_mode(self) -> None:
         self._setting(proto.MODE_RATE)
 

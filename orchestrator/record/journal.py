@@ -54,6 +54,8 @@ class JournalEvent(str, Enum):
     OPERATOR_NEEDED = "operator_needed"
     OPERATOR_CONFIRMED = "operator_confirmed"
     MOUNT_RECHECK = "mount_recheck"
+    #: the table's drive switched off (interlock opened) or back on for a table_interference step
+    TABLE_DRIVE = "table_drive"
     FAULT_INJECTED = "fault_injected"
     FAULT = "fault"
     INTERRUPTED = "interrupted"

@@ -125,6 +125,8 @@ class PlanRecord:
     mountings: tuple[RecordedMounting, ...]
     latitude_deg: float | None
     unit_under_test_axis: str
+    height_m: float = 0.0                 # the station's height (local gravity)
+    gravity_mps2: float | None = None     # a measured local gravity, if the station gives one
 
     @classmethod
     def of(cls, raw: dict[str, Any]) -> PlanRecord:
@@ -138,6 +140,8 @@ class PlanRecord:
                             for m in raw.get("mountings") or []),
             latitude_deg=None if latitude is None else float(latitude),
             unit_under_test_axis=str(raw.get("unit_under_test_axis") or "x"),
+            height_m=float(site.get("height_m") or 0.0),
+            gravity_mps2=None if site.get("gravity_mps2") is None else float(site["gravity_mps2"]),
         )
 
     def step(self, step_id: str) -> RecordedStep | None:

@@ -13,6 +13,7 @@ class StepKind(str, Enum):
     STATIC = "static"      # log at rest
     ALLAN = "allan"        # log a long hold at rest (noise terms)
     DWELL = "dwell"        # log at a constant table rate
+    DRIVE_OFF = "drive_off"  # log at rest with the table's drive off (interlock open)
     REMOUNT = "remount"    # an operator turns the IMU fixture (multi-axis procedures)
 
     def __str__(self) -> str:     # as written in plan.json and the journal
@@ -20,4 +21,4 @@ class StepKind(str, Enum):
 
     @property
     def logs_data(self) -> bool:
-        return self in (StepKind.STATIC, StepKind.ALLAN, StepKind.DWELL)
+        return self in (StepKind.STATIC, StepKind.ALLAN, StepKind.DWELL, StepKind.DRIVE_OFF)

@@ -27,6 +27,7 @@ from gyrocal.orchestrator.record.plan_record import PlanRecord
 from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.reports import compensation as comp
 from gyrocal.reports.dwell import dwell_mean
+from gyrocal.reports.imu.accel_section import accelerometer_section
 from gyrocal.reports.imu.matrix import ImuDwell, MatrixFit, compensate, fit_all
 
 _AXIS_COLUMNS = ("gyro_x", "gyro_y", "gyro_z")
@@ -103,21 +104,6 @@ def _element_series(fits: list[MatrixFit]) -> dict[str, list[list[float]]]:
     return series
 
 
-def _tables(points: list[list[float]]) -> dict[str, Any] | None:
-    if len(points) < 3 or not all(np.isfinite(v) for _, v in points):
-        return None
-    temps = [p[0] for p in points]
-    values = [p[1] for p in points]
-    out = {}
-    for table in (comp.piecewise_linear(temps, values),
-                  comp.polynomial(temps, values, degree=min(2, len(points) - 2))):
-        out[table.kind] = {"points": table.to_pairs(), "coefficients": table.coefficients,
-                           "residual_rms": table.residual_rms,
-                           "loo_residual_rms": table.loo_residual_rms,
-                           "loo_residual_max": table.loo_residual_max}
-    return out
-
-
 def _interpolated(fits: list[MatrixFit], temp_c: float, leave_out: int | None
                   ) -> tuple[np.ndarray, np.ndarray] | None:
     """S and b at ``temp_c`` from the piecewise-linear tables (optionally without one point)."""
@@ -164,15 +150,17 @@ def imu_section(run_dir: Path, plan: dict[str, Any], events: list[dict[str, Any]
     """The ``imu`` block of results.json, or None for a single-axis plan."""
     if not plan.get("mountings"):
         return None
-    dwells = read_imu_dwells(run_dir, PlanRecord.of(plan), events, notes)
+    record = PlanRecord.of(plan)
+    accelerometers = accelerometer_section(run_dir, record, events, notes)
+    dwells = read_imu_dwells(run_dir, record, events, notes)
     if not dwells:
         notes.append("imu: no completed three-axis dwell; no matrix")
-        return {"temperatures": [], "compensation": {}, "check": []}
+        return {"temperatures": [], "compensation": {}, "check": [], "accelerometers": accelerometers}
     try:
         fits = fit_all(dwells, latitude_deg)
     except ValueError as exc:
         notes.append(f"imu: {exc}")
-        return {"temperatures": [], "compensation": {}, "check": []}
+        return {"temperatures": [], "compensation": {}, "check": [], "accelerometers": accelerometers}
     series = _element_series(fits)
     if len(fits) < 3:
         notes.append(f"imu compensation: {len(fits)} temperature(s); tables need ≥ 3")
@@ -187,7 +175,8 @@ def imu_section(run_dir: Path, plan: dict[str, Any], events: list[dict[str, Any]
             "check": "RMS body-rate residual on the calibration dwells after compensation",
         },
         "temperatures": [_fit_json(f) for f in fits],
-        "compensation": {name: {"points": points, "tables": _tables(points)}
+        "compensation": {name: {"points": points, "tables": comp.tables_json(points)}
                          for name, points in series.items()},
         "check": _check_table(fits),
+        "accelerometers": accelerometers,
     }

@@ -79,6 +79,9 @@ class FakeTable:
     def interlock_closed(self) -> bool:
         return self.interlock
 
+    def open_interlock(self) -> None:
+        pass
+
     def close_interlock(self) -> None:
         pass
 

@@ -129,6 +129,20 @@ def test_motion_with_the_interlock_open_is_a_safety_error(table):
     assert "interlock open" in str(caught.value)
 
 
+def test_opening_the_interlock_unpowers_the_drive_and_closing_it_allows_rate_mode(table, physics):
+    # the drive-off half of a table_interference step: `:interlock:open N` (the spelling of
+    # the session start, docs/protocol-elements.md), read back open, then closed again
+    table.close_interlock()
+    table.set_rate_mode()
+    table.open_interlock()
+    assert not table.interlock_closed() and not physics.interlock_closed
+    with pytest.raises(InstrumentSafetyError):
+        table.set_rate_mode()
+    table.close_interlock()
+    table.set_rate_mode()
+    assert table.interlock_closed()
+
+
 def test_stop_demands_zero_then_servo_off(table, clock, physics):
     spinning(table, 100.0)
     clock.advance_to(5.0)
