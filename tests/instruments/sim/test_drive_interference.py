@@ -28,10 +28,12 @@ FS_HZ = 250.0
 N = 100_000                     # 400 s per record
 
 
-def _read(gyro: Stim300Gyro, n: int) -> np.ndarray:
+def _read(gyro: Stim300Gyro, clock: SimClock, n: int) -> np.ndarray:
     out = []
     while sum(len(b) for b in out) < n:
-        block = gyro.read_samples(min(5000, n - sum(len(b) for b in out)), timeout_s=10.0)
+        want = min(5000, n - sum(len(b) for b in out))
+        clock.elapse_reading(want / FS_HZ)     # on simulated time the controller lets it pass
+        block = gyro.read_samples(want, timeout_s=10.0)
         assert block.lost_frames == 0 and block.crc_errors == 0
         out.append(block.rate)
     return np.concatenate(out)
@@ -40,7 +42,8 @@ def _read(gyro: Stim300Gyro, n: int) -> np.ndarray:
 @pytest.mark.timeout(120)
 def test_the_powered_drive_adds_the_vendor_lines_and_they_vanish_with_it_off():
     station = load_station(REPO / "stations" / "sim-table-interference.yaml")
-    sim = SimulatedStation(station, SimClock(), sample_rate_hz=FS_HZ).start()
+    clock = SimClock()
+    sim = SimulatedStation(station, clock, sample_rate_hz=FS_HZ).start()
     try:
         table = Acutrol3000Table(sim.addresses.table)
         gyro = Stim300Gyro(sim.addresses.gyro, sample_rate_hz=FS_HZ,
@@ -51,11 +54,11 @@ def test_the_powered_drive_adds_the_vendor_lines_and_they_vanish_with_it_off():
             table.set_rate_dps(0.0)
             assert table.interlock_closed()
             gyro.flush()
-            powered = _read(gyro, N)
+            powered = _read(gyro, clock, N)
             sim.table_faults.arm("interlock_open", count=None)
             assert not table.interlock_closed()          # read back: the drive is off
             gyro.flush()
-            off = _read(gyro, N)
+            off = _read(gyro, clock, N)
         finally:
             gyro.close()
             table.close()
