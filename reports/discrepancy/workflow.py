@@ -58,7 +58,16 @@ from gyrocal.reports.discrepancy.periodic import (
     periodic_scan,
     sine_dph,
 )
-from gyrocal.reports.discrepancy.probes import POSITIONS, Probe, ProbeKind, all_probes, strongest
+from gyrocal.reports.discrepancy.probes import (
+    POSITIONS,
+    Probe,
+    ProbeInputs,
+    ProbeKind,
+    all_probes,
+    gain_given,
+    significant_by_strength,
+    strongest,
+)
 from gyrocal.reports.discrepancy.quantization import (
     PulseLattice,
     detect_pulse,
@@ -73,9 +82,16 @@ from gyrocal.reports.discrepancy.scoring import (
     order_statistic_quantile,
     refine_shape,
     score_candidate,
+    score_from_delta,
     score_library,
 )
-from gyrocal.reports.discrepancy.segments import Bins, Segments, derive_segments, make_bins
+from gyrocal.reports.discrepancy.segments import (
+    Bins,
+    Segments,
+    derive_segments,
+    make_bins,
+    temperature_trend_c_per_min,
+)
 from gyrocal.reports.discrepancy.signatures import (
     DesignBuilder,
     SearchSpace,
@@ -148,9 +164,9 @@ class Iteration:
     probes: list[Probe]
 
     @property
-    def step(self) -> Probe:
+    def step(self) -> Probe | None:
         """The bias-step probe (kept under its old JSON key)."""
-        return next(p for p in self.probes if p.kind is ProbeKind.BIAS_STEP)
+        return next((p for p in self.probes if p.kind is ProbeKind.BIAS_STEP), None)
 
 
 @dataclass
@@ -189,9 +205,11 @@ class DiscrepancyResult:
             "threshold": {"alpha": ALPHA,
                           "per_iteration": [it.threshold for it in self.iterations]},
             "scores": [{"effects": it.scores, "threshold": it.threshold, "accepted": it.accepted,
-                        "step_probe": {"time_s": it.step.time_s, "size_dph": it.step.size_dph,
-                                       "score": it.step.score, "threshold": it.step.threshold},
+                        "step_probe": None if it.step is None else {
+                            "time_s": it.step.time_s, "size_dph": it.step.size_dph,
+                            "score": it.step.score, "threshold": it.step.threshold},
                         "probes": [{"kind": p.kind.value, "where": p.where, "size": p.size,
+                                    "description": p.describe(),
                                     "delta_chi2": p.delta_chi2, "score": p.score,
                                     "threshold": p.threshold, "candidates": p.n_candidates}
                                    for p in it.probes]}
@@ -223,6 +241,7 @@ class _Analysis:
         self.y_full = output_to_dph(log.gyro, model.scale_factor)
         self.y_bins = self.bins.mean(self.y_full)
         self.rate_bins_dps = self.bins.mean(log.table_rate_dps)
+        self.probe_bins = self.probe_inputs(binned=True)
         self.space = SearchSpace(float(log.t_s[-1] - log.t_s[0]), self.bins.width_s,
                                  rate_levels(log.table_rate_dps, self.fs_hz),
                                  passed_rates(log.table_rate_dps))
@@ -230,6 +249,13 @@ class _Analysis:
         self.n_null = n_null
         self.whitener: Whitener | None = None
         self.noise: NoiseModel | None = None
+
+    def probe_inputs(self, binned: bool = False) -> ProbeInputs:
+        """The probes' inputs per sample (binned shapes with ``binned``)."""
+        log = self.log
+        trend = temperature_trend_c_per_min(log.t_s, log.chamber_temp_c)
+        return ProbeInputs(log.t_s - log.t_s[0], log.table_rate_dps, log.chamber_temp_c, trend,
+                           self.bins if binned else None)
 
     def use_noise(self, noise: NoiseModel, model_name: str = "the gyro model") -> None:
         self.noise = noise
@@ -331,7 +357,7 @@ def _explained_by_markov(analysis: _Analysis, model: GyroModel, markov: Stochast
     return candidate.score <= threshold
 
 
-def _step_time_at_full_rate(probe: Probe, resid_dph: np.ndarray, log: MeasuredLog) -> float:
+def _step_time_at_full_rate(probe: Probe, resid_dph: np.ndarray, full: ProbeInputs) -> float:
     """The step time to one sample, searched within a grid spacing of the probe's.
 
     The probe's positions are 150 points of the bin grid; a 300 ppm scale-factor step
@@ -339,13 +365,15 @@ def _step_time_at_full_rate(probe: Probe, resid_dph: np.ndarray, log: MeasuredLo
     one-second Markov test reads as a process (LR 650 000). With the step size held,
     the squared-error change of a step starting at sample k is a reverse cumulative sum.
     """
-    t = log.t_s
+    t = full.t_s
     half_window_s = (t[-1] - t[0]) / POSITIONS
     lo, hi = np.searchsorted(t, [probe.where - half_window_s, probe.where + half_window_s])
     lo, hi = max(int(lo), 1), min(int(hi), len(t) - 1)
     if hi <= lo:
         return probe.where
-    unit = probe.signal_dph(t[lo:], log.table_rate_dps[lo:])   # the step, held at its size
+    # the step held at its size from sample lo on: its value at each sample (deg/h)
+    unit = (np.full(len(t) - lo, probe.size) if probe.kind is ProbeKind.BIAS_STEP
+            else probe.size * 1e-6 * 3600.0 * full.rate_dps[lo:])
     change = unit * unit - 2.0 * unit * resid_dph[lo:]            # SSE change from each sample on
     tail = np.cumsum(change[::-1])[::-1]                          # step starting at lo + k
     return float(t[lo + int(np.argmin(tail[: hi - lo]))])
@@ -354,17 +382,22 @@ def _step_time_at_full_rate(probe: Probe, resid_dph: np.ndarray, log: MeasuredLo
 def _probe_explains_markov(analysis: _Analysis, fit: Fit, probe: Probe) -> bool:
     """Whether the Markov bias is gone once the probe's shape is refitted with the base.
 
-    A probe still significant under the noise with the fitted Markov process is not
-    yet evidence against it: a slow sinusoid catches two wiggles of a τ = 1000 s
-    process on a 1-hour record at the 2 % tail (5 of 10 runs called "unexplained").
-    A real step or sinusoid leaves white noise behind once fitted; a Markov process
-    leaves its other frequencies. So the probe preempts the Markov bias only if the
-    Markov test on the residual of the joint refit is no longer significant (`_markov_left`).
+    The separation of a stationary random process from deterministic slow structure:
+    a Gauss–Markov process with a long τ imitates almost any slow curve over one
+    record (a bias accelerating with time, a ramp in |t − t0| were named markov_bias
+    at 1.0). A real step, curve or sinusoid leaves white noise behind once fitted
+    with its few columns; a Markov process leaves its other frequencies. So the
+    probe preempts the Markov bias if the Markov test on the residual of the joint
+    refit is no longer significant (`_markov_left`), by the same α as every claim.
+    A probe merely significant under the noise with the fitted process is no
+    evidence against it: a slow sinusoid catches two wiggles of a τ = 1000 s
+    process on a 1-hour record at the 2 % tail.
     """
-    bins, whitener, log = analysis.bins, analysis.whitener, analysis.log
-    if probe.kind is not ProbeKind.SLOW_SINE:
-        probe = replace(probe, where=_step_time_at_full_rate(probe, analysis.resid_full(fit), log))
-    c_white = whitener.white(probe.signal_dph(bins.centre_s, analysis.rate_bins_dps))
+    whitener = analysis.whitener
+    full = analysis.probe_inputs()
+    if probe.kind in (ProbeKind.BIAS_STEP, ProbeKind.SF_STEP):
+        probe = replace(probe, where=_step_time_at_full_rate(probe, analysis.resid_full(fit), full))
+    c_white = whitener.white(probe.signal_dph(analysis.probe_bins))
     kept = [k for k, c in enumerate(fit.design.columns) if not any(c is h for h in fit.held)]
     x_white = whitener.white(fit.design.x_bins[:, kept])
     # Frisch–Waugh: the probe's size is its joint coefficient; the base moves by −(X'X)⁻¹X'c
@@ -372,8 +405,45 @@ def _probe_explains_markov(analysis: _Analysis, fit: Fit, probe: Probe) -> bool:
     coeffs = fit.coeffs.copy()
     coeffs[kept] -= shift
     model = apply_coefficients(fit.model, fit.design.columns, coeffs)
-    resid = analysis.y_full - analysis.builder.rate_dph(model) - probe.signal_dph(log.t_s, log.table_rate_dps)
+    resid = analysis.y_full - analysis.builder.rate_dph(model) - probe.signal_dph(full)
     return not _markov_left(_markov_test_of(analysis, resid))
+
+
+def _probe_beats_effect(fit: Fit, probe: Probe, effect: EffectScores, threshold: float) -> bool:
+    """Whether a probe is the better account of the data than a catalogue effect (nested both ways).
+
+    The probe must still add significantly (its own calibrated threshold) once the
+    effect is fitted, and the effect must add nothing significant (the library
+    threshold every claim must pass) once the probe is fitted. A probe that only
+    nests the effect (the cubic in time nests bias_ramp) adds nothing beyond a real
+    one; an effect that only approximates the probe (ω² and ω³ for a rate² on one
+    sign) adds nothing beyond it.
+    """
+    best = effect.best
+    if best.structural:
+        basis, resid = best.fit.basis, best.fit.white_resid
+    else:
+        basis = np.hstack([fit.basis, best.basis])
+        resid = fit.white_resid - best.white_contribution
+    probe_given_effect = gain_given(probe, basis, resid)
+    if score_from_delta(probe_given_effect, probe.dof) <= probe.threshold:
+        return False
+    effect_given_probe = best.delta_chi2 + probe_given_effect - probe.delta_chi2
+    return score_from_delta(effect_given_probe, best.dof) <= threshold
+
+
+def _preempting_probe(analysis: _Analysis, fit: Fit, probes: list[Probe], best: str,
+                      scores: dict[str, EffectScores], threshold: float) -> Probe | None:
+    """The first significant probe (strongest first) that explains the data better than ``best``."""
+    if best == "periodic_interference":
+        return None
+    for probe in significant_by_strength(probes):
+        if best == MARKOV:
+            if _probe_explains_markov(analysis, fit, probe):
+                return probe
+        elif _probe_beats_effect(fit, probe, scores[best], threshold):
+            return probe
+    return None
 
 
 def _markov_survives(analysis: _Analysis, fit: Fit, spec: EffectSpec) -> bool:
@@ -562,8 +632,7 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
         markov = None if search.current.has_effect(MARKOV) else _markov_test(analysis, fit)
         threshold = _library_threshold(scores, fit, z, scan, analysis.rng, ALPHA / iteration,
                                        [] if markov is None else [markov.null_scores()])
-        probes = all_probes(fit, analysis.whitener, analysis.bins, analysis.rate_bins_dps, z, ALPHA)
-        probe = strongest(probes)
+        probes = all_probes(fit, analysis.whitener, analysis.bins, analysis.probe_bins, z, ALPHA)
         ranked = {name: s.score for name, s in scores.items()}
         deltas = {name: s.delta_chi2 for name, s in scores.items()}
         if markov is not None:
@@ -584,14 +653,9 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
             best = _structure_behind_markov(analysis, search.current, fit, markov, scores, threshold) or best
         accepted = None
         if ranked[best] > threshold:
-            if probe is None or best == "periodic_interference":
-                probe_beats = False
-            elif best == MARKOV:
-                probe_beats = _probe_explains_markov(analysis, fit, probe)
-            else:
-                probe_beats = probe.penalised_delta > deltas[best]
-            if probe_beats:
-                search.preempted = probe
+            preempting = _preempting_probe(analysis, fit, probes, best, scores, threshold)
+            if preempting is not None:
+                search.preempted = preempting
             elif (best in (MARKOV, "periodic_interference")
                   or ranked[best] - threshold >= GAP_CHECK_MARGIN or _gap_open(analysis, fit, z)):
                 accepted = best
@@ -678,7 +742,7 @@ def _gap_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> Discrep
 
     g1_limit = order_statistic_quantile(null_g1, UNEXPLAINED_LEVEL)
     last_probe = strongest(all_probes(
-        after, analysis.whitener, analysis.bins, analysis.rate_bins_dps,
+        after, analysis.whitener, analysis.bins, analysis.probe_bins,
         analysis.rng.standard_normal((analysis.bins.n_bins, analysis.n_null)), ALPHA))
     unexplained = preempted is not None or metrics["g1_segment_mean"].after > g1_limit
     signals = _signals(analysis, after.model)
@@ -694,6 +758,8 @@ def _gap_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> Discrep
                                    np.unique(seg_of_bin), signals,
                                    None if step_info is None else (step_info.time_s, step_info.size_dph),
                                    line)
+        if probe_info is not None and step_info is None:
+            where = f"{probe_info.describe()} (Δχ² {probe_info.delta_chi2:.1f}); {where}"
         if preempted is not None:
             notes.append(f"{preempted.describe()} explains the data better than any catalogue "
                          f"effect (Δχ² {preempted.delta_chi2:.1f}); nothing was named")
