@@ -52,6 +52,13 @@ from gyrocal.reports.discrepancy.lookalikes import (
     separating_experiment,
 )
 from gyrocal.reports.discrepancy.noise_model import NoiseEstimate, NoiseModel, estimate_noise
+from gyrocal.reports.discrepancy.own_gap import (
+    EffectGap,
+    Pattern,
+    Residuals,
+    pattern_metrics,
+    quantization_metrics,
+)
 from gyrocal.reports.discrepancy.periodic import (
     REFINEMENT_FACTOR,
     PeriodicScan,
@@ -193,6 +200,8 @@ class DiscrepancyResult:
     noise_before: NoiseModel
     t0_s: float
     notes: list[str] = field(default_factory=list)
+    #: each named effect → the key in ``metrics`` of its own headline gap (own_gap.py)
+    effect_gaps: dict[str, str] = field(default_factory=dict)
 
     def to_json(self) -> dict:
         gap = self.metrics[self.primary]
@@ -202,6 +211,7 @@ class DiscrepancyResult:
             "where": self.where,
             "gap": {"metric": self.primary, **gap.to_json()},
             "metrics": {name: m.to_json() for name, m in self.metrics.items()},
+            "effect_gaps": dict(self.effect_gaps),
             "threshold": {"alpha": ALPHA,
                           "per_iteration": [it.threshold for it in self.iterations]},
             "scores": [{"effects": it.scores, "threshold": it.threshold, "accepted": it.accepted,
@@ -724,21 +734,34 @@ def _gap_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> Discrep
     null_g1 = g1(geometry, null_resid)
     metrics["g1_segment_mean"] = Metric(float(g1(geometry, before.resid_bins)),
                                         float(g1(geometry, after.resid_bins)),
-                                        float(np.mean(null_g1)), float(np.std(null_g1)))
+                                        float(np.mean(null_g1)), float(np.std(null_g1)), "1 (mean of z²)",
+                                        "G1 over every segment: (segment mean / its standard error)², averaged")
     null_rms = segment_rms(geometry, null_resid)
     metrics["segment_mean_rms_dph"] = Metric(float(segment_rms(geometry, before.resid_bins)),
                                              float(segment_rms(geometry, after.resid_bins)),
-                                             float(np.mean(null_rms)), float(np.std(null_rms)))
+                                             float(np.mean(null_rms)), float(np.std(null_rms)), "deg/h",
+                                             "RMS of the residual's segment means")
     null_allan = np.array([allan_mismatch(null_resid[:, k], analysis.bins, noise) for k in range(20)])
     metrics["allan_mismatch"] = Metric(allan_mismatch(before.resid_bins, analysis.bins, noise_before),
                                        allan_mismatch(after.resid_bins, analysis.bins, noise),
-                                       float(np.mean(null_allan)), float(np.std(null_allan)))
+                                       float(np.mean(null_allan)), float(np.std(null_allan)),
+                                       "1 (RMS of ln ratio)",
+                                       "Allan deviation of the residual's bin means against the noise model, "
+                                       "RMS over τ of ln(measured / model)")
     scan_before, scan_after = analysis.scan(before), analysis.scan(after)
     if scan_before is not None and scan_after is not None:
         m = int(scan_after.n_freqs / REFINEMENT_FACTOR)
         metrics["spectrum_peak"] = Metric(scan_before.peak_ratio, scan_after.peak_ratio,
-                                          expected_max_exponential(m), math.pi / math.sqrt(6.0))
-    primary = choose_primary(metrics, bool(found))
+                                          expected_max_exponential(m), math.pi / math.sqrt(6.0),
+                                          "1 (periodogram / noise PSD)",
+                                          "largest line of the full-rate residual over the noise PSD")
+    effect_gaps = _effect_gaps(analysis, search, before, after, geometry, null_resid, metrics)
+    for gap in effect_gaps:
+        metrics.update(gap.metrics)
+    # the headline is the first named effect's own metric (issue 29: a whole-record metric may
+    # not move at all for the effect that was named)
+    heads = [gap.headline for gap in effect_gaps if gap.headline in metrics]
+    primary = heads[0] if heads else choose_primary(metrics, bool(found))
 
     g1_limit = order_statistic_quantile(null_g1, UNEXPLAINED_LEVEL)
     last_probe = strongest(all_probes(
@@ -770,7 +793,36 @@ def _gap_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> Discrep
         found, unexplained, where, metrics, primary, model, after.model, search.noise_est,
         search.iterations, analysis.bins, analysis.segments, np.unique(seg_of_bin), geometry,
         before.resid_bins, after.resid_bins, signals, scan_before, scan_after, noise_before,
-        float(log.t_s[0]), notes)
+        float(log.t_s[0]), notes, {gap.effect: gap.headline for gap in effect_gaps})
+
+
+def _effect_gaps(analysis: _Analysis, search: _Search, before: Fit, after: Fit,
+                 geometry: SegmentGeometry, null_resid: np.ndarray,
+                 metrics: dict[str, Metric]) -> list[EffectGap]:
+    """Each named effect's gap in its own domain (own_gap.py), in the order they were named."""
+    gaps = []
+    whitener, builder = analysis.whitener, analysis.builder
+    full = builder.binned_rate_dph(after.model)
+    for f in search.found:
+        if f.name == "quantization":
+            gaps.append(quantization_metrics(analysis.resid_full(after), analysis.fs_hz,
+                                             NoiseModel.of_model(search.model),
+                                             after.model.effect(f.name)["pulse_arcsec"], analysis.rng))
+            continue
+        if f.name in (MARKOV, "periodic_interference"):
+            own = "allan_mismatch" if f.name == MARKOV else "spectrum_peak"
+            if own in metrics:
+                gaps.append(EffectGap(f.name, {}, own))
+            continue
+        contribution = full - builder.binned_rate_dph(after.model.without_effect(f.name))
+        white = whitener.white(contribution)
+        white = white - before.basis @ (before.basis.T @ white)
+        gaps.append(pattern_metrics(f.name, Pattern(whitener.colour(white), white),
+                                    Residuals(before.resid_bins, before.white_resid),
+                                    Residuals(after.resid_bins, after.white_resid), null_resid, geometry,
+                                    [analysis.segments.names[k] for k in np.unique(
+                                        analysis.segments.bin_index(analysis.bins))]))
+    return gaps
 
 
 def _final_periodic(analysis: _Analysis, fit: Fit) -> GyroModel:
