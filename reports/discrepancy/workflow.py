@@ -112,6 +112,7 @@ from gyrocal.reports.discrepancy.stochastic import (
     StochasticCandidate,
     WhittleTest,
     fine_bins,
+    stationarity_test,
 )
 from gyrocal.reports.measured_log import LogFormatError, MeasuredLog
 
@@ -504,6 +505,41 @@ def _structure_behind_markov(analysis: _Analysis, model: GyroModel, fit: Fit, ma
     return None if _explained_by_markov(analysis, model, markov, rivals[name], threshold) else name
 
 
+def _unless_nonstationary(analysis: _Analysis, fit: Fit, markov: StochasticCandidate,
+                          ranked: dict[str, float], scores: dict[str, EffectScores],
+                          search: _Search) -> str | None:
+    """MARKOV if the process is stationary over the record; else the next best candidate (or None).
+
+    The separation of a stationary random process from deterministic slow structure
+    (stochastic.stationarity_test): a process whose power differs between the record's
+    parts beyond what one process shows at the α level is not a Markov bias, whatever its
+    likelihood; the structure is reported as unexplained unless a catalogue effect or a
+    probe accounts for it.
+    """
+    bins = fine_bins(analysis.log.t_s, analysis.fs_hz)
+    test = stationarity_test(analysis.noise, bins.mean(analysis.resid_full(fit)), bins, analysis.fs_hz,
+                             markov, analysis.rng, analysis.n_null, ALPHA)
+    if test.stationary:
+        search.nonstationary = None
+        return MARKOV
+    parts = ", ".join(f"{r:.2g}" for r in test.power_ratio)
+    search.nonstationary = (
+        f"slow structure that a Markov bias (σ {markov.params['sigma_dph']:.3g} deg/h, τ "
+        f"{markov.params['tau_s']:.0f} s) would fit, but not stationary: its power in the record's "
+        f"halves is {parts} × the whole record's (test statistic {test.statistic:.1f}, limit "
+        f"{test.limit:.1f} at α = {ALPHA:g})")
+    search.notes.append(f"markov_bias not named: {search.nonstationary}")
+    rest = {name: score for name, score in ranked.items() if name != MARKOV}
+    if not rest:
+        return None
+    best = max(rest, key=rest.get)
+    # the next best effect is named only if it accounts for the slow structure: once it is
+    # fitted no Markov bias is left (a linear ramp under a bias accelerating with time leaves one)
+    if best in scores and _markov_survives(analysis, fit, scores[best].best.spec(fit.model)):
+        return None
+    return best
+
+
 def _library_threshold(scores: dict[str, EffectScores], fit: Fit, z: np.ndarray,
                        periodic: PeriodicScan | None, rng: np.random.Generator, alpha: float,
                        extra_nulls: list[np.ndarray]) -> float:
@@ -562,6 +598,8 @@ class _Search:
     found: list[FoundEffect] = field(default_factory=list)
     iterations: list[Iteration] = field(default_factory=list)
     preempted: Probe | None = None
+    #: set when the last pass's Markov candidate failed the stationarity test: what it saw
+    nonstationary: str | None = None
     notes: list[str] = field(default_factory=list)
 
 
@@ -628,6 +666,7 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
     lattice = search.lattice
     fit = analysis.fit(search.current)
     for iteration in range(1, max_effects + 1):
+        search.nonstationary = None     # what the last pass found is what is reported
         progress(f"effect search, round {iteration}: scoring the catalogue, {analysis.n_null} "
                  "simulated effect-free datasets for the threshold")
         scores = score_library(analysis.builder, fit, analysis.whitener, analysis.y_bins, analysis.space)
@@ -661,6 +700,11 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
             best = MARKOV
         elif best == MARKOV:
             best = _structure_behind_markov(analysis, search.current, fit, markov, scores, threshold) or best
+        if best == MARKOV and ranked[best] > threshold:
+            best = _unless_nonstationary(analysis, fit, markov, ranked, scores, search)
+            if best is None:
+                search.iterations.append(Iteration(ranked, deltas, threshold, None, probes))
+                break
         accepted = None
         if ranked[best] > threshold:
             preempting = _preempting_probe(analysis, fit, probes, best, scores, threshold)
@@ -767,7 +811,8 @@ def _gap_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> Discrep
     last_probe = strongest(all_probes(
         after, analysis.whitener, analysis.bins, analysis.probe_bins,
         analysis.rng.standard_normal((analysis.bins.n_bins, analysis.n_null)), ALPHA))
-    unexplained = preempted is not None or metrics["g1_segment_mean"].after > g1_limit
+    unexplained = (preempted is not None or search.nonstationary is not None
+                   or metrics["g1_segment_mean"].after > g1_limit)
     signals = _signals(analysis, after.model)
     where = ""
     if unexplained:
@@ -783,6 +828,8 @@ def _gap_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> Discrep
                                    line)
         if probe_info is not None and step_info is None:
             where = f"{probe_info.describe()} (Δχ² {probe_info.delta_chi2:.1f}); {where}"
+        if search.nonstationary is not None and probe_info is None:
+            where = f"{search.nonstationary}; {where}"
         if preempted is not None:
             notes.append(f"{preempted.describe()} explains the data better than any catalogue "
                          f"effect (Δχ² {preempted.delta_chi2:.1f}); nothing was named")
