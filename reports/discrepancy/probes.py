@@ -88,6 +88,8 @@ class ProbeInputs:
     temp_c: np.ndarray
     temp_rate_c_per_min: np.ndarray
     bins: Bins | None = None
+    #: binned shapes already averaged over the samples (an overnight log has 10 M of them)
+    _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def duration_s(self) -> float:
@@ -116,6 +118,17 @@ def probe_columns(kind: ProbeKind, where: float, x: ProbeInputs) -> np.ndarray:
         return np.column_stack([u, u * u, u ** 3])
     if kind is ProbeKind.ABS_TIME_RAMP:
         return (np.abs(t - where) / 3600.0)[:, None]
+    key = (kind, where)
+    if x.bins is not None and key in x._cache:
+        return x._cache[key]
+    out = _sample_shape(kind, where, x)
+    if x.bins is not None:
+        x._cache[key] = out
+    return out
+
+
+def _sample_shape(kind: ProbeKind, where: float, x: ProbeInputs) -> np.ndarray:
+    """Shapes nonlinear in rate or temperature: per sample, then binned (``x.reduce``)."""
     w = x.rate_dps
     if kind is ProbeKind.ONE_SIGN_RATE2:
         return x.reduce(np.where(np.sign(w) == where, w * w, 0.0))[:, None]

@@ -252,6 +252,7 @@ class _Analysis:
         self.y_full = output_to_dph(log.gyro, model.scale_factor)
         self.y_bins = self.bins.mean(self.y_full)
         self.rate_bins_dps = self.bins.mean(log.table_rate_dps)
+        self._probe_full: ProbeInputs | None = None
         self.probe_bins = self.probe_inputs(binned=True)
         self.space = SearchSpace(float(log.t_s[-1] - log.t_s[0]), self.bins.width_s,
                                  rate_levels(log.table_rate_dps, self.fs_hz),
@@ -263,10 +264,12 @@ class _Analysis:
 
     def probe_inputs(self, binned: bool = False) -> ProbeInputs:
         """The probes' inputs per sample (binned shapes with ``binned``)."""
-        log = self.log
-        trend = temperature_trend_c_per_min(log.t_s, log.chamber_temp_c)
-        return ProbeInputs(log.t_s - log.t_s[0], log.table_rate_dps, log.chamber_temp_c, trend,
-                           self.bins if binned else None)
+        if self._probe_full is None:
+            log = self.log
+            trend = temperature_trend_c_per_min(log.t_s, log.chamber_temp_c)
+            self._probe_full = ProbeInputs(log.t_s - log.t_s[0], log.table_rate_dps, log.chamber_temp_c,
+                                           trend)
+        return replace(self._probe_full, bins=self.bins, _cache={}) if binned else self._probe_full
 
     def use_noise(self, noise: NoiseModel, model_name: str = "the gyro model") -> None:
         self.noise = noise
