@@ -24,7 +24,10 @@ with time, or a ramp in |t − t0|, drew markov_bias at 1.0). The probes:
   the catalogue's ω² and ω³ together only approximate it;
 * a **bias by rate sign** (deg/h, +1 for ω > 0, −1 for ω < 0);
 * two **terms in dT/dt** of the chamber: |dT/dt| (deg/h per °C/min, the same
-  sign heating and cooling) and dT/dt·(T − T̄) (deg/h per °C·°C/min).
+  sign heating and cooling) and dT/dt·(T − T̄) (deg/h per °C·°C/min);
+* a **bias cubic in temperature** (deg/h per °C³ about the record's mean), the
+  next order beyond the catalogue's quadratic law;
+* a **scale factor drifting with time** (ppm per hour).
 
 Each is scored like a catalogue effect (the Δχ² of its columns after the
 refitted base and the whitening); its threshold is the (1 − α) point of its
@@ -71,6 +74,8 @@ class ProbeKind(Enum):
     RATE_SIGN_BIAS = "bias by rate sign"
     ABS_TEMP_RATE = "term in |dT/dt|"
     TEMP_RATE_X_TEMP = "term in dT/dt x (T - mean T)"
+    TEMP_CUBIC = "bias cubic in temperature"
+    SF_TIME_RAMP = "scale factor drifting with time"
 
 
 @dataclass(frozen=True)
@@ -118,6 +123,8 @@ def probe_columns(kind: ProbeKind, where: float, x: ProbeInputs) -> np.ndarray:
         return np.column_stack([u, u * u, u ** 3])
     if kind is ProbeKind.ABS_TIME_RAMP:
         return (np.abs(t - where) / 3600.0)[:, None]
+    if kind is ProbeKind.SF_TIME_RAMP:      # ppm per hour: ω·1e-6·ppm·t/3600, deg/h
+        return (_DPH_PER_PPM_PER_DPS * x.reduce(x.rate_dps) * t / 3600.0)[:, None]
     key = (kind, where)
     if x.bins is not None and key in x._cache:
         return x._cache[key]
@@ -136,6 +143,8 @@ def _sample_shape(kind: ProbeKind, where: float, x: ProbeInputs) -> np.ndarray:
         return x.reduce(np.sign(w))[:, None]
     if kind is ProbeKind.ABS_TEMP_RATE:
         return x.reduce(np.abs(x.temp_rate_c_per_min))[:, None]
+    if kind is ProbeKind.TEMP_CUBIC:
+        return x.reduce((x.temp_c - float(np.mean(x.temp_c))) ** 3)[:, None]
     return x.reduce(x.temp_rate_c_per_min * (x.temp_c - float(np.mean(x.temp_c))))[:, None]
 
 
@@ -166,6 +175,13 @@ class Probe:
     def penalised_delta(self) -> float:
         """Δχ² less what searching its grid buys on noise alone (2 ln M) and its extra columns."""
         return self.delta_chi2 - 2.0 * math.log(max(self.n_candidates, 1)) - 2.0 * (self.dof - 1)
+
+    def penalised_against(self, dof: int, n_bins: int) -> float:
+        """Δχ² to hold against a catalogue effect of ``dof`` columns: less the search penalty
+        (2 ln M) and ln n per extra column (BIC), so a probe that merely nests the effect
+        (the cubic in time nests bias_ramp) does not win on the χ²₂ its extra columns buy."""
+        return (self.delta_chi2 - 2.0 * math.log(max(self.n_candidates, 1))
+                - max(self.dof - dof, 0) * math.log(max(n_bins, 2)))
 
     @property
     def time_s(self) -> float:
@@ -209,6 +225,10 @@ class Probe:
             return f"a rate² term on {sign} rates only of {s:+.3g} deg/h per (deg/s)²"
         if k is ProbeKind.RATE_SIGN_BIAS:
             return f"a bias by rate sign of ±{abs(s):.3g} deg/h ({'+' if s > 0 else '−'} for positive rates)"
+        if k is ProbeKind.SF_TIME_RAMP:
+            return f"a scale factor drifting by {s:+.3g} ppm per hour"
+        if k is ProbeKind.TEMP_CUBIC:
+            return f"a bias cubic in temperature, {s:+.3g} deg/h per degC³ (about the record's mean)"
         if k is ProbeKind.ABS_TEMP_RATE:
             return f"a bias in |dT/dt| of {s:+.3g} deg/h per degC/min (same sign heating and cooling)"
         return f"a bias in dT/dt·(T − mean T) of {s:+.3g} deg/h per degC·degC/min"
@@ -308,11 +328,14 @@ def all_probes(fit: Fit, whitener: Whitener, bins: Bins, x: ProbeInputs, z: np.n
               _one_shape(ProbeKind.TIME_CUBIC, x, fit, whitener, z, alpha),
               _single_column_family(ProbeKind.ABS_TIME_RAMP, turning, x, fit, whitener, z, alpha)]
     if np.any(np.abs(x.rate_dps) > 0):
-        probes.append(_single_column_family(ProbeKind.SF_STEP, step_times, x, fit, whitener, z, alpha))
+        probes += [_single_column_family(ProbeKind.SF_STEP, step_times, x, fit, whitener, z, alpha),
+                   _one_shape(ProbeKind.SF_TIME_RAMP, x, fit, whitener, z, alpha)]
     if np.any(x.rate_dps > 0) and np.any(x.rate_dps < 0):
         probes += [_single_column_family(ProbeKind.ONE_SIGN_RATE2, np.array([1.0, -1.0]), x, fit,
                                          whitener, z, alpha),
                    _one_shape(ProbeKind.RATE_SIGN_BIAS, x, fit, whitener, z, alpha)]
+    if np.ptp(x.temp_c) > 1.0:
+        probes.append(_one_shape(ProbeKind.TEMP_CUBIC, x, fit, whitener, z, alpha))
     if np.ptp(x.temp_rate_c_per_min) > 0.1:
         probes += [_one_shape(ProbeKind.ABS_TEMP_RATE, x, fit, whitener, z, alpha),
                    _one_shape(ProbeKind.TEMP_RATE_X_TEMP, x, fit, whitener, z, alpha)]

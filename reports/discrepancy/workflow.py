@@ -424,14 +424,18 @@ def _probe_explains_markov(analysis: _Analysis, fit: Fit, probe: Probe) -> bool:
 
 
 def _probe_beats_effect(fit: Fit, probe: Probe, effect: EffectScores, threshold: float) -> bool:
-    """Whether a probe is the better account of the data than a catalogue effect (nested both ways).
+    """Whether a probe is the better account of the data than a catalogue effect.
 
-    The probe must still add significantly (its own calibrated threshold) once the
-    effect is fitted, and the effect must add nothing significant (the library
-    threshold every claim must pass) once the probe is fitted. A probe that only
-    nests the effect (the cubic in time nests bias_ramp) adds nothing beyond a real
-    one; an effect that only approximates the probe (ω² and ω³ for a rate² on one
-    sign) adds nothing beyond it.
+    The effect must add nothing significant (the library threshold every claim must
+    pass) once the probe is fitted; and either the probe still adds significantly
+    (its own calibrated threshold) once the effect is fitted, or, alone, it explains
+    more than the effect after its search and extra-column penalties
+    (``Probe.penalised_against``; the second form for a structural effect, which is
+    not nested with the probe: a thermal lag imitates a scale-factor step well
+    enough that the step adds little beyond it, yet explains 68 of its 108).
+    A probe that only nests the effect (the cubic in time nests bias_ramp) adds
+    nothing beyond a real one; an effect that only approximates the probe (ω² and
+    ω³ for a rate² on one sign) adds nothing beyond it.
     """
     best = effect.best
     if best.structural:
@@ -440,10 +444,25 @@ def _probe_beats_effect(fit: Fit, probe: Probe, effect: EffectScores, threshold:
         basis = np.hstack([fit.basis, best.basis])
         resid = fit.white_resid - best.white_contribution
     probe_given_effect = gain_given(probe, basis, resid)
-    if score_from_delta(probe_given_effect, probe.dof) <= probe.threshold:
-        return False
     effect_given_probe = best.delta_chi2 + probe_given_effect - probe.delta_chi2
-    return score_from_delta(effect_given_probe, best.dof) <= threshold
+    if score_from_delta(effect_given_probe, best.dof) > threshold:
+        return False
+    return (score_from_delta(probe_given_effect, probe.dof) > probe.threshold
+            or probe.penalised_against(best.dof, len(fit.white_resid)) > best.delta_chi2)
+
+
+def _outside_odds(probes: list[Probe], dof: int, delta_chi2: float, n_bins: int) -> tuple[float, Probe | None]:
+    """Σ over the probes of exp((penalised Δχ²_probe − Δχ²_effect)/2), and the largest term's probe.
+
+    The probes join the look-alike split (a flat prior, as in lookalikes.probabilities):
+    a named effect that a shape outside the catalogue explains about as well cannot be
+    stated at 0.99 (a rate² on one rate sign and the catalogue's ω² were equal, Δχ² 125
+    against 125, on a profile dominated by ±300 deg/s dwells).
+    """
+    terms = [(math.exp(min((p.penalised_against(dof, n_bins) - delta_chi2) / 2.0, 50.0)), p) for p in probes]
+    if not terms:
+        return 0.0, None
+    return sum(t for t, _ in terms), max(terms, key=lambda tp: tp[0])[1]
 
 
 def _preempting_probe(analysis: _Analysis, fit: Fit, probes: list[Probe], best: str,
@@ -748,12 +767,16 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
             scores[accepted].candidates.append(refined)
             spec = refined.spec(fit.model)
             split, rivals = lookalike_group(accepted, scores)
+            odds, outside = _outside_odds(probes, refined.dof, refined.delta_chi2, analysis.bins.n_bins)
             real = real_probability(refined.score, threshold)
-            probability = split * real
-            rivals = [replace(r, probability=r.probability * real) for r in rivals]
+            probability = split * real / (1.0 + odds)
+            rivals = [replace(r, probability=r.probability * real / (1.0 + odds)) for r in rivals]
             tau = spec.params.get("tau_s")
             experiment = separating_experiment(accepted, [r.name for r in rivals], tau,
                                                analysis.space.rate_levels_dps)
+            if outside is not None and odds * split * real / (1.0 + odds) >= 0.01:
+                rivals.append(LookAlike(f"outside the catalogue: {outside.describe()}",
+                                        odds * split * real / (1.0 + odds), 0.0))
             score, delta = refined.score, refined.delta_chi2
         current = fit.model.with_effect(spec)
         search.current = _refine_found(analysis, current, [f.name for f in search.found] + [accepted])
@@ -852,7 +875,7 @@ def _effect_gaps(analysis: _Analysis, search: _Search, before: Fit, after: Fit,
     """Each named effect's gap in its own domain (own_gap.py), in the order they were named."""
     gaps = []
     whitener, builder = analysis.whitener, analysis.builder
-    full = builder.binned_rate_dph(after.model)
+    full = None
     for f in search.found:
         if f.name == "quantization":
             gaps.append(quantization_metrics(analysis.resid_full(after), analysis.fs_hz,
@@ -864,6 +887,7 @@ def _effect_gaps(analysis: _Analysis, search: _Search, before: Fit, after: Fit,
             if own in metrics:
                 gaps.append(EffectGap(f.name, {}, own))
             continue
+        full = builder.binned_rate_dph(after.model) if full is None else full
         contribution = full - builder.binned_rate_dph(after.model.without_effect(f.name))
         white = whitener.white(contribution)
         white = white - before.basis @ (before.basis.T @ white)
