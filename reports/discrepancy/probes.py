@@ -57,7 +57,9 @@ from gyrocal.reports.discrepancy.segments import Bins
 
 #: Number of step positions a step probe tries.
 POSITIONS = 150
-#: Number of turning times the |t − t0| ramp tries (between 10 % and 90 % of the record).
+#: Number of turning times the |t − t0| ramp tries, between 20 % and 80 % of the record (a turn
+#: nearer an end is a linear ramp with a stub, which bias_ramp already is: a 10σ ramp lost 0.17
+#: of its probability to a turn at 10 %).
 ABS_RAMP_POSITIONS = 40
 #: Most frequencies the slow-sinusoid probe tries.
 MAX_FREQUENCIES = 200
@@ -173,8 +175,9 @@ class Probe:
 
     @property
     def penalised_delta(self) -> float:
-        """Δχ² less what searching its grid buys on noise alone (2 ln M) and its extra columns."""
-        return self.delta_chi2 - 2.0 * math.log(max(self.n_candidates, 1)) - 2.0 * (self.dof - 1)
+        """Δχ² less what searching its grid buys on noise alone (2 ln M) and ln n per column
+        beyond one (BIC): how probes of different flexibility are ranked against each other."""
+        return self.penalised_against(1, self.white_columns.shape[0])
 
     def penalised_against(self, dof: int, n_bins: int) -> float:
         """Δχ² to hold against a catalogue effect of ``dof`` columns: less the search penalty
@@ -322,7 +325,7 @@ def all_probes(fit: Fit, whitener: Whitener, bins: Bins, x: ProbeInputs, z: np.n
     n = bins.n_bins
     steps = np.unique(np.linspace(0.02 * n, 0.98 * n, POSITIONS).astype(int))
     step_times = bins.centre_s[steps] - bins.width_s / 2
-    turning = x.duration_s * np.linspace(0.1, 0.9, ABS_RAMP_POSITIONS)
+    turning = x.duration_s * np.linspace(0.2, 0.8, ABS_RAMP_POSITIONS)
     probes = [_single_column_family(ProbeKind.BIAS_STEP, step_times, x, fit, whitener, z, alpha),
               slow_sine_probe(fit, whitener, bins, x, z, alpha),
               _one_shape(ProbeKind.TIME_CUBIC, x, fit, whitener, z, alpha),

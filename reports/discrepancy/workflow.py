@@ -842,7 +842,7 @@ def _gap_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> Discrep
     signals = _signals(analysis, after.model)
     where = ""
     if unexplained:
-        probe_info = last_probe or preempted
+        probe_info = preempted or last_probe
         step_info = (probe_info if probe_info is not None and probe_info.kind is ProbeKind.BIAS_STEP
                      else None)
         line = None
