@@ -266,7 +266,10 @@ class _Analysis:
         """The probes' inputs per sample (binned shapes with ``binned``)."""
         if self._probe_full is None:
             log = self.log
-            trend = temperature_trend_c_per_min(log.t_s, log.chamber_temp_c)
+            # the chamber trend on the bins, interpolated back: the probes' dT/dt shapes need no
+            # more (a per-sample trend of a 10 M-sample overnight log cost a second for nothing)
+            trend_bins = temperature_trend_c_per_min(self.bins.centre_s, self.bins.mean(log.chamber_temp_c))
+            trend = np.interp(log.t_s - log.t_s[0], self.bins.centre_s, trend_bins)
             self._probe_full = ProbeInputs(log.t_s - log.t_s[0], log.table_rate_dps, log.chamber_temp_c,
                                            trend)
         return replace(self._probe_full, bins=self.bins, _cache={}) if binned else self._probe_full
