@@ -554,13 +554,14 @@ def _unless_nonstationary(analysis: _Analysis, fit: Fit, markov: StochasticCandi
         f"halves is {parts} × the whole record's (test statistic {test.statistic:.1f}, limit "
         f"{test.limit:.1f} at α = {ALPHA:g})")
     search.notes.append(f"markov_bias not named: {search.nonstationary}")
-    rest = {name: score for name, score in ranked.items() if name != MARKOV}
+    rest = {name: score for name, score in ranked.items() if name in scores}
     if not rest:
         return None
     best = max(rest, key=rest.get)
-    # the next best effect is named only if it accounts for the slow structure: once it is
-    # fitted no Markov bias is left (a linear ramp under a bias accelerating with time leaves one)
-    if best in scores and _markov_survives(analysis, fit, scores[best].best.spec(fit.model)):
+    # the next best (bin-level) effect is named only if it accounts for the slow structure: once
+    # it is fitted no Markov bias is left (a linear ramp under a bias accelerating with time
+    # leaves one); a spectral line cannot account for slow structure
+    if _markov_survives(analysis, fit, scores[best].best.spec(fit.model)):
         return None
     return best
 
@@ -725,14 +726,22 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
             best = MARKOV
         elif best == MARKOV:
             best = _structure_behind_markov(analysis, search.current, fit, markov, scores, threshold) or best
+        preempting = None
         if best == MARKOV and ranked[best] > threshold:
-            best = _unless_nonstationary(analysis, fit, markov, ranked, scores, search)
-            if best is None:
-                search.iterations.append(Iteration(ranked, deltas, threshold, None, probes))
-                break
+            # a probe that leaves no Markov bias is the sharper reading; else the process must be
+            # stationary, or the next best effect must account for the slow structure
+            preempting = _preempting_probe(analysis, fit, probes, best, scores, threshold)
+            if preempting is None:
+                best = _unless_nonstationary(analysis, fit, markov, ranked, scores, search)
+                if best is None:
+                    search.iterations.append(Iteration(ranked, deltas, threshold, None, probes))
+                    break
+                if best != MARKOV and ranked[best] > threshold:
+                    preempting = _preempting_probe(analysis, fit, probes, best, scores, threshold)
+        elif ranked[best] > threshold:
+            preempting = _preempting_probe(analysis, fit, probes, best, scores, threshold)
         accepted = None
         if ranked[best] > threshold:
-            preempting = _preempting_probe(analysis, fit, probes, best, scores, threshold)
             if preempting is not None:
                 search.preempted = preempting
             elif (best in (MARKOV, "periodic_interference")

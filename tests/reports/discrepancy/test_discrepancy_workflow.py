@@ -148,10 +148,12 @@ def test_cli_end_to_end_writes_the_three_files(files):
     assert done.returncode == 0, done.stderr
     document = json.loads((out / "discrepancy.json").read_text())
     assert set(document) >= {"found", "unexplained", "where", "gap", "metrics"}
-    assert set(document["gap"]) == {"metric", "before", "after", "noise_floor"}
+    # the contract's keys, plus (issue 29) the unit and what the metric is
+    assert set(document["gap"]) == {"metric", "before", "after", "noise_floor", "unit", "description"}
     assert document["gap"]["metric"] in document["metrics"]
     for metric in document["metrics"].values():
-        assert set(metric) == {"before", "after", "noise_floor"}
+        assert set(metric) == {"before", "after", "noise_floor", "unit", "description"}
+        assert metric["unit"]
     [found] = document["found"]
     assert set(found) >= {"name", "parameters", "probability", "look_alikes", "separating_experiment"}
     assert found["name"] == "temp_hysteresis"
