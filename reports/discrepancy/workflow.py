@@ -109,6 +109,7 @@ from gyrocal.reports.discrepancy.signatures import (
 from gyrocal.reports.discrepancy.stochastic import (
     FINE_BIN_S,
     MARKOV,
+    Stationarity,
     StochasticCandidate,
     WhittleTest,
     fine_bins,
@@ -469,17 +470,42 @@ def _outside_odds(probes: list[Probe], dof: int, delta_chi2: float, n_bins: int)
 
 
 def _preempting_probe(analysis: _Analysis, fit: Fit, probes: list[Probe], best: str,
-                      scores: dict[str, EffectScores], threshold: float) -> Probe | None:
-    """The first significant probe (strongest first) that explains the data better than ``best``."""
+                      scores: dict[str, EffectScores], threshold: float,
+                      markov_stationary: bool = False) -> Probe | None:
+    """The first significant probe (strongest first) that explains the data better than ``best``.
+
+    Against a Markov bias whose reading is stationary over the record, a probe must also
+    hold in each half of the record on its own (``_holds_in_both_halves``): cross-validation
+    between the halves. A stationary process's wander can be caught by a bias step late in
+    the record (τ = 1000 s on a 1-hour record, which the step left no Markov bias behind);
+    a real ramp, curve or sinusoid shows in both halves.
+    """
     if best == "periodic_interference":
         return None
     for probe in significant_by_strength(probes):
         if best == MARKOV:
-            if _probe_explains_markov(analysis, fit, probe):
+            if ((not markov_stationary or _holds_in_both_halves(fit, probe))
+                    and _probe_explains_markov(analysis, fit, probe)):
                 return probe
         elif _probe_beats_effect(fit, probe, scores[best], threshold):
             return probe
     return None
+
+
+def _holds_in_both_halves(fit: Fit, probe: Probe) -> bool:
+    """Whether the probe's fitted shape is significant (α, one column) in each half on its own."""
+    perp = probe.white_columns - fit.basis @ (fit.basis.T @ probe.white_columns)
+    coef, *_ = np.linalg.lstsq(perp, fit.white_resid, rcond=None)
+    shape = perp @ coef
+    half = len(shape) // 2
+    for part in (slice(0, half), slice(half, None)):
+        norm2 = float(shape[part] @ shape[part])
+        if not norm2 > 0:
+            return False
+        gain = float(shape[part] @ fit.white_resid[part]) ** 2 / norm2
+        if score_from_delta(gain, 1) <= -math.log10(ALPHA):
+            return False
+    return True
 
 
 def _markov_survives(analysis: _Analysis, fit: Fit, spec: EffectSpec) -> bool:
@@ -530,7 +556,13 @@ def _structure_behind_markov(analysis: _Analysis, model: GyroModel, fit: Fit, ma
     return None if _explained_by_markov(analysis, model, markov, rivals[name], threshold) else name
 
 
-def _unless_nonstationary(analysis: _Analysis, fit: Fit, markov: StochasticCandidate,
+def _markov_stationary(analysis: _Analysis, fit: Fit, markov: StochasticCandidate) -> Stationarity:
+    bins = fine_bins(analysis.log.t_s, analysis.fs_hz)
+    return stationarity_test(analysis.noise, bins.mean(analysis.resid_full(fit)), bins, analysis.fs_hz,
+                             markov, analysis.rng, analysis.n_null, ALPHA)
+
+
+def _unless_nonstationary(analysis: _Analysis, fit: Fit, markov: StochasticCandidate, test: Stationarity,
                           ranked: dict[str, float], scores: dict[str, EffectScores],
                           search: _Search) -> str | None:
     """MARKOV if the process is stationary over the record; else the next best candidate (or None).
@@ -541,9 +573,6 @@ def _unless_nonstationary(analysis: _Analysis, fit: Fit, markov: StochasticCandi
     likelihood; the structure is reported as unexplained unless a catalogue effect or a
     probe accounts for it.
     """
-    bins = fine_bins(analysis.log.t_s, analysis.fs_hz)
-    test = stationarity_test(analysis.noise, bins.mean(analysis.resid_full(fit)), bins, analysis.fs_hz,
-                             markov, analysis.rng, analysis.n_null, ALPHA)
     if test.stationary:
         search.nonstationary = None
         return MARKOV
@@ -730,9 +759,11 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
         if best == MARKOV and ranked[best] > threshold:
             # a probe that leaves no Markov bias is the sharper reading; else the process must be
             # stationary, or the next best effect must account for the slow structure
-            preempting = _preempting_probe(analysis, fit, probes, best, scores, threshold)
+            stationary = _markov_stationary(analysis, fit, markov)
+            preempting = _preempting_probe(analysis, fit, probes, best, scores, threshold,
+                                           stationary.stationary)
             if preempting is None:
-                best = _unless_nonstationary(analysis, fit, markov, ranked, scores, search)
+                best = _unless_nonstationary(analysis, fit, markov, stationary, ranked, scores, search)
                 if best is None:
                     search.iterations.append(Iteration(ranked, deltas, threshold, None, probes))
                     break
