@@ -62,7 +62,7 @@ def cmd_discrepancy(args) -> int:
     if document["unexplained"]:
         print(f"where: {document['where']}")
     gap = document["gap"]
-    print(f"gap ({gap['metric']}): before {gap['before']:.4g}, after {gap['after']:.4g}, "
+    print(f"gap ({gap['metric']}, {gap['unit']}): before {gap['before']:.4g}, after {gap['after']:.4g}, "
           f"noise floor {gap['noise_floor']:.4g}")
     print(f"wrote {Path(args.out) / 'discrepancy.json'}, updated-model.yaml, discrepancy.html")
     return 0

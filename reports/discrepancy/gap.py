@@ -82,9 +82,12 @@ class Metric:
     after: float
     noise_floor: float
     noise_spread: float
+    unit: str = "1"
+    description: str = ""
 
     def to_json(self) -> dict:
-        return {"before": self.before, "after": self.after, "noise_floor": self.noise_floor}
+        return {"before": self.before, "after": self.after, "noise_floor": self.noise_floor,
+                "unit": self.unit, "description": self.description}
 
 
 def choose_primary(metrics: dict[str, Metric], found: bool) -> str:

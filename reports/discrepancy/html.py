@@ -82,11 +82,17 @@ effect-free data simulated from the refitted model and the noise model.</p>
 {% if unexplained %}<p><b>Unexplained remainder:</b> {{ where }}</p>{% endif %}
 
 <h2>3. The gap before and after</h2>
+{% if effect_gaps %}
+<p>Each named effect's gap in the metric where that effect lives (its own segments, the short-τ
+Allan deviation for quantization, the spectrum for interference, the Allan curve for a Markov
+bias): before (input model, refitted), after (updated model), and the noise floor.</p>
+<img src="data:image/png;base64,{{ fig_effect_gaps }}" alt="each named effect's gap before and after">
+{% endif %}
 <table><tr><th>metric</th><th>unit</th><th>before</th><th>after</th><th>noise floor</th></tr>
-{% for name, m in metrics %}{% set label, unit = labels.get(name, (name, "")) %}
+{% for name, m in metrics %}{% set label, unit = metric_label(name, m) %}
 <tr><td>{{ label }} <code>{{ name }}</code>{% if name == primary %} (primary){% endif %}</td><td>{{ unit }}</td>
 <td>{{ "%.4g"|format(m.before) }}</td><td>{{ "%.4g"|format(m.after) }}</td>
-<td>{{ "%.4g"|format(m.noise_floor) }}</td></tr>{% endfor %}</table>
+<td>{{ "%.4g"|format(m.noise_floor) }}</td><td>{{ m.description }}</td></tr>{% endfor %}</table>
 <img src="data:image/png;base64,{{ fig_gap }}" alt="spectrum and Allan deviation">
 <h3>Notes</h3>
 <ul>{% for n in notes %}<li>{{ n }}</li>{% endfor %}</ul>
@@ -192,11 +198,33 @@ def _fig_gap(result: DiscrepancyResult) -> str:
     return _png(fig)
 
 
+def metric_label(name: str, metric) -> tuple[str, str]:
+    """(what the metric measures, its unit): METRIC_LABELS for the whole-record metrics, the
+    metric's own description and unit for each named effect's (own_gap.py)."""
+    return METRIC_LABELS.get(name, (metric.description or name, metric.unit))
+
+
 def _param_unit(effect: str, key: str) -> str:
     """An effect parameter's unit, from the catalogue (models/effects.py)."""
     definition = EFFECTS.get(effect)
     param = next((p for p in definition.params if p.key == key), None) if definition else None
     return param.unit if param is not None else ""
+
+
+def _fig_effect_gaps(result: DiscrepancyResult) -> str:
+    """One panel per named effect: its own metric before, after and at the noise floor, with units."""
+    items = [(effect, key) for effect, key in result.effect_gaps.items() if key in result.metrics]
+    fig, axes = plt.subplots(1, max(len(items), 1), figsize=(3.2 * max(len(items), 1), 3.2), squeeze=False)
+    for ax, (effect, key) in zip(axes[0], items, strict=False):
+        m = result.metrics[key]
+        ax.bar(["before", "after"], [m.before, m.after], color=["C3", "C0"])
+        ax.axhline(m.noise_floor, color="k", ls="--", lw=1, label="noise floor")
+        ax.axhline(2.0 * m.noise_floor, color="k", ls=":", lw=0.8, label="2 × floor")
+        ax.set_title(effect, fontsize=9)
+        ax.set_ylabel(f"{key} ({m.unit})", fontsize=8)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    return _png(fig)
 
 
 def verdict(result: DiscrepancyResult) -> str:
@@ -209,8 +237,8 @@ def verdict(result: DiscrepancyResult) -> str:
                      else "No catalogue effect explains the disagreement.")
     if result.unexplained:
         parts.append("Structure remains that no catalogue effect explains: " + result.where + ".")
-    unit = METRIC_UNITS.get(result.primary, "")
-    label = METRIC_LABELS.get(result.primary, (result.primary, ""))[0]
+    label, unit = metric_label(result.primary, gap)
+    unit = METRIC_UNITS.get(result.primary, f" {unit}")
     parts.append(f"Gap ({label}): {gap.before:.3g}{unit} before, {gap.after:.3g}{unit} after, "
                  f"noise floor {gap.noise_floor:.3g}{unit}.")
     return " ".join(parts)
@@ -228,9 +256,11 @@ def write_html(result: DiscrepancyResult, source: str, path: str | Path) -> Path
         model_name=result.input_model.name or "(unnamed model)", source=source,
         verdict=verdict(result), found=result.found, iterations=iterations, alpha=ALPHA,
         unexplained=result.unexplained, where=result.where, primary=result.primary,
-        metrics=list(result.metrics.items()), notes=result.notes, labels=METRIC_LABELS,
+        metrics=list(result.metrics.items()), notes=result.notes, metric_label=metric_label,
         param_unit=_param_unit,
         fig_time=_fig_time(result), fig_inputs=_fig_inputs(result), fig_gap=_fig_gap(result),
+        effect_gaps=bool(result.effect_gaps),
+        fig_effect_gaps=_fig_effect_gaps(result) if result.effect_gaps else "",
     )
     path = Path(path)
     path.write_text(html, encoding="utf-8")

@@ -212,6 +212,23 @@ def sized_effect(name: str, snr: float, profile: Profile, nominal: GyroModel | N
     return EffectSpec(name, params)
 
 
+def sized_extra(shape_dph: np.ndarray, snr: float, profile: Profile, nominal: GyroModel | None = None,
+                max_bins: int = 2000) -> np.ndarray:
+    """Structure outside the catalogue (a per-sample shape, deg/h) scaled to known-shape SNR ``snr``.
+
+    The counterpart of ``sized_effect`` for shapes the catalogue does not have: the
+    scale for which the whitened, base-projected binned shape has norm ``snr``.
+    """
+    nominal = nominal or nominal_model()
+    bins, builder, whitener = _snr_tools(nominal, profile, NoiseModel.of_model(nominal), max_bins)
+    fit = gls_fit(builder, whitener, bins.mean(builder.rate_dph(true_base(nominal))), true_base(nominal))
+    wc = whitener.white(bins.mean(shape_dph))
+    norm = float(np.linalg.norm(wc - fit.basis @ (fit.basis.T @ wc)))
+    if not norm > 0:
+        raise ValueError("the shape is all explained by the base (bias, tempco, SF): it has no SNR")
+    return shape_dph * (snr / norm)
+
+
 def sized_markov(snr: float, tau_s: float, profile: Profile, nominal: GyroModel | None = None
                  ) -> EffectSpec:
     """markov_bias of correlation time ``tau_s`` whose expected likelihood ratio is snr².

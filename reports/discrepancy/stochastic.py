@@ -50,7 +50,7 @@ from scipy import optimize
 
 from gyrocal.models.noise import flicker_bank
 from gyrocal.reports.discrepancy.noise_model import NoiseModel
-from gyrocal.reports.discrepancy.scoring import score_from_delta
+from gyrocal.reports.discrepancy.scoring import order_statistic_quantile, score_from_delta
 from gyrocal.reports.discrepancy.segments import Bins, make_bins
 
 #: Width of the fine bins the test is run on (s), and at most this many of them.
@@ -119,6 +119,7 @@ class StochasticCandidate:
     white_scale: float
     #: τ at the top of the range: slower than the record can show, a rate random walk to the data
     at_rrw_limit: bool = False
+    flicker_scale: float = 1.0
 
     @property
     def rrw_deg_per_h_rth(self) -> float:
@@ -244,7 +245,7 @@ class WhittleTest:
         a, b, sigma, tau, ll1 = self._refine(data, (a0, b0), (sigma0, tau0), float(grid[best_row, 0]))
         return StochasticCandidate(MARKOV, {"sigma_dph": sigma, "tau_s": tau},
                                    max(2.0 * (ll1 - ll0), 0.0), 2, np.maximum(null_lr, 0.0), a,
-                                   tau >= 0.99 * self.tau_bounds_s[1])
+                                   tau >= 0.99 * self.tau_bounds_s[1], b)
 
     def _refine(self, data: np.ndarray, scales: tuple[float, float], markov: tuple[float, float] | None,
                 grid_best: float) -> tuple[float, ...]:
@@ -273,3 +274,63 @@ class WhittleTest:
         a, b, m = unpack(result.x if -result.fun >= grid_best else np.log(start))
         best = max(-float(result.fun), grid_best)
         return (a, b, *(m or ()), best)
+
+
+#: Parts the record is split into for the stationarity test, and the grid of the process's
+#: power in each part (relative to the whole-record fit) the likelihood is profiled on.
+STATIONARITY_PARTS = 2
+_POWER_GRID = np.geomspace(1e-3, 1e3, 61)
+
+
+@dataclass(frozen=True)
+class Stationarity:
+    """The Markov process's power fitted in each part of the record, and whether it is one process.
+
+    ``statistic`` is twice the log-likelihood gain of a separate power per part
+    over one common power (τ, white and flicker levels held at the whole-record
+    fit); ``limit`` its (1 − α) point on records simulated from the common fit.
+    """
+
+    power_ratio: tuple[float, ...]     # fitted σ² per part / the whole record's σ²
+    statistic: float
+    limit: float
+
+    @property
+    def stationary(self) -> bool:
+        return self.statistic <= self.limit
+
+
+def stationarity_test(noise: NoiseModel, resid_bins: np.ndarray, bins: Bins, fs_hz: float,
+                      markov: StochasticCandidate, rng: np.random.Generator, n_null: int,
+                      alpha: float) -> Stationarity:
+    """Whether the fitted Markov process is the same stationary process in every part of the record.
+
+    A Gauss–Markov process with a long τ imitates almost any slow curve over one
+    record (a bias accelerating with time was named markov_bias at 1.0); a
+    deterministic shape is not stationary: its power sits where the shape bends.
+    The test is Whittle's again, per part: the process's power is profiled
+    separately in each part and jointly, and the gain of the separate fit is
+    held against the same gain on parts simulated from the common fit (band
+    means S·Gamma(m, 1)/m, independent between parts), so its level is α.
+    """
+    sigma2, tau = markov.params["sigma_dph"] ** 2, markov.params["tau_s"]
+    n_part = bins.n_bins // STATIONARITY_PARTS
+    grids = []
+    for k in range(STATIONARITY_PARTS):
+        part = Bins(bins.samples_per_bin, n_part, bins.centre_s[k * n_part:(k + 1) * n_part], bins.width_s)
+        test = WhittleTest(noise, part, fs_hz)
+        base = test.spectrum(markov.white_scale, markov.flicker_scale)
+        unit = gm_bin_spectrum(1.0, tau, test.width_s, test.omega)
+        spectra = base[:, None] + sigma2 * _POWER_GRID[None, :] * unit[:, None]     # bands × grid
+        common = base + sigma2 * unit
+        draws = common[:, None] * rng.gamma(test.counts[:, None], 1.0, (test.counts.size, n_null)) / \
+            test.counts[:, None]
+        values = np.column_stack([test.band_means(resid_bins[k * n_part:(k + 1) * n_part]), draws])
+        # log-likelihood of every grid power on the data (column 0) and each null draw
+        weighted = (test.counts[:, None] / spectra).T @ values
+        grids.append(-(np.log(spectra).T @ test.counts)[:, None] - weighted)          # grid × (1 + n_null)
+    separate = sum(g.max(axis=0) for g in grids)
+    joint = np.sum(grids, axis=0).max(axis=0)
+    stat = 2.0 * (separate - joint)
+    ratios = tuple(float(_POWER_GRID[int(np.argmax(g[:, 0]))]) for g in grids)
+    return Stationarity(ratios, float(stat[0]), order_statistic_quantile(stat[1:], 1.0 - alpha))

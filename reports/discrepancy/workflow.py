@@ -52,13 +52,29 @@ from gyrocal.reports.discrepancy.lookalikes import (
     separating_experiment,
 )
 from gyrocal.reports.discrepancy.noise_model import NoiseEstimate, NoiseModel, estimate_noise
+from gyrocal.reports.discrepancy.own_gap import (
+    EffectGap,
+    Pattern,
+    Residuals,
+    pattern_metrics,
+    quantization_metrics,
+)
 from gyrocal.reports.discrepancy.periodic import (
     REFINEMENT_FACTOR,
     PeriodicScan,
     periodic_scan,
     sine_dph,
 )
-from gyrocal.reports.discrepancy.probes import POSITIONS, Probe, ProbeKind, all_probes, strongest
+from gyrocal.reports.discrepancy.probes import (
+    POSITIONS,
+    Probe,
+    ProbeInputs,
+    ProbeKind,
+    all_probes,
+    gain_given,
+    significant_by_strength,
+    strongest,
+)
 from gyrocal.reports.discrepancy.quantization import (
     PulseLattice,
     detect_pulse,
@@ -73,9 +89,16 @@ from gyrocal.reports.discrepancy.scoring import (
     order_statistic_quantile,
     refine_shape,
     score_candidate,
+    score_from_delta,
     score_library,
 )
-from gyrocal.reports.discrepancy.segments import Bins, Segments, derive_segments, make_bins
+from gyrocal.reports.discrepancy.segments import (
+    Bins,
+    Segments,
+    derive_segments,
+    make_bins,
+    temperature_trend_c_per_min,
+)
 from gyrocal.reports.discrepancy.signatures import (
     DesignBuilder,
     SearchSpace,
@@ -86,9 +109,11 @@ from gyrocal.reports.discrepancy.signatures import (
 from gyrocal.reports.discrepancy.stochastic import (
     FINE_BIN_S,
     MARKOV,
+    Stationarity,
     StochasticCandidate,
     WhittleTest,
     fine_bins,
+    stationarity_test,
 )
 from gyrocal.reports.measured_log import LogFormatError, MeasuredLog
 
@@ -148,9 +173,9 @@ class Iteration:
     probes: list[Probe]
 
     @property
-    def step(self) -> Probe:
+    def step(self) -> Probe | None:
         """The bias-step probe (kept under its old JSON key)."""
-        return next(p for p in self.probes if p.kind is ProbeKind.BIAS_STEP)
+        return next((p for p in self.probes if p.kind is ProbeKind.BIAS_STEP), None)
 
 
 @dataclass
@@ -177,6 +202,8 @@ class DiscrepancyResult:
     noise_before: NoiseModel
     t0_s: float
     notes: list[str] = field(default_factory=list)
+    #: each named effect → the key in ``metrics`` of its own headline gap (own_gap.py)
+    effect_gaps: dict[str, str] = field(default_factory=dict)
 
     def to_json(self) -> dict:
         gap = self.metrics[self.primary]
@@ -186,12 +213,15 @@ class DiscrepancyResult:
             "where": self.where,
             "gap": {"metric": self.primary, **gap.to_json()},
             "metrics": {name: m.to_json() for name, m in self.metrics.items()},
+            "effect_gaps": dict(self.effect_gaps),
             "threshold": {"alpha": ALPHA,
                           "per_iteration": [it.threshold for it in self.iterations]},
             "scores": [{"effects": it.scores, "threshold": it.threshold, "accepted": it.accepted,
-                        "step_probe": {"time_s": it.step.time_s, "size_dph": it.step.size_dph,
-                                       "score": it.step.score, "threshold": it.step.threshold},
+                        "step_probe": None if it.step is None else {
+                            "time_s": it.step.time_s, "size_dph": it.step.size_dph,
+                            "score": it.step.score, "threshold": it.step.threshold},
                         "probes": [{"kind": p.kind.value, "where": p.where, "size": p.size,
+                                    "description": p.describe(),
                                     "delta_chi2": p.delta_chi2, "score": p.score,
                                     "threshold": p.threshold, "candidates": p.n_candidates}
                                    for p in it.probes]}
@@ -223,6 +253,8 @@ class _Analysis:
         self.y_full = output_to_dph(log.gyro, model.scale_factor)
         self.y_bins = self.bins.mean(self.y_full)
         self.rate_bins_dps = self.bins.mean(log.table_rate_dps)
+        self._probe_full: ProbeInputs | None = None
+        self.probe_bins = self.probe_inputs(binned=True)
         self.space = SearchSpace(float(log.t_s[-1] - log.t_s[0]), self.bins.width_s,
                                  rate_levels(log.table_rate_dps, self.fs_hz),
                                  passed_rates(log.table_rate_dps))
@@ -230,6 +262,18 @@ class _Analysis:
         self.n_null = n_null
         self.whitener: Whitener | None = None
         self.noise: NoiseModel | None = None
+
+    def probe_inputs(self, binned: bool = False) -> ProbeInputs:
+        """The probes' inputs per sample (binned shapes with ``binned``)."""
+        if self._probe_full is None:
+            log = self.log
+            # the chamber trend on the bins, interpolated back: the probes' dT/dt shapes need no
+            # more (a per-sample trend of a 10 M-sample overnight log cost a second for nothing)
+            trend_bins = temperature_trend_c_per_min(self.bins.centre_s, self.bins.mean(log.chamber_temp_c))
+            trend = np.interp(log.t_s - log.t_s[0], self.bins.centre_s, trend_bins)
+            self._probe_full = ProbeInputs(log.t_s - log.t_s[0], log.table_rate_dps, log.chamber_temp_c,
+                                           trend)
+        return replace(self._probe_full, bins=self.bins, _cache={}) if binned else self._probe_full
 
     def use_noise(self, noise: NoiseModel, model_name: str = "the gyro model") -> None:
         self.noise = noise
@@ -331,7 +375,7 @@ def _explained_by_markov(analysis: _Analysis, model: GyroModel, markov: Stochast
     return candidate.score <= threshold
 
 
-def _step_time_at_full_rate(probe: Probe, resid_dph: np.ndarray, log: MeasuredLog) -> float:
+def _step_time_at_full_rate(probe: Probe, resid_dph: np.ndarray, full: ProbeInputs) -> float:
     """The step time to one sample, searched within a grid spacing of the probe's.
 
     The probe's positions are 150 points of the bin grid; a 300 ppm scale-factor step
@@ -339,13 +383,15 @@ def _step_time_at_full_rate(probe: Probe, resid_dph: np.ndarray, log: MeasuredLo
     one-second Markov test reads as a process (LR 650 000). With the step size held,
     the squared-error change of a step starting at sample k is a reverse cumulative sum.
     """
-    t = log.t_s
+    t = full.t_s
     half_window_s = (t[-1] - t[0]) / POSITIONS
     lo, hi = np.searchsorted(t, [probe.where - half_window_s, probe.where + half_window_s])
     lo, hi = max(int(lo), 1), min(int(hi), len(t) - 1)
     if hi <= lo:
         return probe.where
-    unit = probe.signal_dph(t[lo:], log.table_rate_dps[lo:])   # the step, held at its size
+    # the step held at its size from sample lo on: its value at each sample (deg/h)
+    unit = (np.full(len(t) - lo, probe.size) if probe.kind is ProbeKind.BIAS_STEP
+            else probe.size * 1e-6 * 3600.0 * full.rate_dps[lo:])
     change = unit * unit - 2.0 * unit * resid_dph[lo:]            # SSE change from each sample on
     tail = np.cumsum(change[::-1])[::-1]                          # step starting at lo + k
     return float(t[lo + int(np.argmin(tail[: hi - lo]))])
@@ -354,17 +400,22 @@ def _step_time_at_full_rate(probe: Probe, resid_dph: np.ndarray, log: MeasuredLo
 def _probe_explains_markov(analysis: _Analysis, fit: Fit, probe: Probe) -> bool:
     """Whether the Markov bias is gone once the probe's shape is refitted with the base.
 
-    A probe still significant under the noise with the fitted Markov process is not
-    yet evidence against it: a slow sinusoid catches two wiggles of a τ = 1000 s
-    process on a 1-hour record at the 2 % tail (5 of 10 runs called "unexplained").
-    A real step or sinusoid leaves white noise behind once fitted; a Markov process
-    leaves its other frequencies. So the probe preempts the Markov bias only if the
-    Markov test on the residual of the joint refit is no longer significant (`_markov_left`).
+    The separation of a stationary random process from deterministic slow structure:
+    a Gauss–Markov process with a long τ imitates almost any slow curve over one
+    record (a bias accelerating with time, a ramp in |t − t0| were named markov_bias
+    at 1.0). A real step, curve or sinusoid leaves white noise behind once fitted
+    with its few columns; a Markov process leaves its other frequencies. So the
+    probe preempts the Markov bias if the Markov test on the residual of the joint
+    refit is no longer significant (`_markov_left`), by the same α as every claim.
+    A probe merely significant under the noise with the fitted process is no
+    evidence against it: a slow sinusoid catches two wiggles of a τ = 1000 s
+    process on a 1-hour record at the 2 % tail.
     """
-    bins, whitener, log = analysis.bins, analysis.whitener, analysis.log
-    if probe.kind is not ProbeKind.SLOW_SINE:
-        probe = replace(probe, where=_step_time_at_full_rate(probe, analysis.resid_full(fit), log))
-    c_white = whitener.white(probe.signal_dph(bins.centre_s, analysis.rate_bins_dps))
+    whitener = analysis.whitener
+    full = analysis.probe_inputs()
+    if probe.kind in (ProbeKind.BIAS_STEP, ProbeKind.SF_STEP):
+        probe = replace(probe, where=_step_time_at_full_rate(probe, analysis.resid_full(fit), full))
+    c_white = whitener.white(probe.signal_dph(analysis.probe_bins))
     kept = [k for k, c in enumerate(fit.design.columns) if not any(c is h for h in fit.held)]
     x_white = whitener.white(fit.design.x_bins[:, kept])
     # Frisch–Waugh: the probe's size is its joint coefficient; the base moves by −(X'X)⁻¹X'c
@@ -372,8 +423,89 @@ def _probe_explains_markov(analysis: _Analysis, fit: Fit, probe: Probe) -> bool:
     coeffs = fit.coeffs.copy()
     coeffs[kept] -= shift
     model = apply_coefficients(fit.model, fit.design.columns, coeffs)
-    resid = analysis.y_full - analysis.builder.rate_dph(model) - probe.signal_dph(log.t_s, log.table_rate_dps)
+    resid = analysis.y_full - analysis.builder.rate_dph(model) - probe.signal_dph(full)
     return not _markov_left(_markov_test_of(analysis, resid))
+
+
+def _probe_beats_effect(fit: Fit, probe: Probe, effect: EffectScores, threshold: float) -> bool:
+    """Whether a probe is the better account of the data than a catalogue effect.
+
+    The effect must add nothing significant (the library threshold every claim must
+    pass) once the probe is fitted; and either the probe still adds significantly
+    (its own calibrated threshold) once the effect is fitted, or, alone, it explains
+    more than the effect after its search and extra-column penalties
+    (``Probe.penalised_against``; the second form for a structural effect, which is
+    not nested with the probe: a thermal lag imitates a scale-factor step well
+    enough that the step adds little beyond it, yet explains 68 of its 108).
+    A probe that only nests the effect (the cubic in time nests bias_ramp) adds
+    nothing beyond a real one; an effect that only approximates the probe (ω² and
+    ω³ for a rate² on one sign) adds nothing beyond it.
+    """
+    best = effect.best
+    if best.structural:
+        basis, resid = best.fit.basis, best.fit.white_resid
+    else:
+        basis = np.hstack([fit.basis, best.basis])
+        resid = fit.white_resid - best.white_contribution
+    probe_given_effect = gain_given(probe, basis, resid)
+    effect_given_probe = best.delta_chi2 + probe_given_effect - probe.delta_chi2
+    if score_from_delta(effect_given_probe, best.dof) > threshold:
+        return False
+    return (score_from_delta(probe_given_effect, probe.dof) > probe.threshold
+            or probe.penalised_against(best.dof, len(fit.white_resid)) > best.delta_chi2)
+
+
+def _outside_odds(probes: list[Probe], dof: int, delta_chi2: float, n_bins: int) -> tuple[float, Probe | None]:
+    """Σ over the probes of exp((penalised Δχ²_probe − Δχ²_effect)/2), and the largest term's probe.
+
+    The probes join the look-alike split (a flat prior, as in lookalikes.probabilities):
+    a named effect that a shape outside the catalogue explains about as well cannot be
+    stated at 0.99 (a rate² on one rate sign and the catalogue's ω² were equal, Δχ² 125
+    against 125, on a profile dominated by ±300 deg/s dwells).
+    """
+    terms = [(math.exp(min((p.penalised_against(dof, n_bins) - delta_chi2) / 2.0, 50.0)), p) for p in probes]
+    if not terms:
+        return 0.0, None
+    return sum(t for t, _ in terms), max(terms, key=lambda tp: tp[0])[1]
+
+
+def _preempting_probe(analysis: _Analysis, fit: Fit, probes: list[Probe], best: str,
+                      scores: dict[str, EffectScores], threshold: float,
+                      markov_stationary: bool = False) -> Probe | None:
+    """The first significant probe (strongest first) that explains the data better than ``best``.
+
+    Against a Markov bias whose reading is stationary over the record, a probe must also
+    hold in each half of the record on its own (``_holds_in_both_halves``): cross-validation
+    between the halves. A stationary process's wander can be caught by a bias step late in
+    the record (τ = 1000 s on a 1-hour record, which the step left no Markov bias behind);
+    a real ramp, curve or sinusoid shows in both halves.
+    """
+    if best == "periodic_interference":
+        return None
+    for probe in significant_by_strength(probes):
+        if best == MARKOV:
+            if ((not markov_stationary or _holds_in_both_halves(fit, probe))
+                    and _probe_explains_markov(analysis, fit, probe)):
+                return probe
+        elif _probe_beats_effect(fit, probe, scores[best], threshold):
+            return probe
+    return None
+
+
+def _holds_in_both_halves(fit: Fit, probe: Probe) -> bool:
+    """Whether the probe's fitted shape is significant (α, one column) in each half on its own."""
+    perp = probe.white_columns - fit.basis @ (fit.basis.T @ probe.white_columns)
+    coef, *_ = np.linalg.lstsq(perp, fit.white_resid, rcond=None)
+    shape = perp @ coef
+    half = len(shape) // 2
+    for part in (slice(0, half), slice(half, None)):
+        norm2 = float(shape[part] @ shape[part])
+        if not norm2 > 0:
+            return False
+        gain = float(shape[part] @ fit.white_resid[part]) ** 2 / norm2
+        if score_from_delta(gain, 1) <= -math.log10(ALPHA):
+            return False
+    return True
 
 
 def _markov_survives(analysis: _Analysis, fit: Fit, spec: EffectSpec) -> bool:
@@ -422,6 +554,45 @@ def _structure_behind_markov(analysis: _Analysis, model: GyroModel, fit: Fit, ma
     if _markov_survives(analysis, fit, refined.spec(fit.model)):
         return None
     return None if _explained_by_markov(analysis, model, markov, rivals[name], threshold) else name
+
+
+def _markov_stationary(analysis: _Analysis, fit: Fit, markov: StochasticCandidate) -> Stationarity:
+    bins = fine_bins(analysis.log.t_s, analysis.fs_hz)
+    return stationarity_test(analysis.noise, bins.mean(analysis.resid_full(fit)), bins, analysis.fs_hz,
+                             markov, analysis.rng, analysis.n_null, ALPHA)
+
+
+def _unless_nonstationary(analysis: _Analysis, fit: Fit, markov: StochasticCandidate, test: Stationarity,
+                          ranked: dict[str, float], scores: dict[str, EffectScores],
+                          search: _Search) -> str | None:
+    """MARKOV if the process is stationary over the record; else the next best candidate (or None).
+
+    The separation of a stationary random process from deterministic slow structure
+    (stochastic.stationarity_test): a process whose power differs between the record's
+    parts beyond what one process shows at the α level is not a Markov bias, whatever its
+    likelihood; the structure is reported as unexplained unless a catalogue effect or a
+    probe accounts for it.
+    """
+    if test.stationary:
+        search.nonstationary = None
+        return MARKOV
+    parts = ", ".join(f"{r:.2g}" for r in test.power_ratio)
+    search.nonstationary = (
+        f"slow structure that a Markov bias (σ {markov.params['sigma_dph']:.3g} deg/h, τ "
+        f"{markov.params['tau_s']:.0f} s) would fit, but not stationary: its power in the record's "
+        f"halves is {parts} × the whole record's (test statistic {test.statistic:.1f}, limit "
+        f"{test.limit:.1f} at α = {ALPHA:g})")
+    search.notes.append(f"markov_bias not named: {search.nonstationary}")
+    rest = {name: score for name, score in ranked.items() if name in scores}
+    if not rest:
+        return None
+    best = max(rest, key=rest.get)
+    # the next best (bin-level) effect is named only if it accounts for the slow structure: once
+    # it is fitted no Markov bias is left (a linear ramp under a bias accelerating with time
+    # leaves one); a spectral line cannot account for slow structure
+    if _markov_survives(analysis, fit, scores[best].best.spec(fit.model)):
+        return None
+    return best
 
 
 def _library_threshold(scores: dict[str, EffectScores], fit: Fit, z: np.ndarray,
@@ -482,6 +653,8 @@ class _Search:
     found: list[FoundEffect] = field(default_factory=list)
     iterations: list[Iteration] = field(default_factory=list)
     preempted: Probe | None = None
+    #: set when the last pass's Markov candidate failed the stationarity test: what it saw
+    nonstationary: str | None = None
     notes: list[str] = field(default_factory=list)
 
 
@@ -548,6 +721,7 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
     lattice = search.lattice
     fit = analysis.fit(search.current)
     for iteration in range(1, max_effects + 1):
+        search.nonstationary = None     # what the last pass found is what is reported
         progress(f"effect search, round {iteration}: scoring the catalogue, {analysis.n_null} "
                  "simulated effect-free datasets for the threshold")
         scores = score_library(analysis.builder, fit, analysis.whitener, analysis.y_bins, analysis.space)
@@ -562,8 +736,7 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
         markov = None if search.current.has_effect(MARKOV) else _markov_test(analysis, fit)
         threshold = _library_threshold(scores, fit, z, scan, analysis.rng, ALPHA / iteration,
                                        [] if markov is None else [markov.null_scores()])
-        probes = all_probes(fit, analysis.whitener, analysis.bins, analysis.rate_bins_dps, z, ALPHA)
-        probe = strongest(probes)
+        probes = all_probes(fit, analysis.whitener, analysis.bins, analysis.probe_bins, z, ALPHA)
         ranked = {name: s.score for name, s in scores.items()}
         deltas = {name: s.delta_chi2 for name, s in scores.items()}
         if markov is not None:
@@ -582,16 +755,26 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
             best = MARKOV
         elif best == MARKOV:
             best = _structure_behind_markov(analysis, search.current, fit, markov, scores, threshold) or best
+        preempting = None
+        if best == MARKOV and ranked[best] > threshold:
+            # a probe that leaves no Markov bias is the sharper reading; else the process must be
+            # stationary, or the next best effect must account for the slow structure
+            stationary = _markov_stationary(analysis, fit, markov)
+            preempting = _preempting_probe(analysis, fit, probes, best, scores, threshold,
+                                           stationary.stationary)
+            if preempting is None:
+                best = _unless_nonstationary(analysis, fit, markov, stationary, ranked, scores, search)
+                if best is None:
+                    search.iterations.append(Iteration(ranked, deltas, threshold, None, probes))
+                    break
+                if best != MARKOV and ranked[best] > threshold:
+                    preempting = _preempting_probe(analysis, fit, probes, best, scores, threshold)
+        elif ranked[best] > threshold:
+            preempting = _preempting_probe(analysis, fit, probes, best, scores, threshold)
         accepted = None
         if ranked[best] > threshold:
-            if probe is None or best == "periodic_interference":
-                probe_beats = False
-            elif best == MARKOV:
-                probe_beats = _probe_explains_markov(analysis, fit, probe)
-            else:
-                probe_beats = probe.penalised_delta > deltas[best]
-            if probe_beats:
-                search.preempted = probe
+            if preempting is not None:
+                search.preempted = preempting
             elif (best in (MARKOV, "periodic_interference")
                   or ranked[best] - threshold >= GAP_CHECK_MARGIN or _gap_open(analysis, fit, z)):
                 accepted = best
@@ -627,12 +810,16 @@ def _search_pass(analysis: _Analysis, log: MeasuredLog, search: _Search, max_eff
             scores[accepted].candidates.append(refined)
             spec = refined.spec(fit.model)
             split, rivals = lookalike_group(accepted, scores)
+            odds, outside = _outside_odds(probes, refined.dof, refined.delta_chi2, analysis.bins.n_bins)
             real = real_probability(refined.score, threshold)
-            probability = split * real
-            rivals = [replace(r, probability=r.probability * real) for r in rivals]
+            probability = split * real / (1.0 + odds)
+            rivals = [replace(r, probability=r.probability * real / (1.0 + odds)) for r in rivals]
             tau = spec.params.get("tau_s")
             experiment = separating_experiment(accepted, [r.name for r in rivals], tau,
                                                analysis.space.rate_levels_dps)
+            if outside is not None and odds * split * real / (1.0 + odds) >= 0.01:
+                rivals.append(LookAlike(f"outside the catalogue: {outside.describe()}",
+                                        odds * split * real / (1.0 + odds), 0.0))
             score, delta = refined.score, refined.delta_chi2
         current = fit.model.with_effect(spec)
         search.current = _refine_found(analysis, current, [f.name for f in search.found] + [accepted])
@@ -660,31 +847,45 @@ def _gap_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> Discrep
     null_g1 = g1(geometry, null_resid)
     metrics["g1_segment_mean"] = Metric(float(g1(geometry, before.resid_bins)),
                                         float(g1(geometry, after.resid_bins)),
-                                        float(np.mean(null_g1)), float(np.std(null_g1)))
+                                        float(np.mean(null_g1)), float(np.std(null_g1)), "1 (mean of z²)",
+                                        "G1 over every segment: (segment mean / its standard error)², averaged")
     null_rms = segment_rms(geometry, null_resid)
     metrics["segment_mean_rms_dph"] = Metric(float(segment_rms(geometry, before.resid_bins)),
                                              float(segment_rms(geometry, after.resid_bins)),
-                                             float(np.mean(null_rms)), float(np.std(null_rms)))
+                                             float(np.mean(null_rms)), float(np.std(null_rms)), "deg/h",
+                                             "RMS of the residual's segment means")
     null_allan = np.array([allan_mismatch(null_resid[:, k], analysis.bins, noise) for k in range(20)])
     metrics["allan_mismatch"] = Metric(allan_mismatch(before.resid_bins, analysis.bins, noise_before),
                                        allan_mismatch(after.resid_bins, analysis.bins, noise),
-                                       float(np.mean(null_allan)), float(np.std(null_allan)))
+                                       float(np.mean(null_allan)), float(np.std(null_allan)),
+                                       "1 (RMS of ln ratio)",
+                                       "Allan deviation of the residual's bin means against the noise model, "
+                                       "RMS over τ of ln(measured / model)")
     scan_before, scan_after = analysis.scan(before), analysis.scan(after)
     if scan_before is not None and scan_after is not None:
         m = int(scan_after.n_freqs / REFINEMENT_FACTOR)
         metrics["spectrum_peak"] = Metric(scan_before.peak_ratio, scan_after.peak_ratio,
-                                          expected_max_exponential(m), math.pi / math.sqrt(6.0))
-    primary = choose_primary(metrics, bool(found))
+                                          expected_max_exponential(m), math.pi / math.sqrt(6.0),
+                                          "1 (periodogram / noise PSD)",
+                                          "largest line of the full-rate residual over the noise PSD")
+    effect_gaps = _effect_gaps(analysis, search, before, after, geometry, null_resid, metrics)
+    for gap in effect_gaps:
+        metrics.update(gap.metrics)
+    # the headline is the first named effect's own metric (issue 29: a whole-record metric may
+    # not move at all for the effect that was named)
+    heads = [gap.headline for gap in effect_gaps if gap.headline in metrics]
+    primary = heads[0] if heads else choose_primary(metrics, bool(found))
 
     g1_limit = order_statistic_quantile(null_g1, UNEXPLAINED_LEVEL)
     last_probe = strongest(all_probes(
-        after, analysis.whitener, analysis.bins, analysis.rate_bins_dps,
+        after, analysis.whitener, analysis.bins, analysis.probe_bins,
         analysis.rng.standard_normal((analysis.bins.n_bins, analysis.n_null)), ALPHA))
-    unexplained = preempted is not None or metrics["g1_segment_mean"].after > g1_limit
+    unexplained = (preempted is not None or search.nonstationary is not None
+                   or metrics["g1_segment_mean"].after > g1_limit)
     signals = _signals(analysis, after.model)
     where = ""
     if unexplained:
-        probe_info = last_probe or preempted
+        probe_info = preempted or last_probe
         step_info = (probe_info if probe_info is not None and probe_info.kind is ProbeKind.BIAS_STEP
                      else None)
         line = None
@@ -694,6 +895,10 @@ def _gap_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> Discrep
                                    np.unique(seg_of_bin), signals,
                                    None if step_info is None else (step_info.time_s, step_info.size_dph),
                                    line)
+        if probe_info is not None and step_info is None:
+            where = f"{probe_info.describe()} (Δχ² {probe_info.delta_chi2:.1f}); {where}"
+        if search.nonstationary is not None and probe_info is None:
+            where = f"{search.nonstationary}; {where}"
         if preempted is not None:
             notes.append(f"{preempted.describe()} explains the data better than any catalogue "
                          f"effect (Δχ² {preempted.delta_chi2:.1f}); nothing was named")
@@ -704,7 +909,37 @@ def _gap_pass(analysis: _Analysis, log: MeasuredLog, search: _Search) -> Discrep
         found, unexplained, where, metrics, primary, model, after.model, search.noise_est,
         search.iterations, analysis.bins, analysis.segments, np.unique(seg_of_bin), geometry,
         before.resid_bins, after.resid_bins, signals, scan_before, scan_after, noise_before,
-        float(log.t_s[0]), notes)
+        float(log.t_s[0]), notes, {gap.effect: gap.headline for gap in effect_gaps})
+
+
+def _effect_gaps(analysis: _Analysis, search: _Search, before: Fit, after: Fit,
+                 geometry: SegmentGeometry, null_resid: np.ndarray,
+                 metrics: dict[str, Metric]) -> list[EffectGap]:
+    """Each named effect's gap in its own domain (own_gap.py), in the order they were named."""
+    gaps = []
+    whitener, builder = analysis.whitener, analysis.builder
+    full = None
+    for f in search.found:
+        if f.name == "quantization":
+            gaps.append(quantization_metrics(analysis.resid_full(after), analysis.fs_hz,
+                                             NoiseModel.of_model(search.model),
+                                             after.model.effect(f.name)["pulse_arcsec"], analysis.rng))
+            continue
+        if f.name in (MARKOV, "periodic_interference"):
+            own = "allan_mismatch" if f.name == MARKOV else "spectrum_peak"
+            if own in metrics:
+                gaps.append(EffectGap(f.name, {}, own))
+            continue
+        full = builder.binned_rate_dph(after.model) if full is None else full
+        contribution = full - builder.binned_rate_dph(after.model.without_effect(f.name))
+        white = whitener.white(contribution)
+        white = white - before.basis @ (before.basis.T @ white)
+        gaps.append(pattern_metrics(f.name, Pattern(whitener.colour(white), white),
+                                    Residuals(before.resid_bins, before.white_resid),
+                                    Residuals(after.resid_bins, after.white_resid), null_resid, geometry,
+                                    [analysis.segments.names[k] for k in np.unique(
+                                        analysis.segments.bin_index(analysis.bins))]))
+    return gaps
 
 
 def _final_periodic(analysis: _Analysis, fit: Fit) -> GyroModel:

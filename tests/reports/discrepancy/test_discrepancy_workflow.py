@@ -148,10 +148,12 @@ def test_cli_end_to_end_writes_the_three_files(files):
     assert done.returncode == 0, done.stderr
     document = json.loads((out / "discrepancy.json").read_text())
     assert set(document) >= {"found", "unexplained", "where", "gap", "metrics"}
-    assert set(document["gap"]) == {"metric", "before", "after", "noise_floor"}
+    # the contract's keys, plus (issue 29) the unit and what the metric is
+    assert set(document["gap"]) == {"metric", "before", "after", "noise_floor", "unit", "description"}
     assert document["gap"]["metric"] in document["metrics"]
     for metric in document["metrics"].values():
-        assert set(metric) == {"before", "after", "noise_floor"}
+        assert set(metric) == {"before", "after", "noise_floor", "unit", "description"}
+        assert metric["unit"]
     [found] = document["found"]
     assert set(found) >= {"name", "parameters", "probability", "look_alikes", "separating_experiment"}
     assert found["name"] == "temp_hysteresis"
@@ -179,12 +181,14 @@ def _check_the_story_reads_right(html: str, document: dict) -> None:
 
     text = re.sub(r"<[^>]+>", " ", re.sub(r'src="data:[^"]+"', "", html))
     text = " ".join(text.split())
-    for name in document["metrics"]:
-        label, unit = METRIC_LABELS[name]
+    # the whole-record metrics by their labels; each named effect's own metric by its description
+    labels = {name: METRIC_LABELS.get(name, (meta["description"], meta["unit"]))
+              for name, meta in document["metrics"].items()}
+    for name, (label, unit) in labels.items():
         assert f"{label} {name}" in text and unit in text, name
     assert re.search(r"dph = \S+ deg/h", text), "the hysteresis amplitude without its unit"
     primary = document["gap"]["metric"]
-    assert f"Gap ({METRIC_LABELS[primary][0]}):" in text
+    assert f"Gap ({labels[primary][0]}):" in text
     assert "white-space: pre-wrap" in html and "overflow-x: auto" not in html
     # the gap figure: the spectrum before and after in panels of their own, then the ADEV
     figures = re.findall(r'alt="spectrum and Allan deviation"', html)
