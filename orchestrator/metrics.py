@@ -22,6 +22,7 @@ class Metric:
 
 
 _SWEEP, _SWEEP_TEMPS, _BIAS_TEMPS, _ALLAN = "sweep", "sweep_temps", "bias_temps", "allan"
+_THRESHOLD = "threshold"
 
 METRICS: dict[str, Metric] = {
     m.key: m
@@ -37,6 +38,8 @@ METRICS: dict[str, Metric] = {
         *(Metric(f"allan.fit.{t.fit_key}", t.unit, _ALLAN) for t in NOISE_TERMS),
         Metric("allan.fit.markov.sigma_dph", "deg/h", _ALLAN),
         Metric("allan.fit.markov.tau_s", "s", _ALLAN),
+        Metric("threshold.threshold_dps", "deg/s", _THRESHOLD),
+        Metric("threshold.resolution_dps", "deg/s", _THRESHOLD),
     )
 }
 
@@ -45,6 +48,7 @@ NEEDS_TEXT = {
     _SWEEP_TEMPS: "sf_sweep tests at two or more temperatures",
     _BIAS_TEMPS: "static or allan tests at two or more temperatures",
     _ALLAN: "an allan test",
+    _THRESHOLD: "a threshold test",
 }
 
 

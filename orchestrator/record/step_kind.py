@@ -14,10 +14,11 @@ class StepKind(str, Enum):
     ALLAN = "allan"        # log a long hold at rest (noise terms)
     DWELL = "dwell"        # log at a constant table rate
     REMOUNT = "remount"    # an operator turns the IMU fixture (multi-axis procedures)
+    THRESHOLD = "threshold"  # log at a base rate or a small increment above it (threshold test)
 
     def __str__(self) -> str:     # as written in plan.json and the journal
         return self.value
 
     @property
     def logs_data(self) -> bool:
-        return self in (StepKind.STATIC, StepKind.ALLAN, StepKind.DWELL)
+        return self in (StepKind.STATIC, StepKind.ALLAN, StepKind.DWELL, StepKind.THRESHOLD)
