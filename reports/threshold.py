@@ -25,9 +25,9 @@ from typing import Any
 
 from scipy.stats import norm
 
-from gyrocal.instruments.table.acutrol_protocol import RATE_DECIMALS
-
 COVERAGE_K = 2.0
+#: table demands carry 6 decimals (plan.py rounds them); 9 only strips float noise from δ
+_INCREMENT_DECIMALS = 9
 
 
 @dataclass(frozen=True)
@@ -82,7 +82,7 @@ def increments(dwells: list[ThresholdDwell], nominal_sf: float) -> list[Incremen
         ref_var = sum(d.output_sem**2 for d in refs) / len(refs) ** 2
         delta = (dwell.output_mean - ref_mean) / nominal_sf
         u = math.sqrt(dwell.output_sem**2 + ref_var) / abs(nominal_sf)
-        commanded = round(dwell.rate_dps - dwell.base_rate_dps, RATE_DECIMALS)
+        commanded = round(dwell.rate_dps - dwell.base_rate_dps, _INCREMENT_DECIMALS)
         z_needed = float(norm.ppf(dwell.confidence))
         z = delta / u if u > 0 else math.inf
         out.append(Increment(commanded, delta, u, z, bool(z >= z_needed),
