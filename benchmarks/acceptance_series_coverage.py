@@ -1,0 +1,51 @@
+"""Coverage of the acceptance series' intervals over seeded dry runs (issue 25).
+
+Runs procedures/acceptance-series.yaml on the simulated station (gyro-models/series-fog.yaml)
+with seeds 1..N and counts, per covered test, how often the simulator's hand-typed truth
+lies inside estimate ± U (as docs/uncertainty-coverage.md does for the GUM budgets).
+
+    .venv/bin/python benchmarks/acceptance_series_coverage.py --runs 8
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import tempfile
+from pathlib import Path
+
+from gyrocal.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+DEAD_ZONE_DPS = 0.025      # gyro-models/series-fog.yaml, typed
+
+
+def one_run(seed: int, folder: Path) -> dict:
+    out = folder / f"run-{seed}"
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        main(["run", str(REPO / "procedures" / "acceptance-series.yaml"), "--sim", "--out",
+              str(out), "--seed", str(seed)])
+    return json.loads((out / "report" / "results.json").read_text())
+
+
+def main_cli() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--runs", type=int, default=8)
+    runs = parser.parse_args().runs
+    covered = 0
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in range(1, runs + 1):
+            results = one_run(seed, Path(tmp))
+            zero = next(t for t in results["threshold"]["tests"] if t["base_rate_dps"] == 0)
+            inside = zero["estimate_dps"] is not None and \
+                abs(zero["estimate_dps"] - DEAD_ZONE_DPS) <= zero["U_dps"]
+            covered += inside
+            print(f"seed {seed}: threshold {zero['threshold_dps']} in ({zero['below_dps']}, "
+                  f"{zero['threshold_dps']}] U {zero['U_dps']:.4g}: {'covered' if inside else 'MISSED'}")
+    print(f"threshold (dead zone {DEAD_ZONE_DPS} deg/s): {covered}/{runs} covered")
+
+
+if __name__ == "__main__":
+    main_cli()
