@@ -20,6 +20,7 @@ from gyrocal.cli import main
 
 REPO = Path(__file__).resolve().parents[1]
 DEAD_ZONE_DPS = 0.025      # gyro-models/series-fog.yaml, typed
+SATURATION_DPS = {"positive": 320.0, "negative": 270.0}
 
 
 def one_run(seed: int, folder: Path) -> dict:
@@ -35,6 +36,7 @@ def main_cli() -> None:
     parser.add_argument("--runs", type=int, default=8)
     runs = parser.parse_args().runs
     covered = 0
+    limits = {"positive": 0, "negative": 0}
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(1, runs + 1):
             results = one_run(seed, Path(tmp))
@@ -44,7 +46,17 @@ def main_cli() -> None:
             covered += inside
             print(f"seed {seed}: threshold {zero['threshold_dps']} in ({zero['below_dps']}, "
                   f"{zero['threshold_dps']}] U {zero['U_dps']:.4g}: {'covered' if inside else 'MISSED'}")
+            for walk in results["rate_limits"]["tests"]:
+                truth = SATURATION_DPS[walk["direction"]]
+                hit = walk["estimate_dps"] is not None and \
+                    abs(walk["estimate_dps"] - truth) <= walk["U_dps"]
+                limits[walk["direction"]] += hit
+                print(f"  max rate {walk['direction']}: {walk['max_dps']} (next {walk['next_dps']}) "
+                      f"U {walk['U_dps']:.4g}: {'covered' if hit else 'MISSED'}")
     print(f"threshold (dead zone {DEAD_ZONE_DPS} deg/s): {covered}/{runs} covered")
+    for direction, hits in limits.items():
+        print(f"max input rate {direction} (truth {SATURATION_DPS[direction]:g} deg/s): "
+              f"{hits}/{runs} covered")
 
 
 if __name__ == "__main__":

@@ -165,6 +165,18 @@ _CATALOGUE: tuple[EffectDef, ...] = (
         "lock-in (RLG), dead band",
     ),
     EffectDef(
+        "rate_saturation",
+        (
+            _positive("positive_dps", "deg/s", "nonlinear", "largest positive rate the output "
+                      "follows (the unit's input limit)"),
+            _positive("negative_dps", "deg/s", "nonlinear", "largest negative rate magnitude "
+                      "the output follows"),
+        ),
+        "rate",
+        "rate (every rate term summed) is clipped to [-negative_dps, +positive_dps]",
+        "input-rate limit: the loop or the output range saturates",
+    ),
+    EffectDef(
         "warmup_transient",
         (
             _any("amplitude_dph", "deg/h", "linear", "bias excess at power-on"),

@@ -269,6 +269,10 @@ def indicated_rate(
         rate = rate + k * omega_eff**3
     if (k := coefficient("sf_asymmetry", "ppm")) != 0.0:
         rate = rate + 0.5e-6 * k * np.abs(omega_eff)
+    if "rate_saturation" in fx:
+        # the input-rate limit: the output follows the rate up to it, then stays there
+        rate = np.clip(rate, -fx["rate_saturation"]["negative_dps"],
+                       fx["rate_saturation"]["positive_dps"])
 
     # --- bias bracket, deg/h
     bias = model.bias_dph + model.earth_rate_dph

@@ -126,6 +126,7 @@ class RunEngine:
             StepKind.ALLAN: self._log_step,
             StepKind.DWELL: self._log_step,
             StepKind.THRESHOLD: self._log_step,
+            StepKind.RATE_LIMIT: self._log_step,
         }
         if operator is not None:
             self._executors[StepKind.REMOUNT] = self._remount_executor().execute

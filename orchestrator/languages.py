@@ -438,6 +438,31 @@ TEST_THRESHOLD = Section(
             False, "defaults.accel_dps2"),
     ))
 
+TEST_RATE_LIMIT = Section(
+    "test-rate_limit", "test kind: rate_limit",
+    "Input-rate limits (IEEE Std 952 / 1431): the rates are walked up, each way, to the "
+    "declared maximum (the procedure's and the station's table limits bound every one). The "
+    "lowest `fit_rates` rates of each direction define a least-squares line; a rate *follows* "
+    "when its output lies within `linearity_tolerance_pct` of that line. The maximum input "
+    "rate each way is the largest rate that follows with every smaller one; its uncertainty "
+    "is the walk's grid (rectangular up to the first rate that does not follow, U = 2u). "
+    "Results: `rate_limits.max_positive_dps`, `rate_limits.max_negative_dps`.",
+    (
+        *_COMMON_TEST_KEYS,
+        Key("rates_dps", ListOf(_q(RATE, above=0.0)), "rate magnitudes walked, smallest first"),
+        Key("directions", _choice(proc.DIRECTIONS), "which ways are walked", False, "both"),
+        Key("linearity_tolerance_pct", _num(above=0.0, maximum=50.0), "how far (% of the "
+            "fitted output) a rate's output may lie from the line and still follow", False,
+            str(proc.DEFAULT_LINEARITY_TOLERANCE_PCT)),
+        Key("fit_rates", _int(1, proc.MAX_LIST), "how many of the lowest rates (each way) "
+            "define the line; fewer than `rates_dps` has", False, str(proc.DEFAULT_FIT_RATES)),
+        Key("dwell", _duration(), "logged time at each rate", False, "defaults.dwell"),
+        Key("settle", _duration(positive=False), "time after the table reaches a rate before "
+            "logging", False, "defaults.settle"),
+        Key("accel_dps2", _q(ACCELERATION, above=0.0), "table acceleration between rates",
+            False, "defaults.accel_dps2"),
+    ))
+
 TEMPERATURE_STEP = Section(
     "sequence", "sequence[] (a temperature step)",
     "One chamber setpoint: ramp to it, soak until stable, then run its tests in order.",
@@ -450,7 +475,8 @@ TEMPERATURE_STEP = Section(
         Key("label", _text(), "a name shown in the plan and the report", False),
         Key("tests", ListOf(Variants("kind", (("static", TEST_STATIC), ("sf_sweep", TEST_SWEEP),
                                               ("allan", TEST_ALLAN),
-                                              ("threshold", TEST_THRESHOLD))), min_items=0),
+                                              ("threshold", TEST_THRESHOLD),
+                                              ("rate_limit", TEST_RATE_LIMIT))), min_items=0),
             "what is measured at this temperature, in order (an empty list just soaks)", False),
     ))
 

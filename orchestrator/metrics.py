@@ -23,6 +23,7 @@ class Metric:
 
 _SWEEP, _SWEEP_TEMPS, _BIAS_TEMPS, _ALLAN = "sweep", "sweep_temps", "bias_temps", "allan"
 _THRESHOLD = "threshold"
+_LIMIT_POS, _LIMIT_NEG = "rate_limit_positive", "rate_limit_negative"
 
 METRICS: dict[str, Metric] = {
     m.key: m
@@ -40,6 +41,8 @@ METRICS: dict[str, Metric] = {
         Metric("allan.fit.markov.tau_s", "s", _ALLAN),
         Metric("threshold.threshold_dps", "deg/s", _THRESHOLD),
         Metric("threshold.resolution_dps", "deg/s", _THRESHOLD),
+        Metric("rate_limits.max_positive_dps", "deg/s", _LIMIT_POS),
+        Metric("rate_limits.max_negative_dps", "deg/s", _LIMIT_NEG),
     )
 }
 
@@ -49,6 +52,8 @@ NEEDS_TEXT = {
     _BIAS_TEMPS: "static or allan tests at two or more temperatures",
     _ALLAN: "an allan test",
     _THRESHOLD: "a threshold test",
+    _LIMIT_POS: "a rate_limit test walking the positive direction",
+    _LIMIT_NEG: "a rate_limit test walking the negative direction",
 }
 
 

@@ -22,6 +22,7 @@ from gyrocal.orchestrator.procedure import (
     AllanTest,
     MountingSpec,
     Procedure,
+    RateLimitTest,
     StaticTest,
     SweepTest,
     TemperatureStep,
@@ -68,6 +69,9 @@ class PlanStep:
     base_rate_dps: float | None = None
     confidence: float | None = None
     max_error_fraction: float | None = None
+    # rate-limit steps: the linearity criterion and how many lowest rates make the fit
+    linearity_tolerance_pct: float | None = None
+    fit_rates: int | None = None
 
 
 @dataclass(frozen=True)
@@ -102,7 +106,8 @@ def _rate_tag(rate_dps: float) -> str:
 
 def _test_tags(step: TemperatureStep) -> list[str]:
     """``sf``, ``static``, ``allan``; numbered (``sf1``, ``sf2``) when a kind repeats in a step."""
-    base = {"sf_sweep": "sf", "static": "static", "allan": "allan", "threshold": "thr"}
+    base = {"sf_sweep": "sf", "static": "static", "allan": "allan", "threshold": "thr",
+            "rate_limit": "lim"}
     kinds = [base[test.kind] for test in step.tests]
     seen: dict[str, int] = {}
     tags = []
@@ -210,6 +215,9 @@ class _Expander:
                 if isinstance(test, ThresholdTest):
                     self.threshold(prefix, tag, suffix, test, base)
                     continue
+                if isinstance(test, RateLimitTest):
+                    self.rate_limit(prefix, tag, suffix, test, base)
+                    continue
                 self.sweep(prefix, tag, suffix, test, base)
 
     def remount(self, step_id: str, spec: MountingSpec, index: int, step: TemperatureStep) -> None:
@@ -251,6 +259,21 @@ class _Expander:
                          rate_dps=rate, direction="+", **common)
             self.add(step_id=f"{head}.ref{len(test.increments_dps)}{suffix}",
                      kind=StepKind.THRESHOLD, rate_dps=base_rate, direction="", **common)
+
+    def rate_limit(self, prefix: str, tag: str, suffix: str, test: RateLimitTest,
+                   base: dict) -> None:
+        """Each way in turn, the rates walked up: ``T01.lim.+50dps`` … then ``T01.lim.-50dps`` …"""
+        signs = {"both": (1.0, -1.0), "positive": (1.0,), "negative": (-1.0,)}[test.directions]
+        common = dict(base, accel_dps2=test.accel_dps2, settle_s=test.settle_s,
+                      duration_s=test.dwell_s,
+                      linearity_tolerance_pct=test.linearity_tolerance_pct,
+                      fit_rates=test.fit_rates)
+        for sign in signs:
+            for magnitude in test.rates_dps:
+                rate = sign * magnitude
+                self.add(step_id=f"{prefix}.{tag}.{_rate_tag(rate)}{suffix}",
+                         kind=StepKind.RATE_LIMIT, rate_dps=rate,
+                         direction="+" if sign > 0 else "-", **common)
 
     def finish(self) -> float:
         """Stop the table, then bring the chamber to its safe setpoint (if it has one)."""

@@ -54,7 +54,11 @@ PROCEDURE_VERSION = 1
 OUTPUT_UNITS = ("deg/s", "deg/h", "rad/s", "V", "LSB")
 DIRECTIONS = ("both", "positive", "negative")
 SPACINGS = ("linear", "log")
-TEST_KINDS = ("static", "sf_sweep", "allan", "threshold")
+TEST_KINDS = ("static", "sf_sweep", "allan", "threshold", "rate_limit")
+#: Input-rate limit defaults: a rate leaves the linear fit when its output is more than this
+#: many % of the fitted output away from it; the fit uses this many of the lowest rates.
+DEFAULT_LINEARITY_TOLERANCE_PCT = 1.0
+DEFAULT_FIT_RATES = 3
 #: Threshold defaults (IEEE Std 952 §3 "threshold": the smallest input change whose output
 #: change is at least half the expected one; the confidence is the one-sided level at which
 #: the mean output change counts as resolved against the noise of the two means).
@@ -201,7 +205,29 @@ class ThresholdTest:
     kind: str = "threshold"
 
 
-Test = StaticTest | AllanTest | SweepTest | ThresholdTest
+@dataclass(frozen=True)
+class RateLimitTest:
+    """Input-rate limits (IEEE Std 952 / 1431): rates walked up to the declared maximum each way.
+
+    The lowest ``fit_rates`` rates (each way) define the linear fit; the maximum input rate
+    each way is the largest rate that, with every smaller one, stays within
+    ``linearity_tolerance_pct`` of that fit. The plan walks every listed rate (the table's
+    limits bound them), so a unit that saturates early costs dwells, never safety.
+    """
+
+    rates_dps: tuple[float, ...]       # magnitudes, increasing
+    directions: str                    # both | positive | negative
+    dwell_s: float
+    settle_s: float
+    accel_dps2: float
+    linearity_tolerance_pct: float
+    fit_rates: int
+    repeats: int
+    label: str | None
+    kind: str = "rate_limit"
+
+
+Test = StaticTest | AllanTest | SweepTest | ThresholdTest | RateLimitTest
 
 
 @dataclass(frozen=True)
@@ -714,6 +740,8 @@ class _Parser:
         label = fields.take("label", text, required=False)
         if kind == "threshold":
             return self.threshold_test(fields, defaults, repeats, label)
+        if kind == "rate_limit":
+            return self.rate_limit_test(fields, defaults, repeats, label)
         if kind != "sf_sweep":
             # after a sweep the table needs settling before a static hold too, but a
             # procedure that never spins may leave settle out altogether
@@ -755,6 +783,41 @@ class _Parser:
         increments = self.increment_list(fields, bases)
         fields.finish()
         return ThresholdTest(bases, increments, dwell, settle, accel, confidence, fraction,
+                             repeats, label)
+
+    def rate_limit_test(self, fields: Fields, defaults: Defaults, repeats: int,
+                        label: str | None) -> RateLimitTest:
+        settle = self.inherit(fields, "settle", _duration(positive=False), defaults.settle_s,
+                              "defaults.settle")
+        dwell = self.inherit(fields, "dwell", _duration(), defaults.dwell_s, "defaults.dwell")
+        accel = self.inherit(fields, "accel_dps2", quantity(ACCELERATION, above=0.0),
+                             defaults.accel_dps2, "defaults.accel_dps2")
+        if fields.has("accel_dps2"):
+            self.check_accel(fields.child("accel_dps2"), accel)
+        directions = fields.take("directions", choice(DIRECTIONS), required=False, default="both")
+        tolerance = fields.take("linearity_tolerance_pct", number(above=0.0, maximum=50.0),
+                                required=False, default=DEFAULT_LINEARITY_TOLERANCE_PCT)
+        fit_rates = fields.take("fit_rates", integer(1, MAX_LIST), required=False,
+                                default=DEFAULT_FIT_RATES)
+        present, raw = fields.raw("rates_dps")
+        rates: tuple[float, ...] = ()
+        if not present:
+            if fields.valid:
+                self.ctx.report(fields.child("rates_dps"), "required key is missing")
+        else:
+            rates = self.rate_list(fields.child("rates_dps"), raw)
+            for index, (before, after) in enumerate(zip(rates, rates[1:], strict=False)):
+                if after <= before:
+                    self.ctx.report((*fields.child("rates_dps"), index + 1),
+                                    f"{format_number(after)} deg/s is not larger than the rate "
+                                    f"before it ({format_number(before)} deg/s); the walk goes up")
+                    rates = ()
+                    break
+        if rates and fit_rates is not None and fit_rates >= len(rates):
+            self.ctx.report(fields.child("fit_rates"), f"{fit_rates} fit rates leave none of the "
+                            f"{len(rates)} rates_dps to walk beyond the linear fit")
+        fields.finish()
+        return RateLimitTest(rates, directions, dwell, settle, accel, tolerance, fit_rates,
                              repeats, label)
 
     def signed_rate_list(self, fields: Fields, key: str) -> tuple[float, ...]:
@@ -947,6 +1010,9 @@ def _what_is_measured(sequence: tuple[TemperatureStep, ...]) -> set[str]:
                 sweep_temps.add(step.setpoint_c)
             elif isinstance(test, ThresholdTest):
                 measured.add("threshold")
+            elif isinstance(test, RateLimitTest):
+                ways = ("positive", "negative") if test.directions == "both" else (test.directions,)
+                measured.update(f"rate_limit_{way}" for way in ways)
             else:
                 bias_temps.add(step.setpoint_c)
                 if isinstance(test, AllanTest):

@@ -53,6 +53,7 @@ from gyrocal.orchestrator.record.strays import set_aside
 from gyrocal.orchestrator.signing import Signer
 from gyrocal.reports import bias as bias_mod
 from gyrocal.reports import compensation as comp
+from gyrocal.reports import rate_limits
 from gyrocal.reports.allan_summary import (
     allan_curve,
     curve_json,
@@ -450,15 +451,18 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
         "compensation": _compensation(sweep["scale_factor"], bias["bias"], notes),
         "imu": _imu(data, notes),
         "threshold": _threshold(data, nominal_sf, notes),
+        "rate_limits": _rate_limits(data, notes),
         "earth_rate_removed_dph": earth_dph,
         "reference_temp_c": REFERENCE_TEMP_C,
         **_provenance(data, notes),
         "definitions": DEFINITIONS,
     }
     add_uncertainties(results, [_mean_u(s) for s in data.steps
-                                if s.step.kind != StepKind.THRESHOLD], data.plan,
+                                if s.step.kind not in (StepKind.THRESHOLD, StepKind.RATE_LIMIT)],
+                      data.plan,
                       REFERENCE_TEMP_C, notes)
     results.setdefault("uncertainty", {}).update(headline_uncertainty(results["threshold"]))
+    results["uncertainty"].update(rate_limits.headline_uncertainty(results["rate_limits"]))
     results["acceptance"] = evaluate_acceptance(results, data.plan.get("acceptance") or [], notes,
                                                 measured=measured_needs(data))
     sf_tolerance = (data.plan.get("sanity") or {}).get("sf_tolerance_pct")
@@ -495,6 +499,9 @@ def measured_needs(data: RunData) -> frozenset[str]:
         needs.add("allan")
     if _all_done(data, StepKind.THRESHOLD):
         needs.add("threshold")
+    for sign, way in ((1.0, "positive"), (-1.0, "negative")):
+        if _all_done(data, StepKind.RATE_LIMIT, sign):
+            needs.add(f"rate_limit_{way}")
     return frozenset(needs)
 
 
@@ -520,6 +527,15 @@ def _threshold(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, 
     return threshold_section(dwells, nominal_sf, notes)
 
 
+def _rate_limits(data: RunData, notes: list[str]) -> dict[str, Any] | None:
+    """Maximum input rate each way from the rate-limit walk (reports/rate_limits.py)."""
+    dwells = [rate_limits.LimitDwell(s.step.step_id, s.step.setpoint_c, s.step.rate_dps,
+                                     s.output_mean, float(s.step.linearity_tolerance_pct or 1.0),
+                                     int(s.step.fit_rates or 3))
+              for s in data.steps if s.step.kind == StepKind.RATE_LIMIT]
+    return rate_limits.rate_limits_section(dwells, notes)
+
+
 def _mean_u(s: StepSummary) -> StepMean:
     return StepMean(s.step.kind.value, MeanU(s.step.setpoint_c, s.step.rate_dps, s.output_mean,
                                              s.output_sem, s.sem_dof, s.step.step_id))
@@ -535,6 +551,9 @@ DEFINITIONS = {
     "threshold": "threshold_dps: smallest increment at zero rate resolved at the stated "
                  "confidence and within the stated fraction, every larger one too (worst over "
                  "temperatures); resolution_dps: the same at the non-zero bases (worst)",
+    "rate_limits": "max_positive_dps / max_negative_dps: the largest walked rate that, with every "
+                   "smaller one, stays within the stated % of the linear fit (smallest over "
+                   "temperatures)",
 }
 
 

@@ -56,6 +56,7 @@ def test_catalogue_matches_the_contract():
         "sf_nonlinearity_cubic": ["k3_per_dps2"],
         "sf_asymmetry": ["ppm"],
         "dead_zone": ["threshold_dps"],
+        "rate_saturation": ["positive_dps", "negative_dps"],
         "warmup_transient": ["amplitude_dph", "tau_s"],
         "bias_ramp": ["dph_per_h"],
         "table_angle_harmonic": ["amplitude_dph", "phase_deg"],
@@ -207,6 +208,16 @@ def test_dead_zone_zeroes_table_rate_in_every_rate_term():
     expected = (1 + 100e-6) * eff + 1e-3 * eff**2 + 3.6 / 3600
     np.testing.assert_allclose(out.gyro / SF, expected, rtol=1e-14)
     assert out.gyro[2] == out.gyro[3] == out.gyro[5]  # inside the band: bias only
+
+
+def test_rate_saturation_clips_the_summed_rate_terms_each_way():
+    model = with_effects(base(bias_dph=3.6, sf_error_ppm=100.0),
+                         ("rate_saturation", {"positive_dps": 300.0, "negative_dps": 250.0}))
+    rate = np.array([-400.0, -250.0, -200.0, 0.0, 299.0, 300.0, 350.0])
+    _, out = run(model, rate, T0, len(rate))
+    # (1 + 100 ppm)·ω, clipped to [-250, 300], then the bias: -250 deg/s at -250 already
+    expected = np.array([-250.0, -250.0, -200.02, 0.0, 299.0299, 300.0, 300.0]) + 3.6 / 3600
+    np.testing.assert_allclose(out.gyro / SF, expected, rtol=1e-12)
 
 
 def test_warmup_transient_and_bias_ramp_are_functions_of_time():

@@ -82,3 +82,44 @@ def test_a_threshold_limit_needs_a_threshold_test(folder):
     text = BASE + "  - {name: thr, metric: threshold.threshold_dps, max: 0.1, unit: deg/s}\n"
     problems, _ = problems_for(folder, text)
     assert len(problems) == 1 and "it needs a threshold test in the sequence" in problems[0]
+
+
+LIMIT = """      - {kind: allan, duration: 1 h}
+      - kind: rate_limit
+        rates_dps: [100, 200, 300, 400]
+        fit_rates: 2
+"""
+
+
+def test_a_rate_limit_walk_plans_each_way_upwards(folder):
+    path = folder / "procedures" / "p.yaml"
+    path.write_text(with_threshold(LIMIT), encoding="utf-8")
+    steps = [s for s in expand_plan(load_procedure(path)).steps if s.kind == "rate_limit"]
+    assert [s.step_id for s in steps] == [f"T02.lim.{sign}{r}dps" for sign in "+-"
+                                          for r in (100, 200, 300, 400)]
+    assert {(s.fit_rates, s.linearity_tolerance_pct, s.duration_s) for s in steps} == {
+        (2, 1.0, 60.0)}
+
+
+@pytest.mark.parametrize(("old", "new", "fragment", "message"), [
+    ("[100, 200, 300, 400]", "[100, 300, 200]", "[100, 300, 200]",
+     "rates_dps[2]: 200 deg/s is not larger than the rate before it (300 deg/s); the walk goes up"),
+    ("[100, 200, 300, 400]", "[100, 200, 500]", "[100, 200, 500]",
+     "rates_dps[2]: 500 deg/s exceeds the table limit 400 deg/s"),
+    ("fit_rates: 2", "fit_rates: 4", "fit_rates",
+     "fit_rates: 4 fit rates leave none of the 4 rates_dps to walk beyond the linear fit"),
+])
+def test_bad_rate_limit_keys_are_reported_at_their_line(folder, old, new, fragment, message):
+    text = with_threshold(LIMIT.replace(old, new))
+    problems, path = problems_for(folder, text)
+    assert len(problems) == 1, problems
+    assert problems[0].startswith(f"{path}:{line_of(text, fragment)}: sequence[1].tests[3]."
+                                  f"{message}"), problems
+
+
+def test_a_positive_rate_limit_cannot_carry_a_negative_limit(folder):
+    text = with_threshold(LIMIT.replace("fit_rates: 2", "fit_rates: 2\n        directions: positive"))
+    text += "  - {name: neg, metric: rate_limits.max_negative_dps, min: 100, unit: deg/s}\n"
+    problems, _ = problems_for(folder, text)
+    assert len(problems) == 1 and "it needs a rate_limit test walking the negative direction" \
+        in problems[0], problems
