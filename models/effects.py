@@ -165,6 +165,15 @@ _CATALOGUE: tuple[EffectDef, ...] = (
         "lock-in (RLG), dead band",
     ),
     EffectDef(
+        "rate_bandwidth",
+        (_positive("bandwidth_hz", "Hz", "nonlinear", "-3 dB frequency of the first-order "
+                   "rate response"),),
+        "table_rate",
+        "w_t is replaced by its first-order low-pass, tau = 1/(2 pi bandwidth_hz), in every "
+        "rate term: gain 1/sqrt(1 + (f/f_c)^2), phase -atan(f/f_c)",
+        "closed-loop or filter bandwidth of the rate output (frequency response)",
+    ),
+    EffectDef(
         "rate_saturation",
         (
             _positive("positive_dps", "deg/s", "nonlinear", "largest positive rate the output "
