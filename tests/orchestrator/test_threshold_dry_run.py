@@ -59,12 +59,15 @@ acceptance:
 """
 
 
-def run_threshold(tmp_path: Path, effects: str) -> dict:
+def run_threshold(tmp_path: Path, effects: str,
+                  increments: str = "[0.01, 0.02, 0.03, 0.04]") -> dict:
+    tmp_path.mkdir(exist_ok=True)
     (tmp_path / "model.yaml").write_text(MODEL.replace("EFFECTS", effects), encoding="utf-8")
     station = (REPO / "stations" / "sim.yaml").read_text(encoding="utf-8")
     station = station.replace("../gyro-models/nominal-fog.yaml", str(tmp_path / "model.yaml"))
     (tmp_path / "station.yaml").write_text(station, encoding="utf-8")
-    (tmp_path / "procedure.yaml").write_text(PROCEDURE, encoding="utf-8")
+    (tmp_path / "procedure.yaml").write_text(
+        PROCEDURE.replace("[0.01, 0.02, 0.03, 0.04]", increments), encoding="utf-8")
     out = tmp_path / "run"
     code = main(["run", str(tmp_path / "procedure.yaml"), "--sim", "--out", str(out),
                  "--allow-outside-paths"])
@@ -97,3 +100,18 @@ def test_without_the_dead_zone_the_smallest_increment_is_resolved(tmp_path):
     zero = section["tests"][0]
     assert all(i["passes"] for i in zero["increments"])
     assert all(abs(i["measured_dps"] / i["commanded_dps"] - 1) < 0.05 for i in zero["increments"])
+
+
+def test_coarse_output_quantization_raises_the_threshold(tmp_path):
+    """Pulse counting (``quantization``, 36 arcsec = 0.01 deg a pulse) at 250 Hz: each sample
+    is a whole number of pulses, so a 5 s dwell's mean is uncertain by up to a pulse in 5 s
+    (0.002 deg/s) instead of the white noise's ~6e-5 deg/s, and increments of 0.001 deg/s
+    that the white noise alone resolves are no longer resolved."""
+    increments = "[0.001, 0.002, 0.005, 0.01]"
+    smooth = run_threshold(tmp_path / "smooth", "[]", increments)["threshold"]
+    coarse = run_threshold(tmp_path / "coarse", "[{name: quantization, pulse_arcsec: 36}]",
+                           increments)["threshold"]
+    assert smooth["threshold_dps"] == 0.001
+    assert coarse["threshold_dps"] > 0.001
+    assert coarse["tests"][0]["increments"][0]["u_dps"] > \
+        10 * smooth["tests"][0]["increments"][0]["u_dps"]
