@@ -16,7 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from gyrocal.cli import EXIT_OK, main
+from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
+from tests.orchestrator.conftest import SimCapture, events, when_table_commanded
 
 pytestmark = pytest.mark.timeout(300)
 REPO = Path(__file__).resolve().parents[2]
@@ -59,8 +60,7 @@ acceptance:
 """
 
 
-def run_threshold(tmp_path: Path, effects: str,
-                  increments: str = "[0.01, 0.02, 0.03, 0.04]") -> dict:
+def write_inputs(tmp_path: Path, effects: str, increments: str) -> Path:
     tmp_path.mkdir(exist_ok=True)
     (tmp_path / "model.yaml").write_text(MODEL.replace("EFFECTS", effects), encoding="utf-8")
     station = (REPO / "stations" / "sim.yaml").read_text(encoding="utf-8")
@@ -68,6 +68,12 @@ def run_threshold(tmp_path: Path, effects: str,
     (tmp_path / "station.yaml").write_text(station, encoding="utf-8")
     (tmp_path / "procedure.yaml").write_text(
         PROCEDURE.replace("[0.01, 0.02, 0.03, 0.04]", increments), encoding="utf-8")
+    return tmp_path / "procedure.yaml"
+
+
+def run_threshold(tmp_path: Path, effects: str,
+                  increments: str = "[0.01, 0.02, 0.03, 0.04]") -> dict:
+    write_inputs(tmp_path, effects, increments)
     out = tmp_path / "run"
     code = main(["run", str(tmp_path / "procedure.yaml"), "--sim", "--out", str(out),
                  "--allow-outside-paths"])
@@ -115,3 +121,36 @@ def test_coarse_output_quantization_raises_the_threshold(tmp_path):
     assert coarse["threshold_dps"] > 0.001
     assert coarse["tests"][0]["increments"][0]["u_dps"] > \
         10 * smooth["tests"][0]["increments"][0]["u_dps"]
+
+
+def test_a_threshold_run_faulted_mid_walk_resumes_and_finds_the_same_threshold(tmp_path):
+    """The gyro stalls for good once the table is asked for +0.02 deg/s: the run goes safe
+    (exit 3) before that increment completes. The resumed session commands the increment
+    again although it lies inside the table's at-rate band of the stopped table's 0 deg/s."""
+    procedure = write_inputs(tmp_path, "[{name: dead_zone, threshold_dps: 0.025}]",
+                             "[0.01, 0.02, 0.03, 0.04]")
+    capture = SimCapture()
+    capture.arm.append(lambda sim: when_table_commanded(
+        sim, 0.02, lambda: sim.gyro_faults.arm("stall", count=None)))
+    out = tmp_path / "run"
+    assert main(["run", str(procedure), "--sim", "--out", str(out), "--allow-outside-paths"],
+                on_sim_started=capture) == EXIT_FAULT
+    done = {e["step_id"] for e in events(out) if e["event"] == "step_completed"}
+    assert "T01.thr.+0dps.+0.01dps" in done and "T01.thr.+0dps.+0.02dps" not in done
+    capture.arm.clear()
+    demands: list[float] = []
+
+    def record_demands(sim) -> None:
+        physics = sim.table_physics
+        original = physics.set_rate_demand_dps
+
+        def spy(value: float) -> None:
+            demands.append(float(value))
+            original(value)
+        physics.set_rate_demand_dps = spy
+    capture.arm.append(record_demands)
+    assert main(["resume", str(out)], on_sim_started=capture) == EXIT_OK
+    assert 0.02 in demands
+    results = json.loads((out / "report" / "results.json").read_text())
+    assert results["threshold"]["threshold_dps"] == 0.03
+    assert results["acceptance"][0]["decision"] == "PASS"
