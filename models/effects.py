@@ -165,6 +165,27 @@ _CATALOGUE: tuple[EffectDef, ...] = (
         "lock-in (RLG), dead band",
     ),
     EffectDef(
+        "rate_bandwidth",
+        (_positive("bandwidth_hz", "Hz", "nonlinear", "-3 dB frequency of the first-order "
+                   "rate response"),),
+        "table_rate",
+        "w_t is replaced by its first-order low-pass, tau = 1/(2 pi bandwidth_hz), in every "
+        "rate term: gain 1/sqrt(1 + (f/f_c)^2), phase -atan(f/f_c)",
+        "closed-loop or filter bandwidth of the rate output (frequency response)",
+    ),
+    EffectDef(
+        "rate_saturation",
+        (
+            _positive("positive_dps", "deg/s", "nonlinear", "largest positive rate the output "
+                      "follows (the unit's input limit)"),
+            _positive("negative_dps", "deg/s", "nonlinear", "largest negative rate magnitude "
+                      "the output follows"),
+        ),
+        "rate",
+        "rate (every rate term summed) is clipped to [-negative_dps, +positive_dps]",
+        "input-rate limit: the loop or the output range saturates",
+    ),
+    EffectDef(
         "warmup_transient",
         (
             _any("amplitude_dph", "deg/h", "linear", "bias excess at power-on"),

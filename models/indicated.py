@@ -96,6 +96,8 @@ class ModelState:
     table_angle_deg: float
     hysteresis_sign: int
     hysteresis_extreme_c: float
+    #: the rate the rate terms saw last (rate_bandwidth's low-pass output); None without it
+    sensed_rate_dps: float | None = None
 
 
 @dataclass(frozen=True)
@@ -246,10 +248,17 @@ def indicated_rate(
             HYSTERESIS_BAND_C,
         )
 
-    # --- rate terms: dead zone first, it replaces ω_t in every one of them
-    omega_eff = omega
+    # --- rate terms: the sensing bandwidth first (a first-order low-pass of ω_t, the same
+    # first-order-hold solution as the thermal lag), then the dead zone; both replace ω_t
+    # in every rate term
+    sensed = omega
+    if "rate_bandwidth" in fx:
+        sensed = thermal_lag_c(omega, dt, 1.0 / (2.0 * np.pi * fx["rate_bandwidth"]["bandwidth_hz"]),
+                               None if state is None else state.sensed_rate_dps,
+                               None if state is None else state.table_rate_dps)
+    omega_eff = sensed
     if "dead_zone" in fx:
-        omega_eff = np.where(np.abs(omega) < fx["dead_zone"]["threshold_dps"], 0.0, omega)
+        omega_eff = np.where(np.abs(sensed) < fx["dead_zone"]["threshold_dps"], 0.0, sensed)
     # A term whose coefficient is 0 is skipped, not multiplied out (adding 0·x is exact
     # for the finite inputs ModelInputs admits): a fit evaluates "unit" models with a
     # single coefficient set, on 10 M samples each skipped term saves an array pass.
@@ -269,6 +278,10 @@ def indicated_rate(
         rate = rate + k * omega_eff**3
     if (k := coefficient("sf_asymmetry", "ppm")) != 0.0:
         rate = rate + 0.5e-6 * k * np.abs(omega_eff)
+    if "rate_saturation" in fx:
+        # the input-rate limit: the output follows the rate up to it, then stays there
+        rate = np.clip(rate, -fx["rate_saturation"]["negative_dps"],
+                       fx["rate_saturation"]["positive_dps"])
 
     # --- bias bracket, deg/h
     bias = model.bias_dph + model.earth_rate_dph
@@ -298,6 +311,7 @@ def indicated_rate(
         table_angle_deg=float(angle[-1]),
         hysteresis_sign=int(branch_end),
         hysteresis_extreme_c=float(extreme_end),
+        sensed_rate_dps=float(sensed[-1]) if "rate_bandwidth" in fx else None,
     )
     return Indicated(
         rate_dps=rate + bias / 3600.0,

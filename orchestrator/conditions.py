@@ -40,6 +40,8 @@ class Conditions:
         # (rate, wall time) of the readback that confirmed the table at its present rate: a
         # logged step's frames must have been sampled after it (instruments/gyro/plausibility.py)
         self._at_rate: tuple[float, float] | None = None
+        #: the last rate this run demanded of the table (None: none yet, or stopped since)
+        self._demand_dps: float | None = None
 
     def ramp(self, step: PlanStep, journal_done: bool = True) -> None:
         """Move the chamber to the step's setpoint at the procedure's ramp rate.
@@ -115,11 +117,17 @@ class Conditions:
         return status.temperature_c
 
     def set_table_rate(self, rate_dps: float, accel_dps2: float | None = None,
-                        settle_s: float = 0.0) -> None:
-        """Command a rate, wait (on the clock) until the table reads it back, then settle."""
+                        settle_s: float = 0.0, *, exact: bool = False) -> None:
+        """Command a rate, wait (on the clock) until the table reads it back, then settle.
+
+        A table already reading the rate within the at-rate band is left alone, unless
+        ``exact``: a threshold increment (0.01 deg/s) lies inside that band (0.05 deg/s),
+        so it is commanded whenever it is not the rate this run last demanded.
+        """
         table = self.inst.table
         current = table.read_rate_dps()
-        if abs(current - rate_dps) <= self.rate_band(rate_dps):
+        unchanged = not exact or self._demand_dps == rate_dps
+        if unchanged and abs(current - rate_dps) <= self.rate_band(rate_dps):
             if self._at_rate is None or abs(self._at_rate[0] - rate_dps) > self.rate_band(rate_dps):
                 self._at_rate = (rate_dps, time.monotonic())
             return
@@ -130,6 +138,7 @@ class Conditions:
         if accel_dps2:
             table.set_acceleration_limit_dps2(accel_dps2)
         table.set_rate_dps(rate_dps)
+        self._demand_dps = rate_dps
         accel = accel_dps2 or 10.0
         expected_s = abs(rate_dps - current) / accel
         deadline = self.clock.now_s() + self.policy.spin_timeout_factor * expected_s + 10.0
@@ -150,6 +159,11 @@ class Conditions:
             self.machine.settle()
             self.clock.sleep(settle_s)
         self.machine.settled()
+
+    def forget_demand(self) -> None:
+        """The table was stopped behind our back (a pause): the next exact rate is commanded."""
+        self._demand_dps = None
+        self._at_rate = None
 
     def at_rate_since_wall_s(self) -> float | None:
         """Wall (monotonic) time the table was last confirmed at its present rate, if known.

@@ -126,6 +126,8 @@ class RunEngine:
             StepKind.ALLAN: self._log_step,
             StepKind.DWELL: self._log_step,
             StepKind.DRIVE_OFF: self._drive_off_step,
+            StepKind.THRESHOLD: self._log_step,
+            StepKind.RATE_LIMIT: self._log_step,
         }
         if operator is not None:
             self._executors[StepKind.REMOUNT] = self._remount_executor().execute
@@ -214,6 +216,7 @@ class RunEngine:
             return
         self.machine.pause()
         self.inst.table.stop()
+        self.conditions.forget_demand()
         self.journal.append(JournalEvent.PAUSED, before_step=step.step_id,
                             chamber_setpoint_c=self.inst.chamber.read_setpoint_c())
         self.folder.update_manifest(state="paused")
@@ -345,7 +348,8 @@ class RunEngine:
         for attempt in range(first, attempts + 1):
             self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind=step.kind,
                                 rate_dps=rate_dps, attempt=attempt)
-            self.conditions.set_table_rate(rate_dps, step.accel_dps2, settle_s)
+            self.conditions.set_table_rate(rate_dps, step.accel_dps2, settle_s,
+                                           exact=step.kind == StepKind.THRESHOLD)
             self.machine.log()
             try:
                 result = self.acquisition.record(step, attempt, rate_dps,

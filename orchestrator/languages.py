@@ -431,6 +431,63 @@ TEST_SWEEP = Section(
             "table revolutions (cancels effects that repeat once a turn)", False),
     ))
 
+TEST_THRESHOLD = Section(
+    "test-threshold", "test kind: threshold",
+    "Threshold and resolution (IEEE Std 952 / 1431): at each base rate the table alternates "
+    "base, base + increment, base, … for every increment, smallest first. Each increment's "
+    "output change (against the mean of the base dwells either side, so a linear drift "
+    "cancels) is *resolved* when it exceeds the one-sided normal quantile of `confidence` "
+    "times its type A uncertainty, and *within* when it lies within `max_error_fraction` of "
+    "the commanded increment. The smallest increment passing both, with every larger one "
+    "passing, is the threshold (base 0) or the resolution (non-zero base); its uncertainty "
+    "is the increment grid's (rectangular between the largest failing increment below it "
+    "and itself, U = 2u). Results: `threshold.threshold_dps`, `threshold.resolution_dps`.",
+    (
+        *_COMMON_TEST_KEYS,
+        Key("base_rates_dps", ListOf(_q(RATE)), "signed base rates; 0 measures the threshold, "
+            "a non-zero rate the resolution there; each (plus the largest increment) within "
+            "the procedure's and the station's table limit"),
+        Key("increments_dps", ListOf(_q(RATE, above=0.0)), "rate increments above each base, "
+            "smallest first, at the table's command resolution"),
+        Key("confidence", _num(above=0.5, maximum=0.999999), "one-sided confidence at which an output "
+            "change counts as resolved against the noise", False,
+            str(proc.DEFAULT_THRESHOLD_CONFIDENCE)),
+        Key("max_error_fraction", _num(above=0.0, maximum=1.0), "how far (fraction of the "
+            "commanded increment) the measured change may lie from it", False,
+            str(proc.DEFAULT_THRESHOLD_ERROR_FRACTION)),
+        Key("dwell", _duration(), "logged time at each base and increment dwell", False,
+            "defaults.dwell"),
+        Key("settle", _duration(positive=False), "time after the table reaches a rate before "
+            "logging", False, "defaults.settle"),
+        Key("accel_dps2", _q(ACCELERATION, above=0.0), "table acceleration between rates",
+            False, "defaults.accel_dps2"),
+    ))
+
+TEST_RATE_LIMIT = Section(
+    "test-rate_limit", "test kind: rate_limit",
+    "Input-rate limits (IEEE Std 952 / 1431): the rates are walked up, each way, to the "
+    "declared maximum (the procedure's and the station's table limits bound every one). The "
+    "lowest `fit_rates` rates of each direction define a least-squares line; a rate *follows* "
+    "when its output lies within `linearity_tolerance_pct` of that line. The maximum input "
+    "rate each way is the largest rate that follows with every smaller one; its uncertainty "
+    "is the walk's grid (rectangular up to the first rate that does not follow, U = 2u). "
+    "Results: `rate_limits.max_positive_dps`, `rate_limits.max_negative_dps`.",
+    (
+        *_COMMON_TEST_KEYS,
+        Key("rates_dps", ListOf(_q(RATE, above=0.0)), "rate magnitudes walked, smallest first"),
+        Key("directions", _choice(proc.DIRECTIONS), "which ways are walked", False, "both"),
+        Key("linearity_tolerance_pct", _num(above=0.0, maximum=50.0), "how far (% of the "
+            "fitted output) a rate's output may lie from the line and still follow", False,
+            str(proc.DEFAULT_LINEARITY_TOLERANCE_PCT)),
+        Key("fit_rates", _int(1, proc.MAX_LIST), "how many of the lowest rates (each way) "
+            "define the line; fewer than `rates_dps` has", False, str(proc.DEFAULT_FIT_RATES)),
+        Key("dwell", _duration(), "logged time at each rate", False, "defaults.dwell"),
+        Key("settle", _duration(positive=False), "time after the table reaches a rate before "
+            "logging", False, "defaults.settle"),
+        Key("accel_dps2", _q(ACCELERATION, above=0.0), "table acceleration between rates",
+            False, "defaults.accel_dps2"),
+    ))
+
 TEMPERATURE_STEP = Section(
     "sequence", "sequence[] (a temperature step)",
     "One chamber setpoint: ramp to it, soak until stable, then run its tests in order.",
@@ -443,8 +500,9 @@ TEMPERATURE_STEP = Section(
         Key("label", _text(), "a name shown in the plan and the report", False),
         Key("tests", ListOf(Variants("kind", (("static", TEST_STATIC), ("sf_sweep", TEST_SWEEP),
                                               ("allan", TEST_ALLAN),
-                                              ("table_interference", TEST_INTERFERENCE))),
-                      min_items=0),
+                                              ("table_interference", TEST_INTERFERENCE),
+                                              ("threshold", TEST_THRESHOLD),
+                                              ("rate_limit", TEST_RATE_LIMIT))), min_items=0),
             "what is measured at this temperature, in order (an empty list just soaks)", False),
     ))
 

@@ -22,6 +22,8 @@ class Metric:
 
 
 _SWEEP, _SWEEP_TEMPS, _BIAS_TEMPS, _ALLAN = "sweep", "sweep_temps", "bias_temps", "allan"
+_THRESHOLD = "threshold"
+_LIMIT_POS, _LIMIT_NEG = "rate_limit_positive", "rate_limit_negative"
 
 METRICS: dict[str, Metric] = {
     m.key: m
@@ -37,6 +39,10 @@ METRICS: dict[str, Metric] = {
         *(Metric(f"allan.fit.{t.fit_key}", t.unit, _ALLAN) for t in NOISE_TERMS),
         Metric("allan.fit.markov.sigma_dph", "deg/h", _ALLAN),
         Metric("allan.fit.markov.tau_s", "s", _ALLAN),
+        Metric("threshold.threshold_dps", "deg/s", _THRESHOLD),
+        Metric("threshold.resolution_dps", "deg/s", _THRESHOLD),
+        Metric("rate_limits.max_positive_dps", "deg/s", _LIMIT_POS),
+        Metric("rate_limits.max_negative_dps", "deg/s", _LIMIT_NEG),
     )
 }
 
@@ -45,6 +51,9 @@ NEEDS_TEXT = {
     _SWEEP_TEMPS: "sf_sweep tests at two or more temperatures",
     _BIAS_TEMPS: "static or allan tests at two or more temperatures",
     _ALLAN: "an allan test",
+    _THRESHOLD: "a threshold test",
+    _LIMIT_POS: "a rate_limit test walking the positive direction",
+    _LIMIT_NEG: "a rate_limit test walking the negative direction",
 }
 
 

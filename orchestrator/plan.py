@@ -17,14 +17,17 @@ import math
 from dataclasses import dataclass
 
 from gyrocal.errors import BadInput
+from gyrocal.instruments.table.acutrol_protocol import commanded_rate_dps
 from gyrocal.orchestrator.procedure import (
     AllanTest,
     MountingSpec,
     Procedure,
+    RateLimitTest,
     StaticTest,
     SweepTest,
     TableInterferenceTest,
     TemperatureStep,
+    ThresholdTest,
 )
 from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.units import format_duration, format_number
@@ -62,6 +65,14 @@ class PlanStep:
     revolutions: float | None = None    # table revolutions during the dwell (whole with min_revolutions)
     label: str | None = None
     mounting: str | None = None         # the fixture mounting (IMU procedures); None for one axis
+    # threshold steps: the base rate the increment is added to, and the test's decision
+    # criteria (the report needs them; plan.json is all it reads)
+    base_rate_dps: float | None = None
+    confidence: float | None = None
+    max_error_fraction: float | None = None
+    # rate-limit steps: the linearity criterion and how many lowest rates make the fit
+    linearity_tolerance_pct: float | None = None
+    fit_rates: int | None = None
 
 
 @dataclass(frozen=True)
@@ -97,7 +108,7 @@ def _rate_tag(rate_dps: float) -> str:
 def _test_tags(step: TemperatureStep) -> list[str]:
     """``sf``, ``static``, ``allan``; numbered (``sf1``, ``sf2``) when a kind repeats in a step."""
     base = {"sf_sweep": "sf", "static": "static", "allan": "allan",
-            "table_interference": "interference"}
+            "table_interference": "interference", "threshold": "thr", "rate_limit": "lim"}
     kinds = [base[test.kind] for test in step.tests]
     seen: dict[str, int] = {}
     tags = []
@@ -208,6 +219,12 @@ class _Expander:
                         self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=kind, direction="",
                                  duration_s=test.duration_s, settle_s=test.settle_s, **base)
                     continue
+                if isinstance(test, ThresholdTest):
+                    self.threshold(prefix, tag, suffix, test, base)
+                    continue
+                if isinstance(test, RateLimitTest):
+                    self.rate_limit(prefix, tag, suffix, test, base)
+                    continue
                 self.sweep(prefix, tag, suffix, test, base)
 
     def remount(self, step_id: str, spec: MountingSpec, index: int, step: TemperatureStep) -> None:
@@ -229,6 +246,41 @@ class _Expander:
                          rate_dps=rate, direction="+" if sign > 0 else "-",
                          accel_dps2=test.accel_dps2, settle_s=test.settle_s, duration_s=dwell_s,
                          revolutions=turns, **base)
+
+    def threshold(self, prefix: str, tag: str, suffix: str, test: ThresholdTest,
+                  base: dict) -> None:
+        """base, base+δ₁, base, base+δ₂, …, base: each increment between two base dwells.
+
+        Ids: ``T01.thr.+0dps.ref0``, ``T01.thr.+0dps.+0.01dps``, ``T01.thr.+0dps.ref1``…
+        """
+        criteria = dict(confidence=test.confidence, max_error_fraction=test.max_error_fraction)
+        for base_rate in test.base_rates_dps:
+            head = f"{prefix}.{tag}.{_rate_tag(base_rate)}"
+            common = dict(base, base_rate_dps=base_rate, accel_dps2=test.accel_dps2,
+                          settle_s=test.settle_s, duration_s=test.dwell_s, **criteria)
+            for index, increment in enumerate(test.increments_dps):
+                self.add(step_id=f"{head}.ref{index}{suffix}", kind=StepKind.THRESHOLD,
+                         rate_dps=base_rate, direction="", **common)
+                rate = commanded_rate_dps(base_rate + increment)
+                self.add(step_id=f"{head}.{_rate_tag(increment)}{suffix}", kind=StepKind.THRESHOLD,
+                         rate_dps=rate, direction="+", **common)
+            self.add(step_id=f"{head}.ref{len(test.increments_dps)}{suffix}",
+                     kind=StepKind.THRESHOLD, rate_dps=base_rate, direction="", **common)
+
+    def rate_limit(self, prefix: str, tag: str, suffix: str, test: RateLimitTest,
+                   base: dict) -> None:
+        """Each way in turn, the rates walked up: ``T01.lim.+50dps`` … then ``T01.lim.-50dps`` …"""
+        signs = {"both": (1.0, -1.0), "positive": (1.0,), "negative": (-1.0,)}[test.directions]
+        common = dict(base, accel_dps2=test.accel_dps2, settle_s=test.settle_s,
+                      duration_s=test.dwell_s,
+                      linearity_tolerance_pct=test.linearity_tolerance_pct,
+                      fit_rates=test.fit_rates)
+        for sign in signs:
+            for magnitude in test.rates_dps:
+                rate = sign * magnitude
+                self.add(step_id=f"{prefix}.{tag}.{_rate_tag(rate)}{suffix}",
+                         kind=StepKind.RATE_LIMIT, rate_dps=rate,
+                         direction="+" if sign > 0 else "-", **common)
 
     def finish(self) -> float:
         """Stop the table, then bring the chamber to its safe setpoint (if it has one)."""

@@ -54,7 +54,16 @@ PROCEDURE_VERSION = 1
 OUTPUT_UNITS = ("deg/s", "deg/h", "rad/s", "V", "LSB")
 DIRECTIONS = ("both", "positive", "negative")
 SPACINGS = ("linear", "log")
-TEST_KINDS = ("static", "sf_sweep", "allan", "table_interference")
+TEST_KINDS = ("static", "sf_sweep", "allan", "table_interference", "threshold", "rate_limit")
+#: Input-rate limit defaults: a rate leaves the linear fit when its output is more than this
+#: many % of the fitted output away from it; the fit uses this many of the lowest rates.
+DEFAULT_LINEARITY_TOLERANCE_PCT = 1.0
+DEFAULT_FIT_RATES = 3
+#: Threshold defaults (IEEE Std 952 §3 "threshold": the smallest input change whose output
+#: change is at least half the expected one; the confidence is the one-sided level at which
+#: the mean output change counts as resolved against the noise of the two means).
+DEFAULT_THRESHOLD_CONFIDENCE = 0.95
+DEFAULT_THRESHOLD_ERROR_FRACTION = 0.5
 MAX_LIST = 1000           # rates per sweep, steps per sequence: beyond this it is a typo
 MAX_DURATION_S = 7 * 86400.0
 #: Floors below which a ramp or an acceleration is a typo, not a choice: 0.01 °C/min is 0.6 °C
@@ -185,7 +194,53 @@ class SweepTest:
     kind: str = "sf_sweep"
 
 
-Test = StaticTest | AllanTest | SweepTest | TableInterferenceTest
+@dataclass(frozen=True)
+class ThresholdTest:
+    """Threshold and resolution (IEEE Std 952 / 1431): small rate increments about each base.
+
+    At each base rate the table alternates base, base+increment, base, … so every
+    increment's output change is taken against the mean of the base dwells on either
+    side (a linear bias drift cancels). The smallest increment whose change is resolved
+    at ``confidence`` and lies within ``max_error_fraction`` of the commanded change is
+    the threshold (at a zero base) or the resolution (at a non-zero base).
+    """
+
+    base_rates_dps: tuple[float, ...]   # signed; 0 for the threshold
+    increments_dps: tuple[float, ...]   # > 0, increasing
+    dwell_s: float
+    settle_s: float
+    accel_dps2: float
+    confidence: float
+    max_error_fraction: float
+    repeats: int
+    label: str | None
+    kind: str = "threshold"
+
+
+@dataclass(frozen=True)
+class RateLimitTest:
+    """Input-rate limits (IEEE Std 952 / 1431): rates walked up to the declared maximum each way.
+
+    The lowest ``fit_rates`` rates (each way) define the linear fit; the maximum input rate
+    each way is the largest rate that, with every smaller one, stays within
+    ``linearity_tolerance_pct`` of that fit. The plan walks every listed rate (the table's
+    limits bound them), so a unit that saturates early costs dwells, never safety.
+    """
+
+    rates_dps: tuple[float, ...]       # magnitudes, increasing
+    directions: str                    # both | positive | negative
+    dwell_s: float
+    settle_s: float
+    accel_dps2: float
+    linearity_tolerance_pct: float
+    fit_rates: int
+    repeats: int
+    label: str | None
+    kind: str = "rate_limit"
+
+
+Test = (StaticTest | AllanTest | SweepTest | TableInterferenceTest | ThresholdTest
+        | RateLimitTest)
 
 
 @dataclass(frozen=True)
@@ -696,6 +751,10 @@ class _Parser:
             return None
         repeats = fields.take("repeats", integer(1, 100), required=False, default=1)
         label = fields.take("label", text, required=False)
+        if kind == "threshold":
+            return self.threshold_test(fields, defaults, repeats, label)
+        if kind == "rate_limit":
+            return self.rate_limit_test(fields, defaults, repeats, label)
         if kind != "sf_sweep":
             # after a sweep the table needs settling before a static hold too, but a
             # procedure that never spins may leave settle out altogether
@@ -719,6 +778,110 @@ class _Parser:
         fields.finish()
         return SweepTest(rates, schedule, directions, dwell, settle, accel, revolutions,
                          repeats, label)
+
+    def threshold_test(self, fields: Fields, defaults: Defaults, repeats: int,
+                       label: str | None) -> ThresholdTest:
+        settle = self.inherit(fields, "settle", _duration(positive=False), defaults.settle_s,
+                              "defaults.settle")
+        dwell = self.inherit(fields, "dwell", _duration(), defaults.dwell_s, "defaults.dwell")
+        accel = self.inherit(fields, "accel_dps2", quantity(ACCELERATION, above=0.0),
+                             defaults.accel_dps2, "defaults.accel_dps2")
+        if fields.has("accel_dps2"):
+            self.check_accel(fields.child("accel_dps2"), accel)
+        confidence = fields.take("confidence", number(above=0.5, maximum=0.999999),
+                                 required=False, default=DEFAULT_THRESHOLD_CONFIDENCE)
+        fraction = fields.take("max_error_fraction", number(0.0, above=0.0, maximum=1.0),
+                               required=False, default=DEFAULT_THRESHOLD_ERROR_FRACTION)
+        bases = self.signed_rate_list(fields, "base_rates_dps")
+        increments = self.increment_list(fields, bases)
+        fields.finish()
+        return ThresholdTest(bases, increments, dwell, settle, accel, confidence, fraction,
+                             repeats, label)
+
+    def rate_limit_test(self, fields: Fields, defaults: Defaults, repeats: int,
+                        label: str | None) -> RateLimitTest:
+        settle = self.inherit(fields, "settle", _duration(positive=False), defaults.settle_s,
+                              "defaults.settle")
+        dwell = self.inherit(fields, "dwell", _duration(), defaults.dwell_s, "defaults.dwell")
+        accel = self.inherit(fields, "accel_dps2", quantity(ACCELERATION, above=0.0),
+                             defaults.accel_dps2, "defaults.accel_dps2")
+        if fields.has("accel_dps2"):
+            self.check_accel(fields.child("accel_dps2"), accel)
+        directions = fields.take("directions", choice(DIRECTIONS), required=False, default="both")
+        tolerance = fields.take("linearity_tolerance_pct", number(above=0.0, maximum=50.0),
+                                required=False, default=DEFAULT_LINEARITY_TOLERANCE_PCT)
+        fit_rates = fields.take("fit_rates", integer(1, MAX_LIST), required=False,
+                                default=DEFAULT_FIT_RATES)
+        present, raw = fields.raw("rates_dps")
+        rates: tuple[float, ...] = ()
+        if not present:
+            if fields.valid:
+                self.ctx.report(fields.child("rates_dps"), "required key is missing")
+        else:
+            rates = self.rate_list(fields.child("rates_dps"), raw)
+            for index, (before, after) in enumerate(zip(rates, rates[1:], strict=False)):
+                if after <= before:
+                    self.ctx.report((*fields.child("rates_dps"), index + 1),
+                                    f"{format_number(after)} deg/s is not larger than the rate "
+                                    f"before it ({format_number(before)} deg/s); the walk goes up")
+                    rates = ()
+                    break
+        if rates and fit_rates is not None and fit_rates >= len(rates):
+            self.ctx.report(fields.child("fit_rates"), f"{fit_rates} fit rates leave none of the "
+                            f"{len(rates)} rates_dps to walk beyond the linear fit")
+        fields.finish()
+        return RateLimitTest(rates, directions, dwell, settle, accel, tolerance, fit_rates,
+                             repeats, label)
+
+    def signed_rate_list(self, fields: Fields, key: str) -> tuple[float, ...]:
+        """Base rates: signed, 0 allowed, at the table's command resolution, each once."""
+        present, raw = fields.raw(key)
+        if not present:
+            if fields.valid:
+                self.ctx.report(fields.child(key), "required key is missing")
+            return ()
+        convert = quantity(RATE)
+        rates: list[float] = []
+        for index, item in enumerate(_list(self.ctx, fields.child(key), raw, key)):
+            item_path = (*fields.child(key), index)
+            try:
+                rate = convert(item)
+            except UnitError as error:
+                self.ctx.report(item_path, str(error))
+                continue
+            if rate != commanded_rate_dps(rate):
+                self.ctx.report(item_path, f"{rate!r} deg/s is finer than a table demand carries "
+                                f"({RATE_DECIMALS} decimals); give {commanded_rate_dps(rate)!r}")
+                continue
+            if rate in rates:
+                self.ctx.report(item_path, f"{format_number(rate)} deg/s is listed twice "
+                                f"(also {key}[{rates.index(rate)}])")
+                continue
+            self.check_rate(item_path, abs(rate))
+            rates.append(rate)
+        return tuple(rates)
+
+    def increment_list(self, fields: Fields, bases: tuple[float, ...]) -> tuple[float, ...]:
+        """Increments: positive, strictly increasing, and base + increment within the limits."""
+        key = "increments_dps"
+        present, raw = fields.raw(key)
+        if not present:
+            if fields.valid:
+                self.ctx.report(fields.child(key), "required key is missing")
+            return ()
+        increments = self.rate_list(fields.child(key), raw)
+        for index, (before, after) in enumerate(zip(increments, increments[1:], strict=False)):
+            if after <= before:
+                self.ctx.report((*fields.child(key), index + 1),
+                                f"{format_number(after)} deg/s is not larger than the increment "
+                                f"before it ({format_number(before)} deg/s); list them smallest "
+                                "first")
+                return ()
+        if increments:
+            for index, base in enumerate(bases):
+                top = abs(base) + increments[-1]
+                self.check_rate((*fields.child("base_rates_dps"), index), top)
+        return increments
 
     def rates(self, fields: Fields) -> tuple[tuple[float, ...], RateSchedule | None]:
         has_list, has_schedule = fields.has("rates_dps"), fields.has("schedule")
@@ -858,6 +1021,11 @@ def _what_is_measured(sequence: tuple[TemperatureStep, ...]) -> set[str]:
             if isinstance(test, SweepTest):
                 measured.add("sweep")
                 sweep_temps.add(step.setpoint_c)
+            elif isinstance(test, ThresholdTest):
+                measured.add("threshold")
+            elif isinstance(test, RateLimitTest):
+                ways = ("positive", "negative") if test.directions == "both" else (test.directions,)
+                measured.update(f"rate_limit_{way}" for way in ways)
             else:
                 bias_temps.add(step.setpoint_c)
                 if isinstance(test, AllanTest):

@@ -53,6 +53,7 @@ from gyrocal.orchestrator.record.strays import set_aside
 from gyrocal.orchestrator.signing import Signer
 from gyrocal.reports import bias as bias_mod
 from gyrocal.reports import compensation as comp
+from gyrocal.reports import rate_limits
 from gyrocal.reports.allan_summary import (
     allan_curve,
     curve_json,
@@ -68,6 +69,7 @@ from gyrocal.reports.interference_section import interference_section
 from gyrocal.reports.results import evaluate_acceptance, finite_or_none, results_bytes
 from gyrocal.reports.sanity import check_physics
 from gyrocal.reports.scale_factor import ScaleFactorResult, analyze_scale_factor
+from gyrocal.reports.threshold import ThresholdDwell, headline_uncertainty, threshold_section
 from gyrocal.reports.uncertainty import MeanU
 from gyrocal.reports.uncertainty_section import StepMean, add_uncertainties
 
@@ -451,13 +453,19 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
         "imu": _imu(data, notes),
         "table_interference": interference_section(data.folder.path, data.plan, data.events,
                                                    nominal_sf, notes),
+        "threshold": _threshold(data, nominal_sf, notes),
+        "rate_limits": _rate_limits(data, notes),
         "earth_rate_removed_dph": earth_dph,
         "reference_temp_c": REFERENCE_TEMP_C,
         **_provenance(data, notes),
         "definitions": DEFINITIONS,
     }
-    add_uncertainties(results, [_mean_u(s) for s in data.steps], data.plan, REFERENCE_TEMP_C,
-                      notes)
+    add_uncertainties(results, [_mean_u(s) for s in data.steps
+                                if s.step.kind not in (StepKind.THRESHOLD, StepKind.RATE_LIMIT)],
+                      data.plan,
+                      REFERENCE_TEMP_C, notes)
+    results.setdefault("uncertainty", {}).update(headline_uncertainty(results["threshold"]))
+    results["uncertainty"].update(rate_limits.headline_uncertainty(results["rate_limits"]))
     results["acceptance"] = evaluate_acceptance(results, data.plan.get("acceptance") or [], notes,
                                                 measured=measured_needs(data))
     sf_tolerance = (data.plan.get("sanity") or {}).get("sf_tolerance_pct")
@@ -492,7 +500,43 @@ def measured_needs(data: RunData) -> frozenset[str]:
     if (longest is not None and data.allan_step is not None
             and data.allan_step.step.step_id == longest.step_id):
         needs.add("allan")
+    if _all_done(data, StepKind.THRESHOLD):
+        needs.add("threshold")
+    for sign, way in ((1.0, "positive"), (-1.0, "negative")):
+        if _all_done(data, StepKind.RATE_LIMIT, sign):
+            needs.add(f"rate_limit_{way}")
     return frozenset(needs)
+
+
+def _all_done(data: RunData, kind: StepKind, sign: float | None = None) -> bool:
+    """Every planned step of ``kind`` (of the unit's own axis; one ``sign`` of rate when given)
+    completed: a threshold or a rate walk cut short is not judged on its first part."""
+    own = _unit_under_test_mountings(data.record)
+    planned = {s.step_id for s in data.record.steps if s.kind == kind
+               and (s.mounting is None or s.mounting in own)
+               and (sign is None or s.rate_dps * sign > 0)}
+    return bool(planned) and planned <= {s.step.step_id for s in data.steps}
+
+
+def _threshold(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any] | None:
+    """Threshold and resolution from the threshold dwells, in plan order (reports/threshold.py)."""
+    order = {s.step_id: i for i, s in enumerate(data.record.steps)}
+    dwells = [ThresholdDwell(s.step.step_id, s.step.setpoint_c, float(s.step.base_rate_dps or 0.0),
+                             s.step.rate_dps, s.output_mean, s.output_sem,
+                             float(s.step.confidence or 0.95),
+                             float(s.step.max_error_fraction or 0.5))
+              for s in sorted(data.steps, key=lambda s: order[s.step.step_id])
+              if s.step.kind == StepKind.THRESHOLD]
+    return threshold_section(dwells, nominal_sf, notes)
+
+
+def _rate_limits(data: RunData, notes: list[str]) -> dict[str, Any] | None:
+    """Maximum input rate each way from the rate-limit walk (reports/rate_limits.py)."""
+    dwells = [rate_limits.LimitDwell(s.step.step_id, s.step.setpoint_c, s.step.rate_dps,
+                                     s.output_mean, float(s.step.linearity_tolerance_pct or 1.0),
+                                     int(s.step.fit_rates or 3))
+              for s in data.steps if s.step.kind == StepKind.RATE_LIMIT]
+    return rate_limits.rate_limits_section(dwells, notes)
 
 
 def _mean_u(s: StepSummary) -> StepMean:
@@ -507,6 +551,12 @@ DEFINITIONS = {
     "asymmetry_ppm": "largest magnitude over temperatures, sign kept",
     "bias": "static holds: mean/SF(T)·3600 − Earth rate (vertical axis, station latitude)",
     "allan": "longest static/allan hold, ÷ nominal scale factor, deg/h",
+    "threshold": "threshold_dps: smallest increment at zero rate resolved at the stated "
+                 "confidence and within the stated fraction, every larger one too (worst over "
+                 "temperatures); resolution_dps: the same at the non-zero bases (worst)",
+    "rate_limits": "max_positive_dps / max_negative_dps: the largest walked rate that, with every "
+                   "smaller one, stays within the stated % of the linear fit (smallest over "
+                   "temperatures)",
 }
 
 

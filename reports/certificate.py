@@ -55,7 +55,15 @@ _SINGLE = (("Scale factor, LS line at the reference temperature", "scale_factor_
            ("SF temperature sensitivity", "sf_temperature.sensitivity_ppm_per_c", "ppm/°C"),
            ("SF temperature instability", "sf_temperature.instability_pct", "%"),
            ("Bias temperature sensitivity", "bias_temperature.sensitivity_dph_per_c",
-            "deg/h per °C"))
+            "deg/h per °C"),
+           ("Threshold, IEEE Std 952 / 1431 (smallest resolved increment at zero rate; U "
+            "from the increment grid)", "threshold.threshold_dps", "deg/s"),
+           ("Resolution, IEEE Std 952 / 1431 (smallest resolved increment at the set rates; "
+            "U from the increment grid)", "threshold.resolution_dps", "deg/s"),
+           ("Maximum input rate, positive, IEEE Std 952 / 1431 (U from the rate walk)",
+            "rate_limits.max_positive_dps", "deg/s"),
+           ("Maximum input rate, negative, IEEE Std 952 / 1431 (U from the rate walk)",
+            "rate_limits.max_negative_dps", "deg/s"))
 
 
 def result_rows(results: dict[str, Any]) -> list[list[str]]:

@@ -86,6 +86,28 @@ SF over temperature: {% if r.sf_temperature %}instability {{ vu(r.sf_temperature
 {% if plots.allan %}<img alt="Allan deviation" src="data:image/png;base64,{{ plots.allan }}">{% endif %}
 {% else %}<p>Not computed.</p>{% endif %}
 
+{% if r.threshold %}
+<h2>Threshold and resolution (IEEE Std 952 / IEEE Std 1431)</h2>
+<p>Rate increments alternated with the base rate; an increment counts when its output change (against the base dwells either side) is resolved at the stated one-sided confidence and lies within the stated fraction of the commanded change, and every larger increment does too. U is the increment grid's (rectangular between the largest failing and the smallest passing increment, k = {{ fmt(r.threshold.k) }}).
+Threshold: {{ vu(r.threshold.threshold_dps, un["threshold.threshold_dps"] and un["threshold.threshold_dps"].U) }} deg/s; resolution: {{ vu(r.threshold.resolution_dps, un["threshold.resolution_dps"] and un["threshold.resolution_dps"].U) }} deg/s.</p>
+<table><tr><th>Test</th><th>°C</th><th>Base (deg/s)</th><th>Confidence / fraction</th><th>Increments: commanded → measured ± u (deg/s)</th><th>Result (deg/s)</th></tr>
+{% for t in r.threshold.tests %}<tr><td>{{ t.standard_test }}</td><td>{{ fmt(t.temp_c) }}</td><td>{{ fmt(t.base_rate_dps) }}</td><td>{{ fmt(t.confidence) }} / {{ fmt(t.max_error_fraction) }}</td>
+<td>{% for i in t.increments %}{{ fmt(i.commanded_dps) }} → {{ fmt(i.measured_dps, 3) }} ± {{ fmt(i.u_dps, 2) }} {{ "✓" if i.passes else "✗" }}{% if not loop.last %}; {% endif %}{% endfor %}</td>
+<td>{% if t.threshold_dps is not none %}{{ fmt(t.threshold_dps) }} (in ({{ fmt(t.below_dps) }}, {{ fmt(t.threshold_dps) }}]){% else %}above {{ fmt(t.below_dps) }}{% endif %}</td></tr>
+{% endfor %}</table>
+{% endif %}
+
+{% if r.rate_limits %}
+<h2>Input rate limits (IEEE Std 952 / IEEE Std 1431)</h2>
+<p>Rates walked up to the declared maximum each way; a rate follows when its output lies within the stated % of the line fitted through the lowest rates. The maximum input rate is the largest rate that follows with every smaller one; U is the walk's grid (rectangular up to the first rate that does not follow, k = {{ fmt(r.rate_limits.k) }}).
+Positive: {{ vu(r.rate_limits.max_positive_dps, un["rate_limits.max_positive_dps"] and un["rate_limits.max_positive_dps"].U) }} deg/s; negative: {{ vu(r.rate_limits.max_negative_dps, un["rate_limits.max_negative_dps"] and un["rate_limits.max_negative_dps"].U) }} deg/s.</p>
+<table><tr><th>°C</th><th>Direction</th><th>Tolerance (%)</th><th>Rate (deg/s): deviation from the fit (%)</th><th>Maximum (deg/s)</th></tr>
+{% for t in r.rate_limits.tests %}<tr><td>{{ fmt(t.temp_c) }}</td><td>{{ t.direction }}</td><td>{{ fmt(t.linearity_tolerance_pct) }}</td>
+<td>{% for p in t.points %}{{ fmt(p.rate_dps) }}: {{ fmt(p.deviation_pct, 3) }} {{ "✓" if p.follows else "✗" }}{% if not loop.last %}; {% endif %}{% endfor %}</td>
+<td>{% if t.max_dps is not none %}{{ fmt(t.max_dps) }}{% if t.next_dps is not none %} (limit in [{{ fmt(t.max_dps) }}, {{ fmt(t.next_dps) }})){% else %} (not reached){% endif %}{% else %}—{% endif %}</td></tr>
+{% endfor %}</table>
+{% endif %}
+
 <h2>Compensation tables</h2>
 {% for what, t in r.compensation.tables.items() %}
 {% set label, cunit = compensation[what] if what in compensation else (what, "") %}

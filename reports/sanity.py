@@ -82,7 +82,20 @@ def check_physics(results: dict[str, Any], sf_tolerance_pct: float | None = None
                 if not _finite(b.get("bias_dph"))]
     checks.append(SanityCheck("bias finite", not bad_bias,
                               "every bias is a finite number" if not bad_bias else "; ".join(bad_bias)))
+    if results.get("rate_limits"):
+        checks.append(_rate_walk_line(results["rate_limits"], nominal, tolerance))
     return checks
+
+
+def _rate_walk_line(section: dict[str, Any], nominal: float, tolerance: float) -> SanityCheck:
+    """The rate-limit walk's line through its lowest rates must have the unit's scale factor:
+    limits read off a line with the wrong sign or size (a swapped axis) mean nothing."""
+    bad = [f"{t.get('temp_c')} °C {t.get('direction')}: SF {t.get('fit_sf'):.6g}"
+           for t in section.get("tests") or []
+           if not _finite(t.get("fit_sf")) or abs(t["fit_sf"] / nominal - 1.0) * 100 > tolerance]
+    return SanityCheck("rate-limit walk follows the nominal SF", not bad,
+                       f"its line is within ±{tolerance:g} % of the nominal {nominal:g}" if not bad
+                       else "; ".join(bad))
 
 
 def _steady_dwells(steps: list[dict[str, Any]], nominal: float) -> SanityCheck:

@@ -99,13 +99,20 @@ class RecordedStep:
     revolutions: float | None = None
     mounting: str | None = None
     label: str | None = None
+    base_rate_dps: float | None = None        # threshold steps (plan.PlanStep)
+    confidence: float | None = None
+    max_error_fraction: float | None = None
+    linearity_tolerance_pct: float | None = None   # rate-limit steps
+    fit_rates: int | None = None
 
     @classmethod
     def of(cls, raw: dict[str, Any]) -> RecordedStep:
         return cls(str(raw["step_id"]), StepKind(raw["kind"]), float(raw["setpoint_c"]),
                    float(raw.get("rate_dps") or 0.0), int(raw.get("temp_index") or 0),
                    float(raw.get("duration_s") or 0.0), raw.get("revolutions"),
-                   raw.get("mounting"), raw.get("label"))
+                   raw.get("mounting"), raw.get("label"), raw.get("base_rate_dps"),
+                   raw.get("confidence"), raw.get("max_error_fraction"),
+                   raw.get("linearity_tolerance_pct"), raw.get("fit_rates"))
 
 
 @dataclass(frozen=True)

@@ -15,10 +15,13 @@ class StepKind(str, Enum):
     DWELL = "dwell"        # log at a constant table rate
     DRIVE_OFF = "drive_off"  # log at rest with the table's drive off (interlock open)
     REMOUNT = "remount"    # an operator turns the IMU fixture (multi-axis procedures)
+    THRESHOLD = "threshold"  # log at a base rate or a small increment above it (threshold test)
+    RATE_LIMIT = "rate_limit"  # log at a rate of the walk up to the declared maximum
 
     def __str__(self) -> str:     # as written in plan.json and the journal
         return self.value
 
     @property
     def logs_data(self) -> bool:
-        return self in (StepKind.STATIC, StepKind.ALLAN, StepKind.DWELL, StepKind.DRIVE_OFF)
+        return self in (StepKind.STATIC, StepKind.ALLAN, StepKind.DWELL, StepKind.DRIVE_OFF,
+                        StepKind.THRESHOLD, StepKind.RATE_LIMIT)

@@ -34,8 +34,11 @@ STRUCTURAL = ("thermal_lag", "dead_zone")
 
 #: Effects judged elsewhere: the Markov term from the quiet-segment Allan
 #: curve, periodic interference from the full-rate spectrum, quantization
-#: (output stage, bounded angle error) not scored (see docs).
-NOT_IN_BIN_SEARCH = ("markov_bias", "periodic_interference", "quantization")
+#: (output stage, bounded angle error) not scored (see docs). The rate bandwidth and the
+#: rate saturation have their own tests in the acceptance series (frequency response,
+#: input-rate limits); a calibration's steady dwells inside the rate limits show neither.
+NOT_IN_BIN_SEARCH = ("markov_bias", "periodic_interference", "quantization", "rate_bandwidth",
+                     "rate_saturation")
 
 #: Effects whose amplitude is fitted as a (cos, sin) pair, the phase following from it.
 PHASED = {"table_angle_harmonic": ("amplitude_dph", "phase_deg")}

@@ -56,6 +56,8 @@ def test_catalogue_matches_the_contract():
         "sf_nonlinearity_cubic": ["k3_per_dps2"],
         "sf_asymmetry": ["ppm"],
         "dead_zone": ["threshold_dps"],
+        "rate_bandwidth": ["bandwidth_hz"],
+        "rate_saturation": ["positive_dps", "negative_dps"],
         "warmup_transient": ["amplitude_dph", "tau_s"],
         "bias_ramp": ["dph_per_h"],
         "table_angle_harmonic": ["amplitude_dph", "phase_deg"],
@@ -209,6 +211,16 @@ def test_dead_zone_zeroes_table_rate_in_every_rate_term():
     assert out.gyro[2] == out.gyro[3] == out.gyro[5]  # inside the band: bias only
 
 
+def test_rate_saturation_clips_the_summed_rate_terms_each_way():
+    model = with_effects(base(bias_dph=3.6, sf_error_ppm=100.0),
+                         ("rate_saturation", {"positive_dps": 300.0, "negative_dps": 250.0}))
+    rate = np.array([-400.0, -250.0, -200.0, 0.0, 299.0, 300.0, 350.0])
+    _, out = run(model, rate, T0, len(rate))
+    # (1 + 100 ppm)·ω, clipped to [-250, 300], then the bias: -250 deg/s at -250 already
+    expected = np.array([-250.0, -250.0, -200.02, 0.0, 299.0299, 300.0, 300.0]) + 3.6 / 3600
+    np.testing.assert_allclose(out.gyro / SF, expected, rtol=1e-12)
+
+
 def test_warmup_transient_and_bias_ramp_are_functions_of_time():
     model = with_effects(base(), ("warmup_transient", {"amplitude_dph": 5.0, "tau_s": 40.0}),
                          ("bias_ramp", {"dph_per_h": 0.6}))
@@ -286,3 +298,21 @@ def test_inputs_are_validated_with_the_column_and_sample():
         ModelInputs.of([0.0, 1.0, 1.0], 0.0, 20.0)
     with pytest.raises(ValueError, match=r"table_rate_dps: expected 3 samples"):
         ModelInputs.of([0.0, 1.0, 2.0], [1.0, 2.0], 20.0)
+
+
+def test_rate_bandwidth_is_a_first_order_low_pass_continued_across_blocks():
+    model = with_effects(base(), ("rate_bandwidth", {"bandwidth_hz": 0.5}))
+    t = np.arange(200) / FS
+    step = np.where(t >= 1.0, 10.0, 0.0)
+    inputs = ModelInputs(t, step, np.full(t.size, T0))
+    whole = indicated_rate(model, inputs).rate_dps
+    # a step of 10 deg/s through τ = 1/(2π·0.5 Hz) = 0.318 s. The first-order hold makes it a
+    # ramp over the sample interval 0.9 → 1.0 s, whose response at its end is
+    # 10·(1 − (τ/dt)(1 − e^{−dt/τ})), then decays towards 10 with τ
+    tau, dt = 1 / (2 * math.pi * 0.5), 0.1
+    later = t >= 1.0
+    expected = 10 * (1 - (tau / dt) * -np.expm1(-dt / tau) * np.exp(-(t[later] - 1.0) / tau))
+    np.testing.assert_allclose(whole[later], expected, rtol=1e-9)
+    first = indicated_rate(model, ModelInputs(t[:120], step[:120], np.full(120, T0)))
+    rest = indicated_rate(model, ModelInputs(t[120:], step[120:], np.full(80, T0)), first.state)
+    np.testing.assert_allclose(np.concatenate([first.rate_dps, rest.rate_dps]), whole, rtol=1e-12)

@@ -1,0 +1,73 @@
+"""Coverage of the acceptance series' intervals over seeded dry runs (issue 25).
+
+Runs procedures/acceptance-series.yaml on the simulated station (gyro-models/series-fog.yaml)
+with seeds 1..N and counts, per covered test, how often the simulator's hand-typed truth
+lies inside estimate ± U (as docs/uncertainty-coverage.md does for the GUM budgets).
+
+    .venv/bin/python benchmarks/acceptance_series_coverage.py --runs 8
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import tempfile
+from pathlib import Path
+
+from gyrocal.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+DEAD_ZONE_DPS = 0.025      # gyro-models/series-fog.yaml, typed
+SATURATION_DPS = {"positive": 320.0, "negative": 270.0}
+
+
+def one_run(seed: int, folder: Path) -> tuple[int, str, dict | None]:
+    """(exit code, console text, results) of one seeded dry run."""
+    out = folder / f"run-{seed}"
+    console = io.StringIO()
+    with contextlib.redirect_stdout(console), contextlib.redirect_stderr(console):
+        code = main(["run", str(REPO / "procedures" / "acceptance-series.yaml"), "--sim",
+                     "--out", str(out), "--seed", str(seed)])
+    path = out / "report" / "results.json"
+    return code, console.getvalue(), json.loads(path.read_text()) if path.is_file() else None
+
+
+def main_cli() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--runs", type=int, default=8)
+    runs = parser.parse_args().runs
+    covered = failed = 0
+    limits = {"positive": 0, "negative": 0}
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in range(1, runs + 1):
+            code, console, results = one_run(seed, Path(tmp))
+            if code != 0 or results is None:
+                failed += 1
+                print(f"seed {seed}: run ended with exit {code}, not counted: "
+                      f"{console.strip().splitlines()[-1:]}")
+                continue
+            zero = next(t for t in results["threshold"]["tests"] if t["base_rate_dps"] == 0)
+            inside = zero["estimate_dps"] is not None and \
+                abs(zero["estimate_dps"] - DEAD_ZONE_DPS) <= zero["U_dps"]
+            covered += inside
+            print(f"seed {seed}: threshold {zero['threshold_dps']} in ({zero['below_dps']}, "
+                  f"{zero['threshold_dps']}] U {zero['U_dps']:.4g}: {'covered' if inside else 'MISSED'}")
+            for walk in results["rate_limits"]["tests"]:
+                truth = SATURATION_DPS[walk["direction"]]
+                hit = walk["estimate_dps"] is not None and \
+                    abs(walk["estimate_dps"] - truth) <= walk["U_dps"]
+                limits[walk["direction"]] += hit
+                print(f"  max rate {walk['direction']}: {walk['max_dps']} (next {walk['next_dps']}) "
+                      f"U {walk['U_dps']:.4g}: {'covered' if hit else 'MISSED'}")
+    done = runs - failed
+    print(f"{done} of {runs} runs completed with every limit passed")
+    print(f"threshold (dead zone {DEAD_ZONE_DPS} deg/s): {covered}/{done} covered")
+    for direction, hits in limits.items():
+        print(f"max input rate {direction} (truth {SATURATION_DPS[direction]:g} deg/s): "
+              f"{hits}/{done} covered")
+
+
+if __name__ == "__main__":
+    main_cli()
