@@ -1,8 +1,8 @@
 """Build the drivers a station file names, at the addresses it gives (or the simulators').
 
-This is the single place that maps a station's ``driver:`` names to driver
-classes, so adding a chamber model means one line here and one module in
-``instruments/chamber/``.
+Which class a ``driver:`` name means, and how it is built from the station's
+settings, is the driver's spec (``registry.py``); this module only opens the
+station's instruments in order and closes what it opened when one fails.
 """
 
 from __future__ import annotations
@@ -11,20 +11,13 @@ import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from gyrocal.instruments.chamber.watlow_f4 import WatlowF4
-from gyrocal.instruments.chamber.watlow_f4t import WatlowF4T
+from gyrocal.instruments.driver_spec import OpenRequest, Role
 from gyrocal.instruments.errors import InstrumentError
-from gyrocal.instruments.gyro.stim300 import Stim300Gyro
 from gyrocal.instruments.interfaces import Chamber, GyroStream, RateTable
-from gyrocal.instruments.retry import RetryPolicy
-from gyrocal.instruments.table.acutrol import Acutrol3000Table
+from gyrocal.instruments.registry import registry
 from gyrocal.models.clock import Clock
 
 RetryHook = Callable[[str, int, InstrumentError], None]
-
-#: Over ``socket://`` the RTU bytes cross TCP and no UART paces them; the baud rate
-#: would only make pymodbus wait for imaginary character times (36 ms a read at 9600).
-_SOCKET_BAUD = 921600
 
 
 @dataclass
@@ -44,36 +37,31 @@ class Instruments:
                 inst.close()
 
 
+def open_role(role: Role, config, address: str, on_retry=None,
+              sample_rate_hz: float | None = None, clock: Clock | None = None):
+    """The driver a station section (``config``: its ChamberConfig, TableConfig, …) names, at
+    ``address``, built by its registered spec with the section's settings."""
+    spec = registry().get(role, config.driver)
+    return spec.open(OpenRequest(address=address, timeout_s=config.timeout_s,
+                                 retries=getattr(config, "retries", 0), settings=config.settings,
+                                 on_retry=on_retry, sample_rate_hz=sample_rate_hz, clock=clock))
+
+
 def open_chamber(config, address: str, on_retry=None) -> Chamber:
     """The chamber driver ``config`` (a station's ChamberConfig) names, at ``address``."""
-    retry = RetryPolicy(attempts=config.retries)
-    if config.driver == "watlow_f4":
-        baud = _SOCKET_BAUD if address.startswith("socket://") else config.baudrate
-        return WatlowF4(address, unit_id=config.unit_id, timeout_s=config.timeout_s,
-                        retry=retry, baudrate=baud, parity=config.parity,
-                        stop_bits=config.stop_bits, limit_input=config.limit_input,
-                        on_retry=on_retry)
-    if config.driver == "watlow_f4t":
-        return WatlowF4T(address, unit_id=config.unit_id, timeout_s=config.timeout_s,
-                         retry=retry, word_order=config.word_order, on_retry=on_retry)
-    raise ValueError(f"unknown chamber driver {config.driver!r}")  # the loader refuses these
+    return _as(open_role(Role.CHAMBER, config, address, on_retry), Chamber, config.driver)
 
 
-def open_table(config, address: str, on_retry=None) -> Acutrol3000Table:
+def open_table(config, address: str, on_retry=None) -> RateTable:
     """The rate-table driver of ``config`` (a station's TableConfig), at ``address``."""
-    return Acutrol3000Table(address, axis=config.axis, timeout_s=config.timeout_s,
-                            retry=RetryPolicy(attempts=config.retries), on_retry=on_retry,
-                            dialect=config.dialect)
+    return _as(open_role(Role.TABLE, config, address, on_retry), RateTable, config.driver)
 
 
-def open_gyro(config, port: str, sample_rate_hz: float | None = None) -> Stim300Gyro:
+def open_gyro(config, port: str, sample_rate_hz: float | None = None) -> GyroStream:
     """The gyro driver of ``config`` (a station's GyroConfig) on ``port``."""
     fs_hz = float(sample_rate_hz or config.sample_rate_hz)
-    return Stim300Gyro(port, baudrate=config.baudrate, sample_rate_hz=fs_hz,
-                       with_temperature=config.with_temperature, lsb=config.rate_lsb,
-                       timeout_s=config.timeout_s, axis=config.axis, crlf=config.crlf,
-                       datagram=config.datagram,
-                       accelerometer_range_g=config.accelerometer_range_g)
+    return _as(open_role(Role.GYRO, config, port, sample_rate_hz=fs_hz), GyroStream,
+               config.driver)
 
 
 def open_instruments(station, clock: Clock, addresses=None,
@@ -91,17 +79,27 @@ def open_instruments(station, clock: Clock, addresses=None,
         return lambda attempt, exc: on_retry(role, attempt, exc)
 
     c, t, g = station.chamber, station.table, station.gyro
+    fs_hz = float(sample_rate_hz or g.sample_rate_hz)
     opened: list = []
     try:
-        chamber = open_chamber(c, addresses.chamber if addresses else c.address, hook("chamber"))
-        opened.append(chamber)
-        table = open_table(t, addresses.table if addresses else t.address, hook("table"))
-        opened.append(table)
-        gyro = open_gyro(g, addresses.gyro if addresses else g.port, sample_rate_hz)
-        opened.append(gyro)
+        opened.append(open_chamber(c, addresses.chamber if addresses else c.address,
+                                   hook("chamber")))
+        opened.append(open_table(t, addresses.table if addresses else t.address, hook("table")))
+        opened.append(open_gyro(g, addresses.gyro if addresses else g.port, fs_hz))
     except BaseException:
         for inst in opened:
             with contextlib.suppress(Exception):
                 inst.close()
         raise
-    return Instruments(chamber, table, gyro, clock, gyro.sample_rate_hz)
+    chamber, table, gyro = opened
+    return Instruments(chamber, table, gyro, clock, fs_hz)
+
+
+def _as(instrument: object, interface: type, driver: str):
+    """The driver's instance, checked to be what its role promises (a plug-in may not be)."""
+    if not isinstance(instrument, interface):
+        with contextlib.suppress(Exception):
+            instrument.close()  # type: ignore[attr-defined]
+        raise TypeError(f"driver {driver!r} built a {type(instrument).__name__}, which is not "
+                        f"a {interface.__name__} (instruments/interfaces.py)")
+    return instrument

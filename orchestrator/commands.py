@@ -59,7 +59,7 @@ from gyrocal.orchestrator.signing import (
     load_public_key,
     signer_from,
 )
-from gyrocal.orchestrator.station import load_station
+from gyrocal.orchestrator.station import Station, load_station
 from gyrocal.orchestrator.station_fit import check_runnable, is_simulated
 
 DEFAULT_SIM_STATION = Path("stations/sim.yaml")
@@ -219,7 +219,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise BadInput(f"--speed {args.speed}: only --sim runs can change the clock; "
                        "real instruments run at --speed 1")
     clock = _clock_for(args.speed, args.sim)
-    fault_plan = _fault_plan(getattr(args, "inject", None) or [], args.sim, plan)
+    fault_plan = _fault_plan(getattr(args, "inject", None) or [], args.sim, plan,
+                             procedure.station)
     run_dir = Path(args.out) if args.out else Path("runs") / new_run_id()
     files = _input_files(procedure)
     with contextlib.ExitStack() as held:
@@ -289,20 +290,25 @@ def _create_folder(run_dir: Path, procedure: Procedure, plan: Plan, files: dict[
     )
 
 
-def _fault_plan(specs: list[str], sim: bool, plan: Plan):
-    """Parse ``--inject`` values (dry runs only) and check the steps they name exist."""
+def _fault_plan(specs: list[str], sim: bool, plan: Plan, station: Station):
+    """Parse ``--inject`` values (dry runs only) and check the steps they name exist.
+
+    The fault names are those of the station's simulators (their driver specs).
+    """
     if not specs:
         return None
     if not sim:
         raise BadInput("--inject arms faults in the simulators; it needs --sim")
-    from gyrocal.instruments.sim.chamber_server import FAULTS as CHAMBER_FAULTS
+    from gyrocal.instruments.driver_spec import Role
+    from gyrocal.instruments.registry import registry
     from gyrocal.instruments.sim.fault_plan import FaultPlan, FaultSpecError, parse_injection
-    from gyrocal.instruments.sim.gyro_pty import FAULTS as GYRO_FAULTS
     from gyrocal.instruments.sim.imu_source import FIXTURE_FAULTS
-    from gyrocal.instruments.sim.table_server import FAULTS as TABLE_FAULTS
 
-    known = {"chamber": CHAMBER_FAULTS, "table": TABLE_FAULTS, "gyro": GYRO_FAULTS,
-             "fixture": FIXTURE_FAULTS}
+    known: dict[str, tuple[str, ...]] = {
+        role.value: registry().get(role, config.driver).sim_faults
+        for role, config in ((Role.CHAMBER, station.chamber), (Role.TABLE, station.table),
+                             (Role.GYRO, station.gyro))}
+    known["fixture"] = FIXTURE_FAULTS
     try:
         fault_plan = FaultPlan([parse_injection(spec, known) for spec in specs])
         fault_plan.check_steps([step.step_id for step in plan.steps])

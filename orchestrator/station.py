@@ -11,20 +11,22 @@ from __future__ import annotations
 
 import datetime as dt
 import os
-import re
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from gyrocal.inputs import load_yaml, outside_reference
-from gyrocal.instruments.gyro.datagram_types import (
-    ACCELEROMETER_LSB_G,
-    DEFAULT_ACCELEROMETER_RANGE_G,
-    ID_RATE,
-    ID_RATE_TEMP,
-    datagram_type,
-    parse_identifier,
+from gyrocal.instruments.driver_spec import (
+    DriverSpec,
+    Role,
+    Setting,
+    SettingError,
+    SettingKind,
+    SettingValue,
 )
-from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
+from gyrocal.instruments.gyro.datagram_types import DEFAULT_ACCELEROMETER_RANGE_G, ID_RATE_TEMP
+from gyrocal.instruments.registry import UnknownDriver, registry
+from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT
 from gyrocal.models.drive_interference import DriveLine
 from gyrocal.models.gravity import STANDARD_GRAVITY_MPS2, local_gravity_g
 from gyrocal.orchestrator.notify import NotifyTarget, parse_notify
@@ -54,26 +56,7 @@ from gyrocal.orchestrator.units import (
 )
 
 STATION_VERSION = 1
-CHAMBER_DRIVERS = ("watlow_f4", "watlow_f4t")
-TABLE_DRIVERS = ("acutrol3000",)
-GYRO_DRIVERS = ("stim300",)
-GYRO_AXES = ("x", "y", "z")
 SIM_ADDRESS = "sim"   # "started by --sim": the simulator's loopback address is chosen at run time
-
-_HOST_PORT = r"[A-Za-z0-9_.\-]+:\d{1,5}"
-_ADDRESS_FORMS = {
-    # Watlow F4: Modbus RTU over a serial line or a serial-over-TCP bridge.
-    "watlow_f4": (rf"^(/dev/\S+|COM\d+|socket://{_HOST_PORT})$",
-                  "a serial device (/dev/ttyUSB0, COM3) or socket://host:port"),
-    # Watlow F4T: Modbus TCP.
-    "watlow_f4t": (rf"^{_HOST_PORT}$", "host:port"),
-    # Acutrol3000: VISA resource string.
-    "acutrol3000": (r"^(TCPIP\d*::\S+|ASRL\S+|GPIB\d*::\S+)$",
-                    "a VISA resource such as TCPIP0::10.0.0.5::9878::SOCKET"),
-    # STIM300: RS-422 serial, or a TCP serial bridge.
-    "stim300": (rf"^(/dev/\S+|COM\d+|socket://{_HOST_PORT})$",
-                "a serial device (/dev/ttyUSB0, COM3) or socket://host:port"),
-}
 
 
 @dataclass(frozen=True)
@@ -149,6 +132,8 @@ class ChamberConfig:
     stop_bits: int = 1
     #: Watlow F4T float word order (manual: low word first)
     word_order: str = "low_first"
+    #: the driver's own settings, checked against its spec (instruments/registry.py)
+    settings: Mapping[str, SettingValue] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -168,6 +153,7 @@ class TableConfig:
     retries: int
     #: how the controller answers (instruments/table/acutrol_protocol.py DIALECTS: the manual's only)
     dialect: str = DEFAULT_DIALECT
+    settings: Mapping[str, SettingValue] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -186,6 +172,7 @@ class GyroConfig:
     datagram: int = ID_RATE_TEMP
     #: accelerometer range, g (5, 10, 30 or 80; TS1524 §7.5.2.2.7): sets the LSB
     accelerometer_range_g: int = DEFAULT_ACCELEROMETER_RANGE_G
+    settings: Mapping[str, SettingValue] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -341,17 +328,72 @@ def _section(ctx: Context, parent: Fields, key: str) -> Fields:
     return Fields(ctx, parent.child(key), raw, key)
 
 
-def _address(driver: str | None) -> object:
+def _driver(role: Role) -> object:
+    def convert(value: object) -> DriverSpec:
+        try:
+            return registry().get(role, text(value))
+        except UnknownDriver as exc:
+            raise UnitError(str(exc)) from None
+    return convert
+
+
+def _address(spec: DriverSpec | None) -> object:
     def convert(value: object) -> str:
         address = text(value)
-        if address == SIM_ADDRESS or driver not in _ADDRESS_FORMS:
+        if address == SIM_ADDRESS or spec is None or spec.address.matches(address):
             return address
-        pattern, expected = _ADDRESS_FORMS[driver]
-        if not re.match(pattern, address):
-            raise UnitError(f"{address!r} is not an address for {driver}; expected {expected} "
-                            f"or '{SIM_ADDRESS}'")
-        return address
+        raise UnitError(f"{address!r} is not an address for {spec.name}; expected "
+                        f"{spec.address.expected} or '{SIM_ADDRESS}'")
     return convert
+
+
+def _setting(setting: Setting) -> object:
+    """The schema's own converter for the setting's kind (same messages as every other key)."""
+    if setting.kind is SettingKind.INTEGER and setting.parse is None:
+        return integer(_whole(setting.minimum), _whole(setting.maximum))
+    if setting.kind is SettingKind.NUMBER and setting.parse is None:
+        return number(setting.minimum, setting.maximum, unit=setting.unit)
+    if setting.kind is SettingKind.BOOLEAN:
+        return boolean
+    if setting.kind is SettingKind.TEXT:
+        return text
+    if setting.kind is SettingKind.CHOICE and all(isinstance(c, str) for c in setting.choices):
+        return choice(tuple(str(c) for c in setting.choices))
+
+    def convert(value: object) -> SettingValue:
+        try:
+            return setting.convert(value)
+        except SettingError as exc:
+            raise UnitError(str(exc)) from None
+    return convert
+
+
+def _whole(limit: float | None) -> int | None:
+    return None if limit is None else int(limit)
+
+
+def _driver_settings(ctx: Context, fields: Fields, role: Role,
+                     spec: DriverSpec | None) -> dict[str, SettingValue]:
+    """The settings ``spec`` takes, checked against its schema; another driver's key is refused."""
+    owners: dict[str, list[str]] = {}
+    for other in registry().for_role(role):
+        for setting in other.settings:
+            owners.setdefault(setting.name, []).append(other.name)
+    values: dict[str, SettingValue] = {}
+    if spec is not None:
+        for setting in spec.settings:
+            values[setting.name] = fields.take(setting.name, _setting(setting),
+                                               required=setting.required, default=setting.default)
+        if spec.check is not None:
+            values, problems = spec.check(values)
+            for key, message in problems:
+                ctx.report(fields.child(key), message)
+    for name, drivers in owners.items():
+        if fields.has(name) and (spec is None or spec.setting(name) is None):
+            fields.take(name, lambda v: v, required=False)
+            if spec is not None:
+                ctx.report(fields.child(name), f"applies to driver {' or '.join(drivers)} only")
+    return values
 
 
 def _identity(ctx: Context, parent: Fields) -> AssetIdentity:
@@ -377,20 +419,9 @@ def _common_link(fields: Fields) -> tuple[float, int]:
 
 def _chamber(ctx: Context, parent: Fields) -> ChamberConfig:
     fields = _section(ctx, parent, "chamber")
-    driver = fields.take("driver", choice(CHAMBER_DRIVERS))
-    address = fields.take("address", _address(driver))
-    unit_id = fields.take("unit_id", integer(1, 247), required=False, default=1)
-    limit_input = fields.take("limit_input", integer(1, 4), required=False, default=None)
-    baudrate = fields.take("baudrate", integer(1200, 115_200), required=False, default=9600)
-    parity = fields.take("parity", choice(("N", "E", "O")), required=False, default="N")
-    stop_bits = fields.take("stop_bits", integer(1, 2), required=False, default=1)
-    word_order = fields.take("word_order", choice(("low_first", "high_first")), required=False,
-                             default="low_first")
-    for key in ("limit_input", "baudrate", "parity", "stop_bits"):
-        if fields.has(key) and driver not in (None, "watlow_f4"):
-            ctx.report(fields.child(key), "applies to driver watlow_f4 only")
-    if fields.has("word_order") and driver not in (None, "watlow_f4t"):
-        ctx.report(fields.child("word_order"), "applies to driver watlow_f4t only")
+    spec = fields.take("driver", _driver(Role.CHAMBER))
+    address = fields.take("address", _address(spec))
+    settings = _driver_settings(ctx, fields, Role.CHAMBER, spec)
     identity = _identity(ctx, fields)
 
     lim = _section(ctx, fields, "limits")
@@ -419,18 +450,19 @@ def _chamber(ctx: Context, parent: Fields) -> ChamberConfig:
     safe.finish()
     timeout_s, retries = _common_link(fields)
     fields.finish()
-    return ChamberConfig(driver, address, unit_id, identity, limits,
-                         ChamberSafeState(action, setpoint_c), timeout_s, retries, limit_input,
-                         baudrate, parity, stop_bits, word_order)
+    typed = _Typed(settings)
+    return ChamberConfig(spec.name if spec else None, address, typed.get("unit_id", 1), identity,
+                         limits, ChamberSafeState(action, setpoint_c), timeout_s, retries,
+                         typed.get("limit_input", None), typed.get("baudrate", 9600),
+                         typed.get("parity", "N"), typed.get("stop_bits", 1),
+                         typed.get("word_order", "low_first"), settings)
 
 
 def _table(ctx: Context, parent: Fields) -> TableConfig:
     fields = _section(ctx, parent, "table")
-    driver = fields.take("driver", choice(TABLE_DRIVERS))
-    address = fields.take("address", _address(driver))
-    axis = fields.take("axis", integer(1, 8), required=False, default=1)
-    dialect = fields.take("dialect", choice(tuple(DIALECTS)), required=False,
-                          default=DEFAULT_DIALECT)
+    spec = fields.take("driver", _driver(Role.TABLE))
+    address = fields.take("address", _address(spec))
+    settings = _driver_settings(ctx, fields, Role.TABLE, spec)
     identity = _identity(ctx, fields)
     lim = _section(ctx, fields, "limits")
     limits = TableLimits(
@@ -440,49 +472,36 @@ def _table(ctx: Context, parent: Fields) -> TableConfig:
     lim.finish()
     timeout_s, retries = _common_link(fields)
     fields.finish()
-    return TableConfig(driver, address, axis, identity, limits, timeout_s, retries, dialect)
+    typed = _Typed(settings)
+    return TableConfig(spec.name if spec else None, address, typed.get("axis", 1), identity,
+                       limits, timeout_s, retries, typed.get("dialect", DEFAULT_DIALECT), settings)
 
 
 def _gyro(ctx: Context, parent: Fields) -> GyroConfig:
     fields = _section(ctx, parent, "gyro")
-    driver = fields.take("driver", choice(GYRO_DRIVERS))
-    port = fields.take("port", _address(driver))
-    baudrate = fields.take("baudrate", integer(1200, 20_000_000), required=False, default=921600)
+    spec = fields.take("driver", _driver(Role.GYRO))
+    port = fields.take("port", _address(spec))
     sample_rate_hz = fields.take("sample_rate_hz", quantity(FREQUENCY, above=0.0))
-    rate_lsb = fields.take("rate_lsb", number(above=0.0))
-    with_temperature = fields.take("with_temperature", boolean, required=False, default=None)
     timeout_s = fields.take("timeout_s", duration(bare_seconds=True), required=False, default=2.0)
-    axis = fields.take("axis", choice(GYRO_AXES), required=False, default="x")
-    crlf = fields.take("crlf", boolean, required=False, default=False)
-    datagram = fields.take("datagram", _identifier, required=False, default=None)
-    range_g = fields.take("accelerometer_range_g", choice_of_ints(tuple(ACCELEROMETER_LSB_G)),
-                          required=False, default=DEFAULT_ACCELEROMETER_RANGE_G)
-    if datagram is None:
-        datagram = ID_RATE if with_temperature is False else ID_RATE_TEMP
-    elif with_temperature is not None and with_temperature != datagram_type(datagram).temperature:
-        ctx.report(fields.child("with_temperature"),
-                   f"{str(with_temperature).lower()} contradicts datagram "
-                   f"{datagram_type(datagram).label()}; give one of them")
+    settings = _driver_settings(ctx, fields, Role.GYRO, spec)
     fields.finish()
-    return GyroConfig(driver, port, baudrate, sample_rate_hz, rate_lsb,
-                      datagram_type(datagram).temperature, timeout_s, axis, crlf, datagram,
-                      range_g)
+    typed = _Typed(settings)
+    return GyroConfig(spec.name if spec else None, port, typed.get("baudrate", 0), sample_rate_hz,
+                      typed.get("rate_lsb", 1.0), typed.get("with_temperature", False), timeout_s,
+                      typed.get("axis", "x"), typed.get("crlf", False),
+                      typed.get("datagram", ID_RATE_TEMP),
+                      typed.get("accelerometer_range_g", DEFAULT_ACCELEROMETER_RANGE_G), settings)
 
 
-def _identifier(value: object) -> int:
-    try:
-        return parse_identifier(value)
-    except ValueError as exc:
-        raise UnitError(str(exc)) from None
+class _Typed:
+    """A driver's settings read into the station's typed fields (a default where it has none)."""
 
+    def __init__(self, settings: Mapping[str, SettingValue]) -> None:
+        self.settings = settings
 
-def choice_of_ints(options: tuple[int, ...]):
-    """One of the whole numbers ``options`` (e.g. an accelerometer range)."""
-    def convert(value: object) -> int:
-        if isinstance(value, bool) or value not in options:
-            raise UnitError(f"expected one of {', '.join(str(o) for o in options)}, got {value!r}")
-        return int(value)
-    return convert
+    def get(self, name: str, default):
+        value = self.settings.get(name)
+        return default if value is None else value
 
 
 def _check_model_file(ctx: Context, where: KeyPath, path: Path) -> None:

@@ -65,6 +65,11 @@ class ReplayGyroPort:
         """Whole passes over the capture completed."""
         return self.bytes_written // len(self.data)
 
+    @property
+    def address(self) -> str:
+        """Where the driver opens it (the simulated station's name for every server's address)."""
+        return self.port_name
+
     def start(self) -> ReplayGyroPort:
         if self._closed:
             raise RuntimeError("replayed gyro: cannot start after stop()")

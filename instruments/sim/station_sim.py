@@ -15,21 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyrocal.instruments.gyro.datagram import axis_index
-from gyrocal.instruments.sim.chamber_server import (
-    FAULTS as CHAMBER_FAULTS,
-)
-from gyrocal.instruments.sim.chamber_server import (
-    SimulatedWatlowF4,
-    SimulatedWatlowF4T,
-)
+from gyrocal.instruments.driver_spec import DriverSpec, Role, SimRequest, SimServer
+from gyrocal.instruments.registry import registry
 from gyrocal.instruments.sim.faults import FaultInjector
-from gyrocal.instruments.sim.gyro_pty import FAULTS as GYRO_FAULTS
-from gyrocal.instruments.sim.gyro_pty import SimulatedGyroPort
 from gyrocal.instruments.sim.imu_source import FIXTURE_FAULTS, ImuPhysicsSource, SimulatedFixture
 from gyrocal.instruments.sim.replay_pty import ReplayGyroPort
-from gyrocal.instruments.sim.table_server import FAULTS as TABLE_FAULTS
-from gyrocal.instruments.sim.table_server import SimulatedAcutrol
 from gyrocal.models.chamber import ChamberPhysics
 from gyrocal.models.clock import RealClock, SimClock
 from gyrocal.models.drive_interference import DriveInterference
@@ -143,14 +133,11 @@ class SimulatedStation:
         self.sample_rate_hz = float(sample_rate_hz or gyro_cfg.sample_rate_hz)
         self.fixture_faults = FaultInjector(FIXTURE_FAULTS, owner="simulated fixture")
         self.fixture: SimulatedFixture | None = None
-        self.chamber_faults = FaultInjector(CHAMBER_FAULTS, owner="simulated chamber")
-        self.table_faults = FaultInjector(TABLE_FAULTS, owner="simulated table")
-        self.gyro_faults = FaultInjector(GYRO_FAULTS, owner="simulated gyro")
-        chamber_cls = SimulatedWatlowF4T if station.chamber.driver == "watlow_f4t" else SimulatedWatlowF4
-        self.chamber_server = chamber_cls(self.chamber_physics, self.chamber_faults,
-                                          unit_id=station.chamber.unit_id)
-        self.table_server = SimulatedAcutrol(self.table_physics, self.table_faults,
-                                             dialect=station.table.dialect)
+        specs = {role: registry().get(role, config.driver) for role, config in (
+            (Role.CHAMBER, station.chamber), (Role.TABLE, station.table), (Role.GYRO, gyro_cfg))}
+        self.chamber_faults = FaultInjector(specs[Role.CHAMBER].sim_faults, owner="simulated chamber")
+        self.table_faults = FaultInjector(specs[Role.TABLE].sim_faults, owner="simulated table")
+        self.gyro_faults = FaultInjector(specs[Role.GYRO].sim_faults, owner="simulated gyro")
         self.source: GyroPhysicsSource | ImuPhysicsSource
         if isinstance(self.model, ImuModel):
             self.fixture = SimulatedFixture(self.fixture_faults)
@@ -172,19 +159,17 @@ class SimulatedStation:
             # be large; 512 frames (0.26 s at 2 kHz, 2 s at 250 Hz) keeps that cost under 1 µs a
             # frame while the clock runs at most one block ahead of what the reader consumed.
             gyro_block_frames = 512
-        self.gyro_port: SimulatedGyroPort | ReplayGyroPort
+        self.chamber_server = _simulator(specs[Role.CHAMBER], self._request(
+            station.chamber.settings, self.chamber_faults))
+        self.table_server = _simulator(specs[Role.TABLE], self._request(
+            station.table.settings, self.table_faults))
+        self.gyro_port: SimServer
         if gyro_port is not None:
             self.gyro_port = gyro_port
         else:
-            self.gyro_port = SimulatedGyroPort(
-                self.source, clock, sample_rate_hz=self.sample_rate_hz,
-                with_temperature=gyro_cfg.with_temperature, lsb=gyro_cfg.rate_lsb,
-                faults=self.gyro_faults, block_frames=gyro_block_frames, seed=self.seed + _SEED_PTY,
-                axis=axis_index(gyro_cfg.axis), crlf=gyro_cfg.crlf, datagram=gyro_cfg.datagram,
-                accelerometer_range_g=gyro_cfg.accelerometer_range_g,
-                specific_force=(self.source.specific_force
-                                if isinstance(self.source, ImuPhysicsSource) else None),
-            )
+            request = self._request({**gyro_cfg.settings, "_block_frames": gyro_block_frames},
+                                    self.gyro_faults, seed_offset=_SEED_PTY)
+            self.gyro_port = _simulator(specs[Role.GYRO], request)
         self._started = False
 
     def begin_attempt(self, step_id: str, attempt: int) -> None:
@@ -203,10 +188,19 @@ class SimulatedStation:
         self.source.reseed(gyro)
         self.gyro_port.reseed(pty)
 
+    def _request(self, settings, faults: FaultInjector, seed_offset: int = 0) -> SimRequest:
+        """What every simulator of this station sees: its settings and faults, and the shared bench."""
+        return SimRequest(settings=settings, faults=faults, clock=self.clock,
+                          seed=self.seed + seed_offset, chamber=self.chamber_physics,
+                          table=self.table_physics, gyro_source=self.source,
+                          sample_rate_hz=self.sample_rate_hz,
+                          specific_force=(self.source.specific_force
+                                          if isinstance(self.source, ImuPhysicsSource) else None))
+
     @property
     def addresses(self) -> SimAddresses:
-        return SimAddresses(self.chamber_server.address, self.table_server.resource,
-                            self.gyro_port.port_name)
+        return SimAddresses(self.chamber_server.address, self.table_server.address,
+                            self.gyro_port.address)
 
     def start(self) -> SimulatedStation:
         if not self._started:
@@ -227,3 +221,10 @@ class SimulatedStation:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+def _simulator(spec: DriverSpec, request: SimRequest) -> SimServer:
+    if spec.simulator is None:
+        raise ValueError(f"{spec.role.value} driver {spec.name!r} ({spec.origin}) has no simulator; "
+                         "--sim and `gyrocal sim serve` cannot stand in for it")
+    return spec.simulator(request)

@@ -1,0 +1,225 @@
+"""The drivers that ship with gyrocal, each as one :class:`DriverSpec`.
+
+Adding a driver to gyrocal itself is one spec here; adding one from outside
+is the same spec published through the ``gyrocal.drivers`` entry point
+(README "Add your instrument"). Drivers and simulators are imported when a
+spec is used, so listing the drivers stays cheap.
+"""
+
+from __future__ import annotations
+
+from gyrocal.instruments.driver_spec import (
+    SERIAL_OR_SOCKET,
+    TCP_HOST_PORT,
+    VISA_RESOURCE,
+    DriverSpec,
+    OpenRequest,
+    Role,
+    Setting,
+    SettingKind,
+    SettingValue,
+    SimRequest,
+)
+from gyrocal.instruments.gyro.datagram_types import (
+    ACCELEROMETER_LSB_G,
+    DEFAULT_ACCELEROMETER_RANGE_G,
+    ID_RATE,
+    ID_RATE_TEMP,
+    datagram_type,
+    parse_identifier,
+)
+from gyrocal.instruments.retry import RetryPolicy
+from gyrocal.instruments.sim.chamber_server import FAULTS as CHAMBER_FAULTS
+from gyrocal.instruments.sim.gyro_pty import FAULTS as GYRO_FAULTS
+from gyrocal.instruments.sim.table_server import FAULTS as TABLE_FAULTS
+from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
+
+#: Over ``socket://`` the RTU bytes cross TCP and no UART paces them; the baud rate
+#: would only make pymodbus wait for imaginary character times (36 ms a read at 9600).
+_SOCKET_BAUD = 921600
+
+_UNIT_ID = Setting("unit_id", SettingKind.INTEGER, 1, doc="Modbus unit (slave) address",
+                   minimum=1, maximum=247)
+
+
+def _int(settings, name: str) -> int:
+    value = settings[name]
+    assert isinstance(value, int)
+    return value
+
+
+def _open_f4(req: OpenRequest):
+    from gyrocal.instruments.chamber.watlow_f4 import WatlowF4
+
+    s = req.settings
+    baud = _SOCKET_BAUD if req.address.startswith("socket://") else _int(s, "baudrate")
+    limit_input = s["limit_input"]
+    return WatlowF4(req.address, unit_id=_int(s, "unit_id"), timeout_s=req.timeout_s,
+                    retry=RetryPolicy(attempts=req.retries), baudrate=baud, parity=str(s["parity"]),
+                    stop_bits=_int(s, "stop_bits"),
+                    limit_input=limit_input if isinstance(limit_input, int) else None,
+                    on_retry=req.on_retry)
+
+
+def _sim_f4(req: SimRequest):
+    from gyrocal.instruments.sim.chamber_server import SimulatedWatlowF4
+
+    assert req.chamber is not None
+    return SimulatedWatlowF4(req.chamber, req.faults, unit_id=_int(req.settings, "unit_id"))
+
+
+def _open_f4t(req: OpenRequest):
+    from gyrocal.instruments.chamber.watlow_f4t import WatlowF4T
+
+    s = req.settings
+    return WatlowF4T(req.address, unit_id=_int(s, "unit_id"), timeout_s=req.timeout_s,
+                     retry=RetryPolicy(attempts=req.retries), word_order=str(s["word_order"]),
+                     on_retry=req.on_retry)
+
+
+def _sim_f4t(req: SimRequest):
+    from gyrocal.instruments.sim.chamber_server import SimulatedWatlowF4T
+
+    assert req.chamber is not None
+    return SimulatedWatlowF4T(req.chamber, req.faults, unit_id=_int(req.settings, "unit_id"))
+
+
+def _open_acutrol(req: OpenRequest):
+    from gyrocal.instruments.table.acutrol import Acutrol3000Table
+
+    s = req.settings
+    return Acutrol3000Table(req.address, axis=_int(s, "axis"), timeout_s=req.timeout_s,
+                            retry=RetryPolicy(attempts=req.retries), on_retry=req.on_retry,
+                            dialect=str(s["dialect"]))
+
+
+def _sim_acutrol(req: SimRequest):
+    from gyrocal.instruments.sim.table_server import SimulatedAcutrol
+
+    class _Served(SimulatedAcutrol):
+        @property
+        def address(self) -> str:
+            return self.resource
+
+    assert req.table is not None
+    return _Served(req.table, req.faults, dialect=str(req.settings["dialect"]))
+
+
+def _open_stim300(req: OpenRequest):
+    from gyrocal.instruments.gyro.stim300 import Stim300Gyro
+
+    s = req.settings
+    rate_lsb = s["rate_lsb"]
+    assert isinstance(rate_lsb, float) and req.sample_rate_hz is not None
+    return Stim300Gyro(req.address, baudrate=_int(s, "baudrate"), sample_rate_hz=req.sample_rate_hz,
+                       with_temperature=bool(s["with_temperature"]), lsb=rate_lsb,
+                       timeout_s=req.timeout_s, axis=str(s["axis"]), crlf=bool(s["crlf"]),
+                       datagram=_int(s, "datagram"),
+                       accelerometer_range_g=_int(s, "accelerometer_range_g"))
+
+
+def _sim_stim300(req: SimRequest):
+    from gyrocal.instruments.gyro.datagram import axis_index
+    from gyrocal.instruments.sim.gyro_pty import SimulatedGyroPort
+
+    class _Served(SimulatedGyroPort):
+        @property
+        def address(self) -> str:
+            return self.port_name
+
+    s = req.settings
+    rate_lsb = s["rate_lsb"]
+    assert req.gyro_source is not None and req.sample_rate_hz is not None
+    assert isinstance(rate_lsb, float)
+    block = s.get("_block_frames")
+    return _Served(req.gyro_source, req.clock, sample_rate_hz=req.sample_rate_hz,  # type: ignore[arg-type]
+                   with_temperature=bool(s["with_temperature"]), lsb=rate_lsb,
+                   faults=req.faults, block_frames=block if isinstance(block, int) else 512,  # type: ignore[arg-type]
+                   seed=req.seed, axis=axis_index(str(s["axis"])), crlf=bool(s["crlf"]),
+                   datagram=_int(s, "datagram"),
+                   accelerometer_range_g=_int(s, "accelerometer_range_g"),
+                   specific_force=req.specific_force)
+
+
+def _positive(value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+        raise ValueError(f"expected a number above 0, got {value!r}")
+    return float(value)
+
+
+def _identifier(value: object) -> int:
+    return parse_identifier(value)
+
+
+def _settle_stim300(given: dict[str, SettingValue]
+                    ) -> tuple[dict[str, SettingValue], list[tuple[str, str]]]:
+    """The datagram follows ``with_temperature`` when not given; the two must agree when both are."""
+    settled = dict(given)
+    with_temperature, datagram = given.get("with_temperature"), given.get("datagram")
+    problems: list[tuple[str, str]] = []
+    if not isinstance(datagram, int):
+        datagram = ID_RATE if with_temperature is False else ID_RATE_TEMP
+    elif with_temperature is not None and with_temperature != datagram_type(datagram).temperature:
+        problems.append(("with_temperature",
+                         f"{str(with_temperature).lower()} contradicts datagram "
+                         f"{datagram_type(datagram).label()}; give one of them"))
+    settled["datagram"] = datagram
+    settled["with_temperature"] = datagram_type(datagram).temperature
+    return settled, problems
+
+
+_WATLOW_F4_DOCS = ("Watlow Series F4 user's manual 'PID temperature Control f4pe E' (Modbus registers)",
+                   "Espec ChamberConnectLibrary watlowf4.py (run state 200, units 901, decimals 606)")
+_WATLOW_F4T_DOCS = ("Watlow F4T setup and operations guide 0600-0093-0000 (p. 225 display units)",
+                    "Espec ChamberConnectLibrary watlowf4t.py")
+
+BUILTIN_DRIVERS: tuple[DriverSpec, ...] = (
+    DriverSpec(
+        "watlow_f4", Role.CHAMBER, "Watlow Series F4, Modbus RTU (serial or serial-over-TCP)",
+        SERIAL_OR_SOCKET, _open_f4,
+        settings=(
+            _UNIT_ID,
+            Setting("limit_input", SettingKind.INTEGER, None, minimum=1, maximum=4,
+                    doc="digital input the limit controller trips (the alarm source)"),
+            Setting("baudrate", SettingKind.INTEGER, 9600, unit="baud", minimum=1200,
+                    maximum=115_200),
+            Setting("parity", SettingKind.CHOICE, "N", choices=("N", "E", "O")),
+            Setting("stop_bits", SettingKind.INTEGER, 1, minimum=1, maximum=2),
+        ),
+        simulator=_sim_f4, sim_faults=CHAMBER_FAULTS, documents=_WATLOW_F4_DOCS),
+    DriverSpec(
+        "watlow_f4t", Role.CHAMBER, "Watlow F4T, Modbus TCP", TCP_HOST_PORT, _open_f4t,
+        settings=(_UNIT_ID,
+                  Setting("word_order", SettingKind.CHOICE, "low_first",
+                          choices=("low_first", "high_first"), doc="float word order")),
+        simulator=_sim_f4t, sim_faults=CHAMBER_FAULTS, documents=_WATLOW_F4T_DOCS),
+    DriverSpec(
+        "acutrol3000", Role.TABLE, "Acutronic ACUTROL3000 rate table, SCPI over TCP (VISA)",
+        VISA_RESOURCE, _open_acutrol,
+        settings=(Setting("axis", SettingKind.INTEGER, 1, minimum=1, maximum=8),
+                  Setting("dialect", SettingKind.CHOICE, DEFAULT_DIALECT,
+                          choices=tuple(DIALECTS), doc="how the controller answers")),
+        simulator=_sim_acutrol, sim_faults=TABLE_FAULTS,
+        documents=("ACUTROL3000 TM-8004 command language; TM-9384C TCP/IP",
+                   "docs/protocol-elements.md (table rows)")),
+    DriverSpec(
+        "stim300", Role.GYRO, "Safran STIM300, RS-422 datagrams (serial or serial-over-TCP)",
+        SERIAL_OR_SOCKET, _open_stim300,
+        settings=(
+            Setting("baudrate", SettingKind.INTEGER, 921600, unit="baud", minimum=1200,
+                    maximum=20_000_000),
+            Setting("rate_lsb", SettingKind.NUMBER, None, required=True, parse=_positive,
+                    doc="output units per LSB"),
+            Setting("axis", SettingKind.CHOICE, "x", choices=("x", "y", "z"),
+                    doc="the unit under test among the datagram's axes (all are logged)"),
+            Setting("with_temperature", SettingKind.BOOLEAN, None,
+                    doc="datagram carries temperatures (else follows datagram)"),
+            Setting("crlf", SettingKind.BOOLEAN, False, doc="datagrams end in CR LF"),
+            Setting("datagram", SettingKind.INTEGER, None, parse=_identifier,
+                    doc="normal-mode datagram identifier (TS1524 Table 5-21)"),
+            Setting("accelerometer_range_g", SettingKind.CHOICE, DEFAULT_ACCELEROMETER_RANGE_G,
+                    unit="g", choices=tuple(ACCELEROMETER_LSB_G)),
+        ),
+        simulator=_sim_stim300, sim_faults=GYRO_FAULTS, check=_settle_stim300,
+        documents=("STIM300 datasheet TS1524 rev 31 (Tables 5-16, 5-20..5-23, §7.5.2.2)",)),
+)
