@@ -31,6 +31,7 @@ from gyrocal.instruments.gyro.datagram_types import (
 from gyrocal.instruments.retry import RetryPolicy
 from gyrocal.instruments.sim.chamber_server import FAULTS as CHAMBER_FAULTS
 from gyrocal.instruments.sim.gyro_pty import FAULTS as GYRO_FAULTS
+from gyrocal.instruments.sim.supply_server import FAULTS as SUPPLY_FAULTS
 from gyrocal.instruments.sim.table_server import FAULTS as TABLE_FAULTS
 from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
 
@@ -147,6 +148,20 @@ def _positive(value: object) -> float:
     return float(value)
 
 
+def _open_e36300(req: OpenRequest):
+    from gyrocal.instruments.supply.keysight_e36300 import KeysightE36300Supply
+
+    return KeysightE36300Supply(req.address, channel=_int(req.settings, "channel"),
+                                timeout_s=req.timeout_s, retry=RetryPolicy(attempts=req.retries),
+                                on_retry=req.on_retry)
+
+
+def _sim_e36300(req: SimRequest):
+    from gyrocal.instruments.sim.supply_server import SimulatedE36300
+
+    return SimulatedE36300(req.faults, seed=req.seed)  # type: ignore[arg-type]
+
+
 def _identifier(value: object) -> int:
     return parse_identifier(value)
 
@@ -222,4 +237,13 @@ BUILTIN_DRIVERS: tuple[DriverSpec, ...] = (
         ),
         simulator=_sim_stim300, sim_faults=GYRO_FAULTS, check=_settle_stim300,
         documents=("STIM300 datasheet TS1524 rev 31 (Tables 5-16, 5-20..5-23, §7.5.2.2)",)),
+    DriverSpec(
+        "keysight_e36300", Role.SUPPLY,
+        "Keysight E36300-series DC supply (E36311A/12A/13A), SCPI over LAN (VISA)",
+        VISA_RESOURCE, _open_e36300,
+        settings=(Setting("channel", SettingKind.INTEGER, 1, minimum=1, maximum=3,
+                          doc="the output channel that powers the unit"),),
+        simulator=_sim_e36300, sim_faults=SUPPLY_FAULTS,
+        documents=("command spellings of PyMeasure keysightE36312A.py (E36300 programming "
+                   "guide not available: unconfirmed)",)),
 )

@@ -1,4 +1,4 @@
-"""The three instrument roles the orchestrator needs, as small typed interfaces.
+"""The instrument roles the orchestrator needs, as small typed interfaces.
 
 The orchestrator only ever sees these; a new chamber or table model is a new
 driver class that satisfies one of them, nothing else changes.
@@ -64,6 +64,29 @@ class Chamber(Protocol):
     def read_status(self) -> ChamberStatus: ...
     def reset_link(self) -> None:
         """Drop the connection and whatever is buffered in it; the next command opens a fresh one."""
+    def close(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class SupplyReading:
+    """What the supply powering the unit under test reads back."""
+
+    voltage_v: float
+    current_a: float
+    output_on: bool
+
+
+@runtime_checkable
+class PowerSupply(Protocol):
+    """The programmable supply of the unit under test (one output channel)."""
+
+    name: str
+
+    def identify(self) -> Identity: ...
+    def configure(self, voltage_v: float, current_limit_a: float) -> None: ...
+    def set_output(self, on: bool) -> None: ...
+    def read(self) -> SupplyReading: ...
+    def reset_link(self) -> None: ...
     def close(self) -> None: ...
 
 

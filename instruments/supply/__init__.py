@@ -1,0 +1,1 @@
+"""Programmable supplies for the unit under test."""
