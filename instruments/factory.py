@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from gyrocal.instruments.driver_spec import OpenRequest, Role
 from gyrocal.instruments.errors import InstrumentError
-from gyrocal.instruments.interfaces import Chamber, GyroStream, RateTable
+from gyrocal.instruments.interfaces import Chamber, GyroStream, PowerSupply, RateTable
 from gyrocal.instruments.registry import registry
 from gyrocal.models.clock import Clock
 
@@ -29,9 +29,13 @@ class Instruments:
     gyro: GyroStream
     clock: Clock
     sample_rate_hz: float
+    #: the supply powering the unit under test, when the station has one
+    supply: PowerSupply | None = None
 
     def close(self) -> None:
-        for inst in (self.gyro, self.table, self.chamber):
+        for inst in (self.gyro, self.table, self.chamber, self.supply):
+            if inst is None:
+                continue
             # Closing must never mask the run's real outcome.
             with contextlib.suppress(Exception):
                 inst.close()
@@ -64,6 +68,11 @@ def open_gyro(config, port: str, sample_rate_hz: float | None = None) -> GyroStr
                config.driver)
 
 
+def open_supply(config, address: str, on_retry=None) -> PowerSupply:
+    """The supply of the unit under test ``config`` (a station's SupplyConfig) names."""
+    return _as(open_role(Role.SUPPLY, config, address, on_retry), PowerSupply, config.driver)
+
+
 def open_instruments(station, clock: Clock, addresses=None,
                      on_retry: RetryHook | None = None,
                      sample_rate_hz: float | None = None) -> Instruments:
@@ -80,19 +89,24 @@ def open_instruments(station, clock: Clock, addresses=None,
 
     c, t, g = station.chamber, station.table, station.gyro
     fs_hz = float(sample_rate_hz or g.sample_rate_hz)
+    s = station.supply
     opened: list = []
     try:
         opened.append(open_chamber(c, addresses.chamber if addresses else c.address,
                                    hook("chamber")))
         opened.append(open_table(t, addresses.table if addresses else t.address, hook("table")))
         opened.append(open_gyro(g, addresses.gyro if addresses else g.port, fs_hz))
+        if s is not None:
+            opened.append(open_supply(s, addresses.supply if addresses else s.address,
+                                      hook("supply")))
     except BaseException:
         for inst in opened:
             with contextlib.suppress(Exception):
                 inst.close()
         raise
-    chamber, table, gyro = opened
-    return Instruments(chamber, table, gyro, clock, fs_hz)
+    chamber, table, gyro = opened[:3]
+    supply = opened[3] if s is not None else None
+    return Instruments(chamber, table, gyro, clock, fs_hz, supply)
 
 
 def _as(instrument: object, interface: type, driver: str):

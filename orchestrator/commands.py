@@ -59,8 +59,9 @@ from gyrocal.orchestrator.signing import (
     load_public_key,
     signer_from,
 )
-from gyrocal.orchestrator.station import Station, load_station
+from gyrocal.orchestrator.station import Station, SupplyConfig, load_station
 from gyrocal.orchestrator.station_fit import check_runnable, is_simulated
+from gyrocal.orchestrator.unit_power import UnitPowerPolicy
 
 DEFAULT_SIM_STATION = Path("stations/sim.yaml")
 
@@ -127,7 +128,15 @@ def _policy(procedure: Procedure) -> EnginePolicy:
         read_timeout_margin_s=procedure.station.gyro.timeout_s,
         chamber_retries=procedure.station.chamber.retries,
         table_retries=procedure.station.table.retries,
+        unit_power=_unit_power(procedure.station.supply),
     )
+
+
+def _unit_power(supply: SupplyConfig | None) -> UnitPowerPolicy | None:
+    if supply is None:
+        return None
+    return UnitPowerPolicy(supply.voltage_v, supply.current_limit_a, supply.unit_power_safe,
+                           supply.retries)
 
 
 @contextlib.contextmanager
@@ -241,8 +250,8 @@ def _station_locks(procedure: Procedure, sim: bool) -> contextlib.AbstractContex
     if sim:
         return contextlib.nullcontext([])
     station = procedure.station
-    return instrument_locks({"chamber": station.chamber.address, "table": station.table.address,
-                             "gyro": station.gyro.port})
+    return instrument_locks({key.split(".")[0]: address
+                             for key, address in station.addresses().items()})
 
 
 @contextlib.contextmanager
@@ -309,6 +318,8 @@ def _fault_plan(specs: list[str], sim: bool, plan: Plan, station: Station):
         for role, config in ((Role.CHAMBER, station.chamber), (Role.TABLE, station.table),
                              (Role.GYRO, station.gyro))}
     known["fixture"] = FIXTURE_FAULTS
+    if station.supply is not None:
+        known["supply"] = registry().get(Role.SUPPLY, station.supply.driver).sim_faults
     try:
         fault_plan = FaultPlan([parse_injection(spec, known) for spec in specs])
         fault_plan.check_steps([step.step_id for step in plan.steps])

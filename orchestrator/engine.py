@@ -37,6 +37,8 @@ from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.remount import FixtureOperator, RemountExecutor
 from gyrocal.orchestrator.run_errors import RunFaultError, StepQualityError
 from gyrocal.orchestrator.safe_state import SafeOutcome, SafePolicy, make_safe
+from gyrocal.orchestrator.unit_power import UnitPowerPolicy, power_on
+from gyrocal.orchestrator.unit_power import check as check_power
 
 #: An operator creates this file in the run folder to pause before the next step.
 PAUSE_FILE = "PAUSE"
@@ -58,6 +60,7 @@ class EnginePolicy:
     chamber_retries: int = 3            # attempts of each safe-state action (station chamber.retries)
     table_retries: int = 3              # (station table.retries)
     pause_poll_s: float = 0.5           # wall seconds between looks at RUN_DIR/PAUSE while paused
+    unit_power: UnitPowerPolicy | None = None   # the station's supply for the unit, if any
 
 
 def completed_steps(events: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
@@ -234,13 +237,16 @@ class RunEngine:
     def _connect_and_preflight(self) -> None:
         self.machine.connect()
         identities: dict[str, dict[str, str]] = {}
-        for inst in (self.inst.chamber, self.inst.table, self.inst.gyro):
+        supply = [self.inst.supply] if self.inst.supply is not None else []
+        for inst in (self.inst.chamber, self.inst.table, self.inst.gyro, *supply):
             ident: Identity = inst.identify()
             identities[ident.role] = {"driver": ident.driver, "address": ident.address,
                                       "description": ident.description}
             self.journal.append(JournalEvent.INSTRUMENT_IDENTIFIED, role=ident.role, driver=ident.driver,
                                 address=ident.address, description=ident.description)
         self.folder.update_manifest(instruments=identities)
+        if self.inst.supply is not None and self.policy.unit_power is not None:
+            power_on(self.inst.supply, self.policy.unit_power, self.journal)
         self.machine.identified()
         status = self.inst.chamber.read_status()
         if status.alarm:
@@ -364,6 +370,9 @@ class RunEngine:
                                     reason=f"gyro read failed: {exc}")
                 continue
             self.machine.logged()
+            if self.inst.supply is not None and self.policy.unit_power is not None:
+                check_power(self.inst.supply, self.policy.unit_power, self.journal,
+                            when="step_logged", step_id=step.step_id)
             loss = result.bad_fraction
             rate_ok = result.table_rate_max_dev_dps <= self.conditions.rate_band(rate_dps)
             if result.implausible is None and loss <= self.policy.max_loss_fraction and rate_ok:
@@ -443,10 +452,13 @@ class RunEngine:
         if self.machine.can("fault"):
             self.machine.fault()
         self.progress.close()
+        power = self.policy.unit_power
         policy = SafePolicy(self.policy.safe_setpoint_c, self.policy.chamber_retries,
-                            self.policy.table_retries)
+                            self.policy.table_retries, power.safe_action if power else None,
+                            power.attempts if power else 3)
         with self._gate.shielded():
-            outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock)
+            outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock,
+                                self.inst.supply)
             outcome.print()
             if self.machine.state == "safing":
                 self.machine.safed()

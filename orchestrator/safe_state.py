@@ -23,7 +23,7 @@ import sys
 from dataclasses import dataclass
 from typing import Any, TextIO
 
-from gyrocal.instruments.interfaces import Chamber, RateTable
+from gyrocal.instruments.interfaces import Chamber, PowerSupply, RateTable
 from gyrocal.models.clock import Clock
 
 #: A stopped table reads back |rate| at most this (the simulated encoder noise is ~1e-3 deg/s).
@@ -49,6 +49,9 @@ class SafePolicy:
     setpoint_c: float | None     # None: the chamber holds its setpoint (station safe_state: hold)
     chamber_attempts: int = 3    # the station's chamber.retries
     table_attempts: int = 3      # the station's table.retries
+    #: the unit's supply: "keep_on" or "switch_off" (station supply.safe_state); None: no supply
+    unit_power: str | None = None
+    supply_attempts: int = 3
 
 
 @dataclass(frozen=True)
@@ -147,15 +150,43 @@ def chamber_to_safe(chamber: Chamber, setpoint_c: float | None, clock: Clock,
     return _not_confirmed("chamber", last, attempts)
 
 
-def _reset(link: Chamber | RateTable) -> None:
+def unit_power_to_safe(supply: PowerSupply, action: str, attempts: int) -> SafeAction:
+    """``switch_off``: output off, read back off. ``keep_on``: read back that it is still on."""
+    last = "no answer"
+    attempts = max(1, attempts)
+    for attempt in range(1, attempts + 1):
+        try:
+            if action == "switch_off":
+                supply.set_output(False)
+            reading = supply.read()
+            wanted_on = action == "keep_on"
+            if reading.output_on == wanted_on:
+                state = (f"kept on (read back {reading.voltage_v:.3f} V, {reading.current_a:.4f} A)"
+                         if wanted_on else "switched off (read back: output off)")
+                return SafeAction("supply", True, f"unit power {state}", attempt)
+            if wanted_on:      # dropped out: never switched back on over a fault
+                return _not_confirmed("supply", "the station keeps the unit powered, but the "
+                                      "supply output reads off", attempt)
+            last = "output still reads on after OUTP off"
+        except Exception as exc:  # noqa: BLE001 - every failure is attempted again, then reported
+            last = _failure(exc)
+    return _not_confirmed("supply", last, attempts)
+
+
+def _reset(link: Chamber | RateTable | PowerSupply) -> None:
     # A link that cannot even close is reported by the action that follows.
     with contextlib.suppress(Exception):
         link.reset_link()
 
 
-def make_safe(table: RateTable, chamber: Chamber, policy: SafePolicy, clock: Clock) -> SafeOutcome:
-    """Fresh links, then the table (it moves the unit), then the chamber; each whatever the other did."""
+def make_safe(table: RateTable, chamber: Chamber, policy: SafePolicy, clock: Clock,
+              supply: PowerSupply | None = None) -> SafeOutcome:
+    """Fresh links, then the table (it moves the unit), the chamber, the unit's power; each whatever the others did."""
     _reset(table)
     _reset(chamber)
-    return SafeOutcome((stop_table(table, clock, policy.table_attempts),
-                        chamber_to_safe(chamber, policy.setpoint_c, clock, policy.chamber_attempts)))
+    actions = [stop_table(table, clock, policy.table_attempts),
+               chamber_to_safe(chamber, policy.setpoint_c, clock, policy.chamber_attempts)]
+    if supply is not None and policy.unit_power is not None:
+        _reset(supply)
+        actions.append(unit_power_to_safe(supply, policy.unit_power, policy.supply_attempts))
+    return SafeOutcome(tuple(actions))

@@ -44,6 +44,8 @@ def resolved_station_text(station_path: Path, addresses: SimAddresses,
     data["chamber"]["address"] = addresses.chamber
     data["table"]["address"] = addresses.table
     data["gyro"]["port"] = addresses.gyro
+    if addresses.supply is not None:
+        data["supply"]["address"] = addresses.supply
     if replay is not None and replay.survey.layout is not None:
         data["gyro"].pop("with_temperature", None)
         data["gyro"].update(datagram=f"0x{replay.survey.layout.identifier:02X}",
@@ -91,6 +93,8 @@ def cmd_sim_serve(args: argparse.Namespace) -> int:
             print(f"  chamber ({station.chamber.driver}): {addresses.chamber}")
             print(f"  table   ({station.table.driver}): {addresses.table}")
             print(f"  gyro    ({station.gyro.driver}): {addresses.gyro}")
+            if station.supply is not None:
+                print(f"  supply  ({station.supply.driver}): {addresses.supply}")
             if replay is not None:
                 print(f"    replaying {args.replay_gyro}: {replay.survey.describe()} at "
                       f"{replay.sample_rate_hz:g} Hz, {replay.duration_s:g} s, looped")

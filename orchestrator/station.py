@@ -175,6 +175,26 @@ class GyroConfig:
     settings: Mapping[str, SettingValue] = field(default_factory=dict)
 
 
+#: what the safe state does with the unit's power (station supply.safe_state.unit_power)
+UNIT_POWER_ACTIONS = ("keep_on", "switch_off")
+
+
+@dataclass(frozen=True)
+class SupplyConfig:
+    """The programmable supply powering the unit under test."""
+
+    driver: str
+    address: str
+    identity: AssetIdentity
+    voltage_v: float
+    current_limit_a: float
+    #: "keep_on": a fault leaves the unit powered (its thermal state kept); "switch_off": off
+    unit_power_safe: str
+    timeout_s: float
+    retries: int
+    settings: Mapping[str, SettingValue] = field(default_factory=dict)
+
+
 @dataclass(frozen=True)
 class ChamberPhysics:
     ambient_c: float
@@ -221,11 +241,21 @@ class Station:
     notify: tuple[NotifyTarget, ...] = ()
     #: declared type B accuracies (UNCERTAINTY_KEYS); only the keys the file gives
     uncertainty: dict[str, float] | None = None
+    #: the supply powering the unit under test; None: the unit is powered by other means
+    supply: SupplyConfig | None = None
+
+    def addresses(self) -> dict[str, str]:
+        """``{"chamber.address": …, "gyro.port": …}``: every instrument's address, by station key."""
+        found = {"chamber.address": self.chamber.address, "table.address": self.table.address,
+                 "gyro.port": self.gyro.port}
+        if self.supply is not None:
+            found["supply.address"] = self.supply.address
+        return found
 
     @property
     def simulated(self) -> bool:
         """True when any instrument address is ``sim`` (started by ``--sim``)."""
-        return SIM_ADDRESS in (self.chamber.address, self.table.address, self.gyro.port)
+        return SIM_ADDRESS in self.addresses().values()
 
     def limit_source(self, key: str) -> str:
         """``stations/sim.yaml table.limits.max_rate_dps``: where a limit came from, for messages."""
@@ -260,6 +290,7 @@ def parse_station(
     chamber = _chamber(ctx, fields)
     table = _table(ctx, fields)
     gyro = _gyro(ctx, fields)
+    supply = _supply(ctx, fields) if fields.has("supply") else None
     present, raw = fields.raw("simulation")
     simulation = _simulation(ctx, fields.child("simulation"), raw, base_dir) if present else None
     key_text = fields.take("signing_key", file_name, required=False)
@@ -270,11 +301,11 @@ def parse_station(
     fields.finish()
     if simulation is None and SIM_ADDRESS in (
         getattr(chamber, "address", None), getattr(table, "address", None),
-        getattr(gyro, "port", None),
+        getattr(gyro, "port", None), getattr(supply, "address", None),
     ):
         ctx.report(where, "an instrument address is 'sim' but there is no simulation section")
     return Station(version, name, site, chamber, table, gyro, simulation, file, path, signing_key,
-                   notify, uncertainty)
+                   notify, uncertainty, supply)
 
 
 def _uncertainty(ctx: Context, parent: Fields) -> dict[str, float] | None:
@@ -456,6 +487,23 @@ def _chamber(ctx: Context, parent: Fields) -> ChamberConfig:
                          typed.get("limit_input", None), typed.get("baudrate", 9600),
                          typed.get("parity", "N"), typed.get("stop_bits", 1),
                          typed.get("word_order", "low_first"), settings)
+
+
+def _supply(ctx: Context, parent: Fields) -> SupplyConfig:
+    fields = _section(ctx, parent, "supply")
+    spec = fields.take("driver", _driver(Role.SUPPLY))
+    address = fields.take("address", _address(spec))
+    settings = _driver_settings(ctx, fields, Role.SUPPLY, spec)
+    identity = _identity(ctx, fields)
+    voltage_v = fields.take("voltage_v", number(0.0, None, unit="V"))
+    current_limit_a = fields.take("current_limit_a", number(above=0.0, unit="A"))
+    safe = _section(ctx, fields, "safe_state")
+    unit_power = safe.take("unit_power", choice(UNIT_POWER_ACTIONS))
+    safe.finish()
+    timeout_s, retries = _common_link(fields)
+    fields.finish()
+    return SupplyConfig(spec.name if spec else None, address, identity, voltage_v,
+                        current_limit_a, unit_power, timeout_s, retries, settings)
 
 
 def _table(ctx: Context, parent: Fields) -> TableConfig:

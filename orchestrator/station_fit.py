@@ -17,8 +17,7 @@ from gyrocal.orchestrator.procedure import Procedure
 def is_simulated(procedure: Procedure) -> bool:
     """Every instrument address of the station is ``sim``: it can only run with ``--sim``."""
     station = procedure.station
-    return all(address == "sim" for address in (
-        station.chamber.address, station.table.address, station.gyro.port))
+    return all(address == "sim" for address in station.addresses().values())
 
 
 def check_runnable(procedure: Procedure, sim: bool) -> None:
@@ -26,9 +25,7 @@ def check_runnable(procedure: Procedure, sim: bool) -> None:
     station = procedure.station
     problems: list[str] = []
     if not sim:
-        sim_addresses = [name for name, address in (
-            ("chamber.address", station.chamber.address), ("table.address", station.table.address),
-            ("gyro.port", station.gyro.port)) if address == "sim"]
+        sim_addresses = [name for name, address in station.addresses().items() if address == "sim"]
         if sim_addresses:
             problems.append(f"{station.file}: {', '.join(sim_addresses)}: 'sim' needs --sim "
                             "(or a station file with real addresses)")

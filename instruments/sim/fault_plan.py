@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 _SPEC = re.compile(
-    r"^(?P<role>chamber|table|gyro|fixture)\.(?P<fault>[a-z_]+)"
+    r"^(?P<role>[a-z_]+)\.(?P<fault>[a-z_]+)"
     r"(?::(?P<count>always|\d+))?(?P<params>(?::[a-z_]+=[^:@]+)*)(?:@(?P<step>\S+))?$"
 )
 
@@ -64,6 +64,9 @@ def parse_injection(spec: str, known: dict[str, tuple[str, ...]]) -> FaultInject
             f"--inject {spec!r}: expected ROLE.FAULT[:COUNT|:always][:key=value…][@STEP], "
             "e.g. chamber.no_reply:3@T02.soak")
     role, fault = match["role"], match["fault"]
+    if role not in known:
+        raise FaultSpecError(f"--inject {spec!r}: this station has no simulated {role!r}; "
+                             f"it has: {', '.join(known)}")
     if fault not in known[role]:
         raise FaultSpecError(f"--inject {spec!r}: the simulated {role} has no fault {fault!r}; "
                              f"it knows: {', '.join(known[role])}")
@@ -96,7 +99,8 @@ class FaultPlan:
     def arm_due(self, simulated, step_id: str | None, journal=None) -> None:
         """Arm every injection whose step has come (``step_id`` None: the ones from the start)."""
         injectors = {"chamber": simulated.chamber_faults, "table": simulated.table_faults,
-                     "gyro": simulated.gyro_faults, "fixture": simulated.fixture_faults}
+                     "gyro": simulated.gyro_faults, "fixture": simulated.fixture_faults,
+                     "supply": simulated.supply_faults}
         for index, injection in enumerate(self.injections):
             if index in self._armed or injection.before_step not in (None, step_id):
                 continue

@@ -87,6 +87,7 @@ class SimAddresses:
     chamber: str
     table: str
     gyro: str
+    supply: str | None = None
 
 
 class SimulatedStation:
@@ -138,6 +139,9 @@ class SimulatedStation:
         self.chamber_faults = FaultInjector(specs[Role.CHAMBER].sim_faults, owner="simulated chamber")
         self.table_faults = FaultInjector(specs[Role.TABLE].sim_faults, owner="simulated table")
         self.gyro_faults = FaultInjector(specs[Role.GYRO].sim_faults, owner="simulated gyro")
+        supply_spec = registry().get(Role.SUPPLY, station.supply.driver) if station.supply else None
+        self.supply_faults = FaultInjector(supply_spec.sim_faults if supply_spec else (),
+                                           owner="simulated supply")
         self.source: GyroPhysicsSource | ImuPhysicsSource
         if isinstance(self.model, ImuModel):
             self.fixture = SimulatedFixture(self.fixture_faults)
@@ -163,6 +167,10 @@ class SimulatedStation:
             station.chamber.settings, self.chamber_faults))
         self.table_server = _simulator(specs[Role.TABLE], self._request(
             station.table.settings, self.table_faults))
+        self.supply_server: SimServer | None = None
+        if supply_spec is not None:
+            self.supply_server = _simulator(supply_spec, self._request(
+                station.supply.settings, self.supply_faults))
         self.gyro_port: SimServer
         if gyro_port is not None:
             self.gyro_port = gyro_port
@@ -200,18 +208,22 @@ class SimulatedStation:
     @property
     def addresses(self) -> SimAddresses:
         return SimAddresses(self.chamber_server.address, self.table_server.address,
-                            self.gyro_port.address)
+                            self.gyro_port.address,
+                            self.supply_server.address if self.supply_server else None)
+
+    def _servers(self) -> list[SimServer]:
+        servers = [self.chamber_server, self.table_server, self.gyro_port]
+        return servers + ([self.supply_server] if self.supply_server is not None else [])
 
     def start(self) -> SimulatedStation:
         if not self._started:
-            self.chamber_server.start()
-            self.table_server.start()
-            self.gyro_port.start()
+            for server in self._servers():
+                server.start()
             self._started = True
         return self
 
     def stop(self) -> None:
-        for server in (self.gyro_port, self.table_server, self.chamber_server):
+        for server in reversed(self._servers()):
             with contextlib.suppress(Exception):
                 server.stop()
         self._started = False

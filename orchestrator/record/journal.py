@@ -60,6 +60,7 @@ class JournalEvent(str, Enum):
     FAULT = "fault"
     INTERRUPTED = "interrupted"
     SAFE_STATE = "safe_state"
+    SUPPLY_READ = "supply_read"          # the unit's supply read back (orchestrator/unit_power.py)
     SIMULATOR_ERROR = "simulator_error"
     STEPS_DONE = "steps_done"
     REPORT_WRITTEN = "report_written"

@@ -12,7 +12,9 @@ from gyrocal.cli import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_OK, main
     "spec, message",
     [
         ("chamber.melt", "the simulated chamber has no fault 'melt'"),
-        ("oven.no_reply", "expected ROLE.FAULT"),
+        ("oven.no_reply", "this station has no simulated 'oven'"),
+        ("supply.dropout", "this station has no simulated 'supply'"),
+        ("chamber-no_reply", "expected ROLE.FAULT"),
         ("table.no_reply:0", "a count must be at least 1"),
         ("gyro.stall@T09.nowhere", "the plan has no step 'T09.nowhere'"),
     ],
