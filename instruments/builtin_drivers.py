@@ -12,6 +12,7 @@ from gyrocal.instruments.driver_spec import (
     SERIAL_OR_SOCKET,
     TCP_HOST_PORT,
     VISA_RESOURCE,
+    AddressForm,
     DriverSpec,
     OpenRequest,
     Role,
@@ -25,6 +26,7 @@ from gyrocal.instruments.gyro.datagram_types import (
     DEFAULT_ACCELEROMETER_RANGE_G,
     ID_RATE,
     ID_RATE_TEMP,
+    NORMAL_MODE_TYPES,
     datagram_type,
     parse_identifier,
 )
@@ -39,7 +41,9 @@ from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
 #: would only make pymodbus wait for imaginary character times (36 ms a read at 9600).
 _SOCKET_BAUD = 921600
 
-_UNIT_ID = Setting("unit_id", SettingKind.INTEGER, 1, doc="Modbus unit (slave) address",
+_ACUTROL_ADDRESS = AddressForm(VISA_RESOURCE.pattern,
+                               "a VISA resource such as TCPIP0::10.0.0.5::9878::SOCKET")
+_UNIT_ID = Setting("unit_id", SettingKind.INTEGER, 1, doc="Modbus unit (slave) id",
                    minimum=1, maximum=247)
 
 
@@ -142,12 +146,6 @@ def _sim_stim300(req: SimRequest):
                    specific_force=req.specific_force)
 
 
-def _positive(value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-        raise ValueError(f"expected a number above 0, got {value!r}")
-    return float(value)
-
-
 def _open_e36300(req: OpenRequest):
     from gyrocal.instruments.supply.keysight_e36300 import KeysightE36300Supply
 
@@ -195,11 +193,12 @@ BUILTIN_DRIVERS: tuple[DriverSpec, ...] = (
         settings=(
             _UNIT_ID,
             Setting("limit_input", SettingKind.INTEGER, None, minimum=1, maximum=4,
-                    doc="digital input the limit controller trips (the alarm source)"),
+                    doc="the digital input the limit controller trips (alarm source)"),
             Setting("baudrate", SettingKind.INTEGER, 9600, unit="baud", minimum=1200,
-                    maximum=115_200),
-            Setting("parity", SettingKind.CHOICE, "N", choices=("N", "E", "O")),
-            Setting("stop_bits", SettingKind.INTEGER, 1, minimum=1, maximum=2),
+                    maximum=115_200, doc="serial speed"),
+            Setting("parity", SettingKind.CHOICE, "N", choices=("N", "E", "O"), doc="serial parity"),
+            Setting("stop_bits", SettingKind.INTEGER, 1, minimum=1, maximum=2,
+                    doc="serial stop bits"),
         ),
         simulator=_sim_f4, sim_faults=CHAMBER_FAULTS, documents=_WATLOW_F4_DOCS),
     DriverSpec(
@@ -209,9 +208,11 @@ BUILTIN_DRIVERS: tuple[DriverSpec, ...] = (
                           choices=("low_first", "high_first"), doc="float word order")),
         simulator=_sim_f4t, sim_faults=CHAMBER_FAULTS, documents=_WATLOW_F4T_DOCS),
     DriverSpec(
-        "acutrol3000", Role.TABLE, "Acutronic ACUTROL3000 rate table, SCPI over TCP (VISA)",
-        VISA_RESOURCE, _open_acutrol,
-        settings=(Setting("axis", SettingKind.INTEGER, 1, minimum=1, maximum=8),
+        "acutrol3000", Role.TABLE,
+        "Acutronic ACUTROL3000, its command language over a raw TCP socket (TM-8004; port "
+        "9878, TM-9384C §1)", _ACUTROL_ADDRESS, _open_acutrol,
+        settings=(Setting("axis", SettingKind.INTEGER, 1, minimum=1, maximum=8,
+                          doc="which axis of the controller"),
                   Setting("dialect", SettingKind.CHOICE, DEFAULT_DIALECT,
                           choices=tuple(DIALECTS), doc="how the controller answers")),
         simulator=_sim_acutrol, sim_faults=TABLE_FAULTS,
@@ -222,18 +223,26 @@ BUILTIN_DRIVERS: tuple[DriverSpec, ...] = (
         SERIAL_OR_SOCKET, _open_stim300,
         settings=(
             Setting("baudrate", SettingKind.INTEGER, 921600, unit="baud", minimum=1200,
-                    maximum=20_000_000),
-            Setting("rate_lsb", SettingKind.NUMBER, None, required=True, parse=_positive,
-                    doc="output units per LSB"),
+                    maximum=20_000_000, doc="serial speed"),
+            Setting("rate_lsb", SettingKind.NUMBER, None, required=True, above=0.0,
+                    doc="output units per LSB of the datagram's rate field"),
             Setting("axis", SettingKind.CHOICE, "x", choices=("x", "y", "z"),
-                    doc="the unit under test among the datagram's axes (all are logged)"),
+                    doc="which datagram axis is the unit under test (all three are logged)"),
             Setting("with_temperature", SettingKind.BOOLEAN, None,
-                    doc="datagram carries temperatures (else follows datagram)"),
-            Setting("crlf", SettingKind.BOOLEAN, False, doc="datagrams end in CR LF"),
-            Setting("datagram", SettingKind.INTEGER, None, parse=_identifier,
-                    doc="normal-mode datagram identifier (TS1524 Table 5-21)"),
+                    doc="datagrams carry temperatures", default_text="from `datagram`, else true"),
+            Setting("crlf", SettingKind.BOOLEAN, False,
+                    doc="datagrams end in CR LF (a STIM300 setting)"),
+            Setting("datagram", SettingKind.CHOICE, None, parse=_identifier,
+                    choices=tuple(NORMAL_MODE_TYPES),
+                    doc="the normal-mode datagram the unit is configured for (STIM300 datasheet "
+                        "TS1524 Table 5-21), checked against the stream at connect; must agree "
+                        "with `with_temperature` when both are given",
+                    default_text=f"0x{ID_RATE_TEMP:02X} (0x{ID_RATE:02X} with "
+                                 "`with_temperature: false`)"),
             Setting("accelerometer_range_g", SettingKind.CHOICE, DEFAULT_ACCELEROMETER_RANGE_G,
-                    unit="g", choices=tuple(ACCELEROMETER_LSB_G)),
+                    unit="g", choices=tuple(ACCELEROMETER_LSB_G),
+                    doc="the unit's accelerometer range in g (sets the LSB when the datagram "
+                        "carries acceleration)"),
         ),
         simulator=_sim_stim300, sim_faults=GYRO_FAULTS, check=_settle_stim300,
         documents=("STIM300 datasheet TS1524 rev 31 (Tables 5-16, 5-20..5-23, §7.5.2.2)",)),

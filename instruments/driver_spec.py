@@ -65,8 +65,11 @@ class Setting:
     doc: str = ""
     minimum: float | None = None
     maximum: float | None = None
+    above: float | None = None       # exclusive minimum (a value must exceed it)
     choices: tuple[SettingValue, ...] = ()
     required: bool = False
+    #: the default as the reference shows it, when it is not a plain value ("from `datagram`")
+    default_text: str = ""
     #: a converter of its own for values no kind describes (e.g. ``0x94``); raises ValueError
     parse: Callable[[object], SettingValue] | None = None
 
@@ -99,6 +102,8 @@ class Setting:
             raise SettingError(f"expected {'a whole number' if whole else 'a number'}"
                                f"{' in ' + self.unit if self.unit else ''}, got {value!r}")
         unit = f" {self.unit}" if self.unit else ""
+        if self.above is not None and not value > self.above:
+            raise SettingError(f"{value}{unit} must be above {self.above:g}{unit}")
         if self.minimum is not None and value < self.minimum:
             raise SettingError(f"{value}{unit} is below the minimum {self.minimum:g}{unit}")
         if self.maximum is not None and value > self.maximum:

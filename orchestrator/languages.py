@@ -18,14 +18,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from gyrocal.instruments.gyro.datagram_types import (
-    ACCELEROMETER_LSB_G,
-    DEFAULT_ACCELEROMETER_RANGE_G,
-    ID_RATE,
-    ID_RATE_TEMP,
-    NORMAL_MODE_TYPES,
-)
-from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
+from gyrocal.instruments.driver_spec import DriverSpec, Role, Setting, SettingKind
+from gyrocal.instruments.registry import registry
 from gyrocal.models.effects import EFFECTS
 from gyrocal.models.gyro_model import OUTPUT_UNITS as MODEL_OUTPUT_UNITS
 from gyrocal.models.imu_model import AXES
@@ -180,25 +174,50 @@ _LINK_KEYS = (
     Key("retries", _int(0, 20), "retries of a transient fault, with backoff", False, "3"),
 )
 
-_F4 = "applies to driver watlow_f4 only"
+def _setting_scalar(setting: Setting) -> Scalar:
+    if setting.kind is SettingKind.CHOICE:
+        if all(isinstance(c, str) for c in setting.choices):
+            return _choice(tuple(str(c) for c in setting.choices))
+        return Scalar("int_choice", int_choices=tuple(int(c) for c in setting.choices),  # type: ignore[arg-type]
+                      hex_text=setting.parse is not None)
+    if setting.kind is SettingKind.INTEGER:
+        return _int(None if setting.minimum is None else int(setting.minimum),
+                    None if setting.maximum is None else int(setting.maximum))
+    if setting.kind is SettingKind.NUMBER:
+        return _num(setting.minimum, setting.maximum, above=setting.above)
+    return Scalar("boolean") if setting.kind is SettingKind.BOOLEAN else _text()
+
+
+def _driver_keys(role: Role) -> tuple[Key, ...]:
+    """The keys of every registered driver of ``role`` (instruments/registry.py), each saying
+    which drivers take it: the reference follows the registry, plug-ins included."""
+    owners: dict[str, tuple[Setting, list[str]]] = {}
+    for spec in registry().for_role(role):
+        for setting in spec.settings:
+            owners.setdefault(setting.name, (setting, []))[1].append(spec.name)
+    everyone = set(registry().names(role))
+    keys = []
+    for name, (setting, drivers) in owners.items():
+        scope = "" if set(drivers) == everyone else f"; applies to driver {' or '.join(drivers)} only"
+        default = setting.default_text or (None if setting.default is None else str(setting.default))
+        keys.append(Key(name, _setting_scalar(setting), (setting.doc or name) + scope,
+                        setting.required, default))
+    return tuple(keys)
+
+
+def _drivers_text(role: Role) -> str:
+    specs: tuple[DriverSpec, ...] = registry().for_role(role)
+    return "; ".join(f"`{s.name}` ({s.summary}: address {s.address.expected})" for s in specs)
+
 
 STATION_CHAMBER = Section(
     "chamber", "chamber",
-    "The temperature chamber. Drivers: `watlow_f4` (Watlow F4, Modbus RTU over a serial "
-    "line or a serial-over-TCP bridge: address `/dev/ttyUSB0`, `COM3` or "
-    "`socket://host:port`) and `watlow_f4t` (Watlow F4T, Modbus TCP: address `host:port`). "
+    "The temperature chamber. Drivers: " + _drivers_text(Role.CHAMBER) + ". "
     "`sim` as the address: a simulated chamber started by `--sim`.",
     (
-        Key("driver", _choice(sta.CHAMBER_DRIVERS), "which controller"),
+        Key("driver", _choice(registry().names(Role.CHAMBER)), "which controller"),
         Key("address", _text(), "where it is (see above), or `sim`"),
-        Key("unit_id", _int(1, 247), "Modbus unit (slave) id", False, "1"),
-        Key("limit_input", _int(1, 4), f"the digital input the limit controller trips (alarm "
-            f"source); {_F4}", False),
-        Key("baudrate", _int(1200, 115_200), f"serial speed; {_F4}", False, "9600"),
-        Key("parity", _choice(("N", "E", "O")), f"serial parity; {_F4}", False, "N"),
-        Key("stop_bits", _int(1, 2), f"serial stop bits; {_F4}", False, "1"),
-        Key("word_order", _choice(("low_first", "high_first")), "float word order; applies to "
-            "driver watlow_f4t only", False, "low_first"),
+        *_driver_keys(Role.CHAMBER),
         Key("identity", _identity("chamber-identity"), "asset identity"),
         Key("limits", Section("chamber-limits", "chamber.limits", "What the chamber may safely "
             "be asked; every procedure run on the station must stay inside.", (
@@ -217,15 +236,12 @@ STATION_CHAMBER = Section(
 
 STATION_TABLE = Section(
     "table", "table",
-    "The rate table. Driver `acutrol3000` (ACUTROL3000 command language over a raw TCP "
-    "socket, TM-8004; port 9878, TM-9384C §1: address `TCPIP0::10.0.0.5::9878::SOCKET`); "
+    "The rate table. Drivers: " + _drivers_text(Role.TABLE) + ". "
     "`sim` as the address: a simulated table started by `--sim`.",
     (
-        Key("driver", _choice(sta.TABLE_DRIVERS), "which controller"),
+        Key("driver", _choice(registry().names(Role.TABLE)), "which controller"),
         Key("address", _text(), "a VISA resource string, or `sim`"),
-        Key("axis", _int(1, 8), "which axis of the controller", False, "1"),
-        Key("dialect", _choice(tuple(DIALECTS)), "how the controller answers", False,
-            DEFAULT_DIALECT),
+        *_driver_keys(Role.TABLE),
         Key("identity", _identity("table-identity"), "asset identity"),
         Key("limits", Section("table-limits", "table.limits", "What the table may safely do.", (
             Key("max_rate_dps", _q(RATE, above=0.0), "largest rate magnitude"),
@@ -236,32 +252,37 @@ STATION_TABLE = Section(
 
 STATION_GYRO = Section(
     "gyro", "gyro",
-    "The unit under test's output. Driver `stim300` (STIM300 datagrams over RS-422: "
-    "`/dev/ttyUSB0`, `COM3` or `socket://host:port`); `sim`: a simulated gyro on a "
-    "pseudo-terminal started by `--sim`.",
+    "The unit under test's output. Drivers: " + _drivers_text(Role.GYRO) + ". "
+    "`sim`: a simulated gyro started by `--sim`.",
     (
-        Key("driver", _choice(sta.GYRO_DRIVERS), "which datagram format"),
+        Key("driver", _choice(registry().names(Role.GYRO)), "which datagram format"),
         Key("port", _text(), "the serial port, or `sim`"),
-        Key("baudrate", _int(1200, 20_000_000), "serial speed", False, "921600"),
         Key("sample_rate_hz", _q(FREQUENCY, above=0.0), "the gyro's output rate"),
-        Key("rate_lsb", _num(above=0.0), "output units per LSB of the datagram's rate field"),
-        Key("with_temperature", Scalar("boolean"), "datagrams carry temperatures", False,
-            "from `datagram`, else true"),
         Key("timeout_s", _duration(bare_seconds=True), "no datagram for this long is a fault",
             False, "2 s"),
-        Key("axis", _choice(sta.GYRO_AXES), "which datagram axis is the unit under test (all "
-            "three are logged)", False, "x"),
-        Key("crlf", Scalar("boolean"), "datagrams end in CR LF (a STIM300 setting)", False,
-            "false"),
-        Key("datagram", Scalar("int_choice", int_choices=tuple(NORMAL_MODE_TYPES),
-                               hex_text=True),
-            "the normal-mode datagram the unit is configured for (STIM300 datasheet TS1524 "
-            "Table 5-21), checked against the stream at connect; must agree with "
-            "`with_temperature` when both are given", False,
-            f"0x{ID_RATE_TEMP:02X} (0x{ID_RATE:02X} with `with_temperature: false`)"),
-        Key("accelerometer_range_g", Scalar("int_choice", int_choices=tuple(ACCELEROMETER_LSB_G)),
-            "the unit's accelerometer range in g (sets the LSB when the datagram carries "
-            "acceleration)", False, str(DEFAULT_ACCELEROMETER_RANGE_G)),
+        *_driver_keys(Role.GYRO),
+    ))
+
+STATION_SUPPLY = Section(
+    "supply", "supply",
+    "The programmable supply powering the unit under test (optional). Drivers: "
+    + _drivers_text(Role.SUPPLY) + ". The unit is powered at connect, the supply is read "
+    "back after every logged step (journal `supply_read`), and an over-current (the unit "
+    "drawing the current limit), an output that reads off or a voltage that sags is a fault.",
+    (
+        Key("driver", _choice(registry().names(Role.SUPPLY)), "which supply"),
+        Key("address", _text(), "a VISA resource string, or `sim`"),
+        *_driver_keys(Role.SUPPLY),
+        Key("identity", _identity("supply-identity"), "asset identity"),
+        Key("voltage_v", _num(0.0), "the unit's supply voltage, V"),
+        Key("current_limit_a", _num(above=0.0), "the supply's current limit, A; drawing it "
+            "is an over-current fault"),
+        Key("safe_state", Section("supply-safe_state", "supply.safe_state", "What a fault, "
+            "Ctrl-C or the end of a run does with the unit's power (confirmed by read-back).", (
+                Key("unit_power", _choice(sta.UNIT_POWER_ACTIONS), "`keep_on` (the unit's "
+                    "thermal state is kept for a resume) or `switch_off`"),
+            )), "safe state"),
+        *_LINK_KEYS,
     ))
 
 SIMULATION = Section(
@@ -328,6 +349,7 @@ STATION_ROOT = Section(
         Key("chamber", STATION_CHAMBER, "temperature chamber"),
         Key("table", STATION_TABLE, "rate table"),
         Key("gyro", STATION_GYRO, "gyro interface"),
+        Key("supply", STATION_SUPPLY, "the unit's programmable supply", False),
         Key("simulation", SIMULATION, "simulated instruments", False),
         Key("signing_key", Scalar("path"), "the station's Ed25519 private key (`gyrocal keys`); "
             "runs are signed with it", False),

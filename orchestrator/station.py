@@ -290,7 +290,7 @@ def parse_station(
     chamber = _chamber(ctx, fields)
     table = _table(ctx, fields)
     gyro = _gyro(ctx, fields)
-    supply = _supply(ctx, fields) if fields.has("supply") else None
+    supply = _supply(ctx, fields) if fields.raw("supply")[0] else None
     present, raw = fields.raw("simulation")
     simulation = _simulation(ctx, fields.child("simulation"), raw, base_dir) if present else None
     key_text = fields.take("signing_key", file_name, required=False)
@@ -383,7 +383,7 @@ def _setting(setting: Setting) -> object:
     if setting.kind is SettingKind.INTEGER and setting.parse is None:
         return integer(_whole(setting.minimum), _whole(setting.maximum))
     if setting.kind is SettingKind.NUMBER and setting.parse is None:
-        return number(setting.minimum, setting.maximum, unit=setting.unit)
+        return number(setting.minimum, setting.maximum, above=setting.above, unit=setting.unit)
     if setting.kind is SettingKind.BOOLEAN:
         return boolean
     if setting.kind is SettingKind.TEXT:
@@ -420,6 +420,7 @@ def _driver_settings(ctx: Context, fields: Fields, role: Role,
             for key, message in problems:
                 ctx.report(fields.child(key), message)
     for name, drivers in owners.items():
+        fields.used.add(name)   # every driver's keys are known here; another driver's is refused
         if fields.has(name) and (spec is None or spec.setting(name) is None):
             fields.take(name, lambda v: v, required=False)
             if spec is not None:

@@ -69,7 +69,7 @@ def test_unknown_missing_and_wrong_values_are_all_reported_at_once(tmp_path):
         f"{path}:{line_of(text, 'latitude_deg')}: site.latitude_deg: 95 is above the maximum 90",
         f"{path}:{line_of(text, 'baud: 9600')}: chamber.baud: unknown key 'baud'; did you mean "
         "'baudrate'? (allowed here: address, baudrate, driver, identity, limit_input, limits, "
-        "parity, retries, safe_state, stop_bits, timeout_s, unit_id)",
+        "parity, retries, safe_state, stop_bits, timeout_s, unit_id, word_order)",
         f"{path}:{line_of(text, 'axis: one')}: table.axis: expected a whole number, got the text 'one'",
         f"{path}:{line_of(text, 'gyro:')}: gyro.rate_lsb: required key is missing",
     ]
