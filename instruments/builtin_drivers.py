@@ -35,6 +35,7 @@ from gyrocal.instruments.sim.chamber_server import FAULTS as CHAMBER_FAULTS
 from gyrocal.instruments.sim.gyro_pty import FAULTS as GYRO_FAULTS
 from gyrocal.instruments.sim.supply_server import FAULTS as SUPPLY_FAULTS
 from gyrocal.instruments.sim.table_server import FAULTS as TABLE_FAULTS
+from gyrocal.instruments.sim.truevolt_server import FAULTS as DMM_FAULTS
 from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
 
 #: Over ``socket://`` the RTU bytes cross TCP and no UART paces them; the baud rate
@@ -160,6 +161,33 @@ def _sim_e36300(req: SimRequest):
     return SimulatedE36300(req.faults, seed=req.seed)  # type: ignore[arg-type]
 
 
+def _open_truevolt(req: OpenRequest):
+    from gyrocal.instruments.gyro.truevolt import TruevoltAnalogGyro
+
+    s = req.settings
+    aperture, nplc = s.get("aperture_s"), s.get("nplc")
+    assert req.sample_rate_hz is not None
+    return TruevoltAnalogGyro(req.address, req.sample_rate_hz, range_v=float(s["range_v"]),  # type: ignore[arg-type]
+                              aperture_s=float(aperture) if aperture is not None else None,  # type: ignore[arg-type]
+                              nplc=float(nplc) if nplc is not None else None,  # type: ignore[arg-type]
+                              timeout_s=req.timeout_s, retry=RetryPolicy(attempts=3),
+                              on_retry=req.on_retry)
+
+
+def _sim_truevolt(req: SimRequest):
+    from gyrocal.instruments.sim.truevolt_server import SimulatedTruevolt
+
+    assert req.gyro_source is not None
+    return SimulatedTruevolt(req.gyro_source, req.clock, req.faults)  # type: ignore[arg-type]
+
+
+def _one_integration(given: dict[str, SettingValue]
+                     ) -> tuple[dict[str, SettingValue], list[tuple[str, str]]]:
+    if given.get("aperture_s") is not None and given.get("nplc") is not None:
+        return given, [("nplc", "give aperture_s or nplc, not both")]
+    return given, []
+
+
 def _identifier(value: object) -> int:
     return parse_identifier(value)
 
@@ -255,4 +283,25 @@ BUILTIN_DRIVERS: tuple[DriverSpec, ...] = (
         simulator=_sim_e36300, sim_faults=SUPPLY_FAULTS,
         documents=("command spellings of PyMeasure keysightE36312A.py (E36300 programming "
                    "guide not available: unconfirmed)",)),
+    DriverSpec(
+        "keysight_34465a", Role.GYRO,
+        "analog gyro through a Keysight Truevolt DMM (34465A/34470A, 34461A subset), DC volts "
+        "on the meter's sample timer, SCPI over LAN (VISA)",
+        VISA_RESOURCE, _open_truevolt,
+        settings=(
+            Setting("range_v", SettingKind.NUMBER, 10.0, unit="V", minimum=0.1, maximum=1000.0,
+                    doc="DC volts range (0.1, 1, 10, 100 or 1000 V)"),
+            Setting("aperture_s", SettingKind.NUMBER, None, unit="s", above=0.0,
+                    doc="integration time per reading", default_text="0.8 / sample_rate_hz"),
+            Setting("nplc", SettingKind.NUMBER, None, above=0.0,
+                    doc="integration in power-line cycles (instead of aperture_s)"),
+            Setting("scale_factor_v_per_dps", SettingKind.NUMBER, None, unit="V/(deg/s)",
+                    required=True, doc="the unit's nominal scale factor (the report measures it)"),
+            Setting("zero_v", SettingKind.NUMBER, 0.0, unit="V",
+                    doc="the unit's nominal output at rest (the report measures it)"),
+        ),
+        simulator=_sim_truevolt, sim_faults=DMM_FAULTS, check=_one_integration,
+        documents=("command spellings of QCoDeS Keysight_344xxA_submodules.py; DATA:POINts?, "
+                   "DATA:REMove?, CALibration:DATE? (34465A programming guide not available: "
+                   "unconfirmed)",)),
 )

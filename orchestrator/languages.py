@@ -198,10 +198,14 @@ def _driver_keys(role: Role) -> tuple[Key, ...]:
     everyone = set(registry().names(role))
     keys = []
     for name, (setting, drivers) in owners.items():
-        scope = "" if set(drivers) == everyone else f"; applies to driver {' or '.join(drivers)} only"
+        shared = set(drivers) == everyone
+        which = " or ".join(drivers)
+        scope = "" if shared else f"; applies to driver {which} only"
+        if setting.required and not shared:
+            scope += f" (required for {which})"
         default = setting.default_text or (None if setting.default is None else str(setting.default))
         keys.append(Key(name, _setting_scalar(setting), (setting.doc or name) + scope,
-                        setting.required, default))
+                        setting.required and shared, default))
     return tuple(keys)
 
 

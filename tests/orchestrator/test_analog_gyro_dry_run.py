@@ -1,0 +1,41 @@
+"""The KVG25 with analog output, through the simulated DMM, end to end (procedures/kvg25-analog-dmm.yaml).
+
+The simulated 34465A samples the shared gyro model's volts on its sample
+timer; the run measures the scale factor in V per deg/s. The model's scale
+factor at the LS-line temperature — 0.025 V/(deg/s) at 25 °C with its
+20 ppm/°C tempco (gyro-models/kvg25-analog.yaml) — must lie inside the
+reported expanded uncertainty, and the report must say the chain was analog.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.mark.timeout(300)
+def test_a_dry_run_recovers_the_models_volts_per_dps_within_the_reported_uncertainty(tmp_path):
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "gyrocal", "run",
+                           str(ROOT / "procedures" / "kvg25-analog-dmm.yaml"), "--sim",
+                           "--out", str(out)], capture_output=True, text=True, timeout=280)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    results = json.loads((out / "report" / "results.json").read_text())
+    fit = results["scale_factor_ls"]
+    truth = 0.025 * (1 + 20e-6 * (fit["temp_c"] - 25.0))
+    assert abs(fit["sf"] - truth) <= fit["U"], (fit["sf"], truth, fit["U"])
+    assert fit["U"] < 1e-5 * 0.025 * 100          # a meaningful bound: under 0.1 % of the SF
+    gyro = results["instruments"]["gyro"]
+    assert gyro["driver"] == "keysight_34465a"
+    assert gyro["description"].startswith("analog input chain: DC volts through")
+    html = next((out / "report").glob("*.html")).read_text()
+    assert "analog input chain" in html
+    reads = [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()
+             if '"event":"supply_read"' in line]
+    assert reads and all(r["ok"] and r["voltage_v"] == 12.0 for r in reads)
