@@ -32,6 +32,7 @@ from gyrocal.instruments.gyro.datagram_types import (
 )
 from gyrocal.instruments.retry import RetryPolicy
 from gyrocal.instruments.sim.chamber_server import FAULTS as CHAMBER_FAULTS
+from gyrocal.instruments.sim.counter_server import FAULTS as COUNTER_FAULTS
 from gyrocal.instruments.sim.gyro_pty import FAULTS as GYRO_FAULTS
 from gyrocal.instruments.sim.supply_server import FAULTS as SUPPLY_FAULTS
 from gyrocal.instruments.sim.table_server import FAULTS as TABLE_FAULTS
@@ -181,6 +182,25 @@ def _sim_truevolt(req: SimRequest):
     return SimulatedTruevolt(req.gyro_source, req.clock, req.faults)  # type: ignore[arg-type]
 
 
+def _open_counter(req: OpenRequest):
+    from gyrocal.instruments.gyro.pulse_counter import CounterPulseGyro
+
+    s = req.settings
+    assert req.sample_rate_hz is not None
+    return CounterPulseGyro(req.address, req.sample_rate_hz,
+                            pulse_weight_arcsec=float(s["pulse_weight_arcsec"]),  # type: ignore[arg-type]
+                            channel=_int(s, "channel"), timeout_s=req.timeout_s,
+                            retry=RetryPolicy(attempts=3), on_retry=req.on_retry)
+
+
+def _sim_counter(req: SimRequest):
+    from gyrocal.instruments.sim.counter_server import SimulatedCounter
+
+    assert req.gyro_source is not None
+    return SimulatedCounter(req.gyro_source, req.clock,
+                            float(req.settings["pulse_weight_arcsec"]), req.faults)  # type: ignore[arg-type]
+
+
 def _one_integration(given: dict[str, SettingValue]
                      ) -> tuple[dict[str, SettingValue], list[tuple[str, str]]]:
     if given.get("aperture_s") is not None and given.get("nplc") is not None:
@@ -304,4 +324,18 @@ BUILTIN_DRIVERS: tuple[DriverSpec, ...] = (
         documents=("command spellings of QCoDeS Keysight_344xxA_submodules.py; DATA:POINts?, "
                    "DATA:REMove?, CALibration:DATE? (34465A programming guide not available: "
                    "unconfirmed)",)),
+    DriverSpec(
+        "keysight_53230a", Role.GYRO,
+        "pulse gyro through a Keysight 53220A/53230A universal counter, timed totalize per "
+        "readout, SCPI over LAN (VISA)",
+        VISA_RESOURCE, _open_counter,
+        settings=(
+            Setting("pulse_weight_arcsec", SettingKind.NUMBER, None, unit="arcsec", above=0.0,
+                    required=True, doc="angle per pulse (counts become angle through it)"),
+            Setting("channel", SettingKind.INTEGER, 1, minimum=1, maximum=2,
+                    doc="the counter input the pulse (up minus down) line is on"),
+        ),
+        simulator=_sim_counter, sim_faults=COUNTER_FAULTS,
+        documents=("53220A/53230A programming guide not available: CONFigure:TOTalize:TIMed, "
+                   "DATA:POINts?, DATA:REMove? unconfirmed",)),
 )

@@ -14,6 +14,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -39,3 +40,26 @@ def test_a_dry_run_recovers_the_models_volts_per_dps_within_the_reported_uncerta
     reads = [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()
              if '"event":"supply_read"' in line]
     assert reads and all(r["ok"] and r["voltage_v"] == 12.0 for r in reads)
+
+
+@pytest.mark.timeout(300)
+def test_the_dithered_rlg_through_the_counter_recovers_its_scale_factor_in_whole_pulses(tmp_path):
+    """procedures/rlg-pulse-counter.yaml: SF = 1 + 5 ppm + 0.1 ppm/°C·(T − 25) (the model's
+    sf_error and tempco) inside U; every logged readout is a whole number of 2-arcsec pulses."""
+    import pyarrow.parquet as pq
+
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "gyrocal", "run",
+                           str(ROOT / "procedures" / "rlg-pulse-counter.yaml"), "--sim",
+                           "--out", str(out)], capture_output=True, text=True, timeout=280)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    results = json.loads((out / "report" / "results.json").read_text())
+    fit = results["scale_factor_ls"]
+    truth = 1.0 + 5e-6 + 0.1e-6 * (fit["temp_c"] - 25.0)
+    assert abs(fit["sf"] - truth) <= fit["U"], (fit["sf"], truth, fit["U"])
+    assert results["instruments"]["gyro"]["description"].startswith("pulse input chain")
+    pulses_per_dps = 1.0 / ((2.0 / 3600.0) * 200.0)        # one readout of 5 ms
+    for chunk in sorted((out / "samples" / "T01.static").glob("*.parquet")):
+        pulses = pq.read_table(chunk, columns=["gyro"]).column("gyro").to_numpy() * pulses_per_dps
+        assert np.allclose(pulses, np.round(pulses), atol=1e-6)
+        assert len(np.unique(np.round(pulses))) >= 2       # the count steps by one pulse
