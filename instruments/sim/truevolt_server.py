@@ -6,6 +6,9 @@ temperature), held in a reading memory that ``DATA:REMove?`` empties. On
 simulated time, asking ``DATA:POINts?`` with the memory empty lets the timer
 run one block (the clock advances), as the simulated STIM300 does when read.
 
+A one-shot ``MEAS:VOLT:DC?`` (or ``READ?``) answers the model's volts now, as
+a meter used by a simple script would.
+
 Faults: ``overload`` (readings are 9.9E37: count = readings), ``stall`` (the
 timer stops), ``no_reply``, ``drop_connection``.
 """
@@ -63,6 +66,10 @@ class SimulatedTruevolt(SimulatedScpiInstrument):
                 raise ScpiError(-222, "Data out of range")
             values = [self._memory.popleft() for _ in range(count)]
             return ",".join(f"{v:+.9E}" for v in values)
+        if key in ("MEAS:VOLT:DC?", "MEAS:VOLT?", "READ?"):     # one reading, now
+            volts, _ = self.source(np.array([self.clock.now_s()]))
+            value = float(np.asarray(volts, dtype=np.float64).ravel()[0])
+            return f"{value if abs(value) <= 1.2 * float(self.settings['RANG']) else OVERLOAD:+.9E}"
         if key == "CAL:DATE?":
             return CALIBRATION_DATE
         if key.endswith("?"):
