@@ -40,6 +40,9 @@ class SimulatedScpiInstrument:
         self.lock = threading.RLock()
         #: every line received, in order (tests read it to see what a driver sent)
         self.received: list[str] = []
+        #: what stopped the simulator, if anything did (the serving threads answer each request
+        #: on its own; none keeps running state that can die, so this stays None)
+        self.error: BaseException | None = None
 
     @property
     def port(self) -> int:

@@ -1,0 +1,73 @@
+"""`gyrocal sim serve` of the analog and pulse stations: every simulator answers the real drivers."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gyrocal.instruments.gyro.pulse_counter import CounterPulseGyro
+from gyrocal.instruments.gyro.truevolt import TruevoltAnalogGyro
+from gyrocal.instruments.supply.keysight_e36300 import KeysightE36300Supply
+from gyrocal.orchestrator.station import load_station
+
+REPO = Path(__file__).resolve().parents[3]
+
+
+def _serve(station: str, written: Path) -> subprocess.Popen:
+    proc = subprocess.Popen([sys.executable, "-m", "gyrocal", "sim", "serve", "--station", station,
+                             "--write-station", str(written)], cwd=REPO, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and "station file with these addresses" not in (
+            proc.stdout.readline()):
+        pass
+    assert written.exists(), proc.stderr.read()
+    return proc
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=15) == 0
+    assert "simulators stopped" in proc.stdout.read()
+
+
+@pytest.mark.timeout(60)
+def test_the_dmm_station_serves_volts_on_the_timer_and_its_supply(tmp_path):
+    proc = _serve("stations/sim-kvg25-dmm.yaml", tmp_path / "live.yaml")
+    try:
+        station = load_station(tmp_path / "live.yaml")
+        meter = TruevoltAnalogGyro(station.gyro.port, station.gyro.sample_rate_hz, timeout_s=2.0)
+        meter.flush()
+        block = meter.read_samples(100, timeout_s=5.0)       # 0.5 s of real time at 200 Hz
+        assert np.array_equal(block.index, np.arange(100)) and block.flagged_count == 0
+        assert np.all(np.abs(block.rate) < 0.01)              # at rest: bias only, volts
+        meter.close()
+        supply = KeysightE36300Supply(station.supply.address, channel=2)
+        assert "E36312A" in supply.identify().description
+        supply.close()
+    finally:
+        if proc.poll() is None:
+            _stop(proc)
+
+
+@pytest.mark.timeout(60)
+def test_the_counter_station_serves_whole_pulse_counts(tmp_path):
+    proc = _serve("stations/sim-rlg-counter.yaml", tmp_path / "live.yaml")
+    try:
+        station = load_station(tmp_path / "live.yaml")
+        counter = CounterPulseGyro(station.gyro.port, station.gyro.sample_rate_hz,
+                                   pulse_weight_arcsec=2.0, timeout_s=2.0)
+        counter.flush()
+        block = counter.read_samples(100, timeout_s=5.0)
+        pulses = block.extra["pulses"]
+        assert np.array_equal(pulses, np.round(pulses)) and np.all(np.abs(pulses) <= 1)
+        counter.close()
+    finally:
+        if proc.poll() is None:
+            _stop(proc)
