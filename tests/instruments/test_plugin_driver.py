@@ -56,7 +56,8 @@ def _gyrocal(*args: str, plugin: bool = True, cwd: Path) -> subprocess.Completed
 def test_the_installed_registry_holds_the_builtin_drivers_and_no_demo():
     assert registry().names(Role.CHAMBER) == ("watlow_f4", "watlow_f4t")
     assert registry().names(Role.TABLE) == ("acutrol3000",)
-    assert registry().names(Role.GYRO) == ("stim300",)
+    assert registry().names(Role.GYRO) == ("stim300", "keysight_34465a", "keysight_53230a")
+    assert registry().names(Role.SUPPLY) == ("keysight_e36300",)
 
 
 def test_importlib_metadata_finds_the_demo_distribution_on_the_path():
