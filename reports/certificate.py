@@ -170,6 +170,7 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
              ("Customer", customer),
              ("Item calibrated", f"{uut.get('model')} serial {uut.get('serial')} "
                                  f"(output units {uut.get('output_units')})"),
+             ("Input chain", _input_chain(results)),
              ("Date of calibration", calibration_dates(run)),
              ("Date of issue", approval.date.isoformat()),
              ("Method", f"gyrocal procedure {procedure.get('name')!s} "
@@ -253,6 +254,12 @@ def _watermark(canvas: Any, doc: Any) -> None:
 
 def _no_decoration(canvas: Any, doc: Any) -> None:
     return None
+
+
+def _input_chain(results: dict) -> str:
+    """How the unit's output was read: the gyro interface's driver and what it said it is."""
+    gyro = (results.get("instruments") or {}).get("gyro") or {}
+    return f"{gyro.get('driver') or '—'}: {gyro.get('description') or 'not identified'}"
 
 
 def calibration_dates(run: dict[str, Any]) -> str:

@@ -20,6 +20,18 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def certificate_text(run: Path) -> str:
+    """The certificate `gyrocal certificate` writes for ``run``, as text."""
+    from pypdf import PdfReader
+
+    proc = subprocess.run([sys.executable, "-m", "gyrocal", "certificate", str(run),
+                           "--customer", "ACME", "--approved-by", "A. Auditor"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    pages = PdfReader(run / "report" / "certificate.pdf").pages
+    return " ".join(" ".join(page.extract_text() for page in pages).split())
+
+
 @pytest.mark.timeout(300)
 def test_a_dry_run_recovers_the_models_volts_per_dps_within_the_reported_uncertainty(tmp_path):
     out = tmp_path / "run"
@@ -40,6 +52,8 @@ def test_a_dry_run_recovers_the_models_volts_per_dps_within_the_reported_uncerta
     reads = [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()
              if '"event":"supply_read"' in line]
     assert reads and all(r["ok"] and r["voltage_v"] == 12.0 for r in reads)
+    text = certificate_text(out)
+    assert "Input chain keysight_34465a: analog input chain: DC volts through" in text
 
 
 @pytest.mark.timeout(300)
@@ -58,6 +72,7 @@ def test_the_dithered_rlg_through_the_counter_recovers_its_scale_factor_in_whole
     truth = 1.0 + 5e-6 + 0.1e-6 * (fit["temp_c"] - 25.0)
     assert abs(fit["sf"] - truth) <= fit["U"], (fit["sf"], truth, fit["U"])
     assert results["instruments"]["gyro"]["description"].startswith("pulse input chain")
+    assert "Input chain keysight_53230a: pulse input chain: timed totalize" in certificate_text(out)
     pulses_per_dps = 1.0 / ((2.0 / 3600.0) * 200.0)        # one readout of 5 ms
     for chunk in sorted((out / "samples" / "T01.static").glob("*.parquet")):
         pulses = pq.read_table(chunk, columns=["gyro"]).column("gyro").to_numpy() * pulses_per_dps
