@@ -44,6 +44,10 @@ class SimulatedScpiInstrument:
         #: on its own; none keeps running state that can die, so this stays None)
         self.error: BaseException | None = None
 
+    def reseed(self, seed) -> None:
+        """Draw from ``seed`` from here (the simulated station reseeds per attempt); the
+        readings of the DMM and counter come from the shared model's source, so nothing."""
+
     @property
     def port(self) -> int:
         assert self._server is not None, "start() first"

@@ -190,11 +190,14 @@ class SimulatedStation:
         """
         if self.seed is None:       # no seed: fresh entropy, nothing to reproduce
             return
-        chamber, table, gyro, pty = attempt_seed(self.seed, step_id, attempt).spawn(4)
+        # a fifth child for the supply: the first four are the same whether it is drawn or not
+        chamber, table, gyro, pty, supply = attempt_seed(self.seed, step_id, attempt).spawn(5)
         self.chamber_physics.reseed(chamber)
         self.table_physics.reseed(table)
         self.source.reseed(gyro)
         self.gyro_port.reseed(pty)
+        if self.supply_server is not None:
+            self.supply_server.reseed(supply)
 
     def _request(self, settings, faults: FaultInjector, seed_offset: int = 0) -> SimRequest:
         """What every simulator of this station sees: its settings and faults, and the shared bench."""

@@ -38,6 +38,10 @@ class SimulatedE36300(SimulatedScpiInstrument):
         self.output = {ch: False for ch in RATINGS}
         self._rng = np.random.default_rng(seed)
 
+    def reseed(self, seed) -> None:
+        """The load current's noise draws from ``seed`` from here (reproducible attempts)."""
+        self._rng = np.random.default_rng(seed)
+
     def state(self, channel: int) -> tuple[float, float]:
         """(volts, amps) at the output terminals now."""
         if self.faults.is_armed("dropout"):
