@@ -263,7 +263,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = ssub.add_parser("check", help="connect to each instrument, move nothing, report what a "
                                       "run relies on (exit 3 naming each problem)")
     s.add_argument("station", help="station file with the instruments' addresses")
-    s.add_argument("--only", choices=("chamber", "table", "gyro"), default=None)
+    s.add_argument("--only", choices=("chamber", "table", "gyro", "supply"), default=None)
     s.add_argument("--json", default=None, metavar="OUT", help="write the report as JSON here")
     s.set_defaults(func=_lazy("gyrocal.orchestrator.station_check", "cmd_station_check"))
 

@@ -21,16 +21,26 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from gyrocal.errors import EXIT_FAULT, EXIT_OK, BadInput
 from gyrocal.instruments.errors import InstrumentConnectionError, InstrumentError, InstrumentTimeout
-from gyrocal.instruments.factory import open_chamber, open_gyro, open_table
-from gyrocal.instruments.interfaces import Chamber, ReportsUnits
+from gyrocal.instruments.factory import open_chamber, open_gyro, open_supply, open_table
+from gyrocal.instruments.gyro.stim300 import Stim300Gyro
+from gyrocal.instruments.interfaces import Chamber, GyroStream, PowerSupply, ReportsUnits
 from gyrocal.instruments.table.acutrol import Acutrol3000Table
 from gyrocal.instruments.table.acutrol_protocol import InterlockState, TableMode
 from gyrocal.orchestrator.gyro_check import check_gyro_stream
-from gyrocal.orchestrator.station import ChamberConfig, Station, TableConfig, load_station
+from gyrocal.orchestrator.station import (
+    ChamberConfig,
+    Station,
+    SupplyConfig,
+    TableConfig,
+    load_station,
+)
+from gyrocal.orchestrator.unit_power import UnitPowerPolicy, judge
 
-ROLES = ("chamber", "table", "gyro")
+ROLES = ("chamber", "table", "gyro", "supply")
 #: Faster than this, the table is turning: a run would take over a moving table.
 TABLE_AT_REST_DPS = 0.05
 #: Below absolute zero, or hotter than any calibration chamber: not a temperature.
@@ -146,13 +156,54 @@ def run_checks(station: Station, roles: tuple[str, ...]) -> list[RoleCheck]:
 
         def gyro_work() -> RoleCheck:
             result = RoleCheck("gyro", g.driver, g.port)
-            with open_gyro(g, g.port) as driver:
-                facts, problems = check_gyro_stream(driver, g.sample_rate_hz)
+            driver = open_gyro(g, g.port)
+            try:
+                check = check_gyro_stream if isinstance(driver, Stim300Gyro) else check_timed_stream
+                facts, problems = check(driver, g.sample_rate_hz)
+            finally:
+                driver.close()
             result.facts.update(facts)
             result.problems.extend(problems)
             return result
         results.append(_checked("gyro", g.driver, g.port, gyro_work))
+    s = station.supply
+    if "supply" in roles and s is not None:
+
+        def supply_work() -> RoleCheck:
+            driver = open_supply(s, s.address)
+            try:
+                return check_supply(driver, s)
+            finally:
+                driver.close()
+        results.append(_checked("supply", s.driver, s.address, supply_work))
     return results
+
+
+def check_timed_stream(gyro: GyroStream, sample_rate_hz: float) -> tuple[dict[str, Any], list[str]]:
+    """A DMM or counter input chain: identity, then half a second of readings (nothing set but
+    the stream itself, which every run restarts)."""
+    facts: dict[str, Any] = {"identity": gyro.identify().description}
+    gyro.flush()
+    block = gyro.read_samples(max(10, int(round(sample_rate_hz * 0.5))), timeout_s=3.0)
+    facts.update(readings=len(block), bad_readings=block.flagged_count,
+                 mean_output=float(np.mean(block.rate)) if len(block) else None)
+    problems = [f"{block.flagged_count} of {len(block)} readings overloaded or flagged"
+                ] if block.flagged_count else []
+    return facts, problems
+
+
+def check_supply(supply: PowerSupply, config: SupplyConfig) -> RoleCheck:
+    """Identity and what the supply reads now; it is never switched (a run powers the unit)."""
+    result = RoleCheck("supply", config.driver, config.address)
+    reading = supply.read()
+    result.facts.update(identity=supply.identify().description, output_on=reading.output_on,
+                        voltage_v=reading.voltage_v, current_a=reading.current_a)
+    if reading.output_on:
+        policy = UnitPowerPolicy(config.voltage_v, config.current_limit_a, config.unit_power_safe)
+        problem = judge(reading, policy)
+        if problem is not None:
+            result.problems.append(problem)
+    return result
 
 
 def _print(results: list[RoleCheck]) -> None:
@@ -171,8 +222,8 @@ def cmd_station_check(args: argparse.Namespace) -> int:
     quiet_library_logs(getattr(args, "debug", False))
     station = load_station(args.station)
     roles = (args.only,) if args.only else ROLES
-    addresses = {"chamber": station.chamber.address, "table": station.table.address,
-                 "gyro": station.gyro.port}
+    addresses = {key.split(".")[0]: address for key, address in station.addresses().items()}
+    roles = tuple(role for role in roles if role in addresses)
     simulated = [role for role in roles if addresses[role] == "sim"]
     if simulated:
         raise BadInput(f"{args.station}: {', '.join(simulated)} address 'sim'; check a live station "

@@ -71,3 +71,24 @@ def test_the_counter_station_serves_whole_pulse_counts(tmp_path):
     finally:
         if proc.poll() is None:
             _stop(proc)
+
+
+@pytest.mark.timeout(90)
+@pytest.mark.parametrize("station_file, chain", [("stations/sim-kvg25-dmm.yaml", "analog input chain"),
+                                                 ("stations/sim-rlg-counter.yaml", "pulse input chain")])
+def test_station_check_covers_the_input_chain_and_the_supply(tmp_path, station_file, chain):
+    proc = _serve(station_file, tmp_path / "live.yaml")
+    try:
+        check = subprocess.run([sys.executable, "-m", "gyrocal", "station", "check",
+                                str(tmp_path / "live.yaml"), "--json", str(tmp_path / "c.json")],
+                               capture_output=True, text=True, timeout=60, cwd=REPO)
+        assert check.returncode == 0, check.stdout + check.stderr
+        import json
+        report = json.loads((tmp_path / "c.json").read_text())["instruments"]
+        assert report["gyro"]["facts"]["identity"].startswith(chain)
+        assert report["gyro"]["facts"]["readings"] >= 100 and report["gyro"]["facts"]["bad_readings"] == 0
+        assert "E36312A" in report["supply"]["facts"]["identity"]
+        assert report["supply"]["facts"]["output_on"] is False     # checked, never switched
+    finally:
+        if proc.poll() is None:
+            _stop(proc)
