@@ -17,11 +17,16 @@ EXIT_FAULT = 3
 
 
 class BadInput(Exception):
-    """An input problem the user must fix (exit 2); the message names file, line and field."""
+    """An input problem the user must fix (exit 2); the message names file, line and field.
+
+    The one bad-input base: every error raised on bad input (a procedure, station, model,
+    measured log, run folder, key file, option) subclasses it, so the command line maps
+    exactly this class to exit 2 and a renamed subclass cannot slip to exit 3.
+    """
 
 
-class RunFault(Exception):
-    """A run stopped on an instrument or run fault (exit 3); the rig was left safe."""
+class RunFaultError(Exception):
+    """A condition that ends the run in the safe state (exit 3); the run is resumable."""
 
 
 #: No room to write: disk full, over quota, or a file-size limit (``ulimit -f``). A run stops

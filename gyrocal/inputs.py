@@ -40,6 +40,8 @@ from typing import Any
 import yaml
 from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
+from gyrocal.errors import BadInput
+
 KeyPath = tuple[str | int, ...]
 """Where a value sits in a document: mapping keys (str) and list indices (int)."""
 
@@ -107,7 +109,7 @@ class Problem:
         return f"{where}: {self.path}: {self.message}" if self.path else f"{where}: {self.message}"
 
 
-class InputError(Exception):
+class InputError(BadInput):
     """Bad input (exit code 2): every problem found, so one edit round fixes them all."""
 
     def __init__(self, problems: list[Problem]) -> None:

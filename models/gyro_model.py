@@ -17,6 +17,7 @@ from typing import Any
 
 import yaml
 
+from gyrocal.errors import BadInput
 from gyrocal.inputs import InputError, format_key_path, load_yaml
 from gyrocal.models.effects import EFFECTS
 
@@ -24,7 +25,7 @@ SUPPORTED_VERSIONS = (1,)
 OUTPUT_UNITS = ("deg/s", "deg/h", "rad/s", "V", "LSB")
 
 
-class ModelError(ValueError):
+class ModelError(BadInput, ValueError):
     """A model file or dict that breaks the contract; the message names where."""
 
 

@@ -32,6 +32,7 @@ from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
+from gyrocal.errors import BadInput
 from gyrocal.orchestrator.ledger import append_entry, ledger_path_for
 from gyrocal.orchestrator.record.journal import JournalEvent
 
@@ -44,7 +45,7 @@ SIGNED_FIELDS = ("seq", "wall_time", "event", "prev_sha256", "run_id", "reason",
 KEY_ENV = "GYROCAL_SIGNING_KEY"
 
 
-class SigningKeyError(Exception):
+class SigningKeyError(BadInput):
     """A key file that cannot be used (names the file and why)."""
 
 

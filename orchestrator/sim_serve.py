@@ -24,7 +24,7 @@ from pathlib import Path
 
 import yaml
 
-from gyrocal.errors import EXIT_OK, BadInput, RunFault
+from gyrocal.errors import EXIT_OK, BadInput, RunFaultError
 from gyrocal.instruments.gyro.capture import read_capture
 from gyrocal.instruments.sim.replay_pty import ReplayGyroPort
 from gyrocal.instruments.sim.station_sim import SimAddresses, SimulatedStation
@@ -104,7 +104,7 @@ def cmd_sim_serve(args: argparse.Namespace) -> int:
             try:
                 while not stop.wait(0.2):
                     if simulated.gyro_port.error is not None:
-                        raise RunFault(f"simulated gyro stopped: {simulated.gyro_port.error}")
+                        raise RunFaultError(f"simulated gyro stopped: {simulated.gyro_port.error}")
             except KeyboardInterrupt:
                 pass
     finally:

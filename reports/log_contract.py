@@ -26,8 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrocal.errors import BadInput
 
-class LogFormatError(ValueError):
+
+class LogFormatError(BadInput, ValueError):
     """The measured log cannot be used as it is; the message names file, row and column."""
 
 

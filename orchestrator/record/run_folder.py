@@ -23,6 +23,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from gyrocal import __version__
+from gyrocal.errors import BadInput
 from gyrocal.instruments.gyro.channels import CHANNEL_COLUMNS, CHANNEL_STATUS_COLUMNS
 from gyrocal.orchestrator.record.atomic import write_atomic, write_bytes_atomic
 from gyrocal.orchestrator.record.journal import Journal, read_journal, sha256_file
@@ -79,7 +80,7 @@ def identified_instruments(events: list[dict[str, Any]]) -> dict[str, dict[str, 
     return found
 
 
-class RunFolderError(Exception):
+class RunFolderError(BadInput):
     """The folder is not a usable run folder (names the file)."""
 
 
