@@ -62,6 +62,7 @@ from gyrocal.orchestrator.signing import (
 from gyrocal.orchestrator.station import Station, SupplyConfig, load_station
 from gyrocal.orchestrator.station_fit import check_runnable, is_simulated
 from gyrocal.orchestrator.unit_power import UnitPowerPolicy
+from gyrocal.orchestrator.units import format_hms
 
 DEFAULT_SIM_STATION = Path("stations/sim.yaml")
 
@@ -100,7 +101,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
     run_signer(None, procedure.station.signing_key)
     how = " for `gyrocal run --sim`" if sim else ""
     print(f"{procedure.file}: OK{how} — {procedure.name!r} on station {procedure.station.name!r}: "
-          f"{len(plan.steps)} steps, ETA {_hms(plan.total_s)} (worst case {_hms(plan.max_total_s)})")
+          f"{len(plan.steps)} steps, ETA {format_hms(plan.total_s)} (worst case {format_hms(plan.max_total_s)})")
     return EXIT_OK
 
 
@@ -109,11 +110,6 @@ def cmd_plan(args: argparse.Namespace) -> int:
                                allow_outside=args.allow_outside_paths)
     print(format_plan(expand_plan(procedure)))
     return EXIT_OK
-
-
-def _hms(seconds: float) -> str:
-    seconds = int(round(seconds))
-    return f"{seconds // 3600}:{seconds % 3600 // 60:02d}:{seconds % 60:02d}"
 
 
 # -- run / resume --------------------------------------------------------------------------

@@ -30,7 +30,7 @@ from gyrocal.orchestrator.procedure import (
     ThresholdTest,
 )
 from gyrocal.orchestrator.record.step_kind import StepKind
-from gyrocal.orchestrator.units import format_duration, format_number
+from gyrocal.orchestrator.units import format_duration, format_hms, format_number
 
 ASSUMED_START_TEMP_C = 25.0   # chamber temperature at the start when the station does not say
 #: What the ETA allows for a remount: an operator turning the hexahedron fixture and
@@ -353,12 +353,6 @@ def _check_eta(procedure: Procedure, eta_s: float) -> None:
                    "durations")
 
 
-def _clock(seconds: float) -> str:
-    total = round(seconds)
-    hours, rest = divmod(total, 3600)
-    return f"{hours:d}:{rest // 60:02d}:{rest % 60:02d}"
-
-
 def _remount_line(plan: Plan) -> list[str]:
     """How often the operator must come to the table: each remount waits for `gyrocal confirm`."""
     remounts = [s for s in plan.steps if s.kind == "remount"]
@@ -388,7 +382,7 @@ def format_plan(plan: Plan) -> str:
         if step.kind == "dwell" and step.revolutions is not None:
             rate += f" ({step.revolutions:.3g} rev)"
         rows.append((str(number), step.step_id, step.kind, f"{step.setpoint_c:g} °C", rate, move,
-                     logged, format_duration(step.expected_s), _clock(step.start_s)))
+                     logged, format_duration(step.expected_s), format_hms(step.start_s)))
     widths = [max(len(row[i]) for row in [header, *rows]) for i in range(len(header))]
     lines = [
         f"Procedure: {plan.procedure_name} ({plan.procedure_file})",

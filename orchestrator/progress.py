@@ -11,6 +11,8 @@ import sys
 import time
 from dataclasses import dataclass
 
+from gyrocal.orchestrator.units import format_hms
+
 
 @dataclass
 class ProgressState:
@@ -34,13 +36,6 @@ class ProgressState:
         return max(later_s, self.eta_s - (self.elapsed_s - self.step_started_s))
 
 
-def _hms(seconds: float | None) -> str:
-    if seconds is None:
-        return "--:--:--"
-    seconds = max(0, int(seconds))
-    return f"{seconds // 3600:02d}:{seconds % 3600 // 60:02d}:{seconds % 60:02d}"
-
-
 class Progress:
     def __init__(self, enabled: bool | None = None, min_interval_s: float = 0.2) -> None:
         self.enabled = sys.stderr.isatty() if enabled is None else enabled
@@ -60,7 +55,8 @@ class Progress:
         table = "--" if s.table_dps is None else f"{s.table_dps:8.2f} °/s"
         paused = "PAUSED (delete RUN_DIR/PAUSE to go on)  " if s.paused else ""
         return (f"{paused}[{s.step_index}/{s.step_count}] {s.step_id:<28} chamber {chamber}  "
-                f"table {table}  elapsed {_hms(s.elapsed_s)}  ETA {_hms(s.eta_now_s())}")
+                f"table {table}  elapsed {format_hms(s.elapsed_s, live=True)}  "
+                f"ETA {format_hms(s.eta_now_s(), live=True)}")
 
     def update(self, **fields: object) -> None:
         for key, value in fields.items():

@@ -219,6 +219,22 @@ def describe(value: object) -> str:
     return f"{kind} {text}" if kind else f"{type(value).__name__} {text}"
 
 
+def format_hms(seconds: float | None, *, live: bool = False) -> str:
+    """``H:MM:SS``, the one clock format of plans, progress lines, status and the console.
+
+    Plans print the nearest second (``0:30:00``; a sum of float durations such as
+    1799.9999 s is half an hour). ``live`` counters (elapsed, ETA, event age) show the
+    whole seconds that have passed, never below zero, with two hour digits so the line
+    does not shift as it ticks (``00:30:00``); ``None`` (not known yet) is ``--:--:--``.
+    """
+    if seconds is None:
+        return "--:--:--"
+    whole = max(0, int(seconds)) if live else int(round(seconds))
+    hours, rest = divmod(whole, 3600)
+    minutes, secs = divmod(rest, 60)
+    return f"{hours:02d}:{minutes:02d}:{secs:02d}" if live else f"{hours:d}:{minutes:02d}:{secs:02d}"
+
+
 def format_duration(seconds: float) -> str:
     """Readable duration for plans: ``45 s``, ``12 min 30 s``, ``18 h 05 min``."""
     if seconds < 60:

@@ -39,9 +39,16 @@ from gyrocal.reports.noise_id import alpha_per_m_from_decimated, identify_alpha_
 _CHUNK = 1 << 16  # elements per pass: 3 input slices + 1 buffer stay inside L2 cache
 
 
+#: How every curve here is computed: both paths (in memory, streamed) give the same numbers.
+METHOD = "fully overlapping, exact"
+
+
 @dataclass(frozen=True)
 class AllanResult:
     """Overlapping ADEV per averaging time, in the units of the input rate.
+
+    The one Allan curve type: :func:`overlapping_adev`, :func:`adev_from_blocks` and the
+    report's curves (:mod:`gyrocal.reports.allan_summary`) all return it.
 
     ``n_terms`` is the number of second differences averaged at each τ;
     ``alpha`` the noise type used for the EDF (see :mod:`noise_id`);
@@ -60,6 +67,11 @@ class AllanResult:
     adev_lo: np.ndarray | None = None
     adev_hi: np.ndarray | None = None
     confidence: float | None = None
+
+    @property
+    def method(self) -> str:
+        """The estimator, as the report and ``analyze allan`` name it."""
+        return METHOD
 
     def to_json(self, units_suffix: str = "dph") -> dict:
         """The `analyze allan --json` curve keys; the suffix names the input units."""

@@ -10,7 +10,6 @@ same result to the bit.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -23,22 +22,6 @@ POINTS_PER_DECADE = 10
 #: Up to this many samples the phase of a streamed record is kept in memory (128 MiB);
 #: beyond, in a temporary file. The result is the same to the bit either way.
 IN_MEMORY_SAMPLES = 16_000_000
-METHOD = "fully overlapping, exact"
-
-
-@dataclass(frozen=True)
-class AllanCurve:
-    """ADEV per τ (input units, normally deg/h) with its 68 % interval, EDF and noise type."""
-
-    tau_s: np.ndarray
-    adev: np.ndarray
-    adev_lo: np.ndarray
-    adev_hi: np.ndarray
-    edf: np.ndarray
-    alpha: np.ndarray
-    n_samples: int
-    rate_hz: float
-    method: str
 
 
 def curve_m(n_samples: int) -> np.ndarray:
@@ -47,38 +30,29 @@ def curve_m(n_samples: int) -> np.ndarray:
     return log_spaced_m(n_samples, count=max(int(decades * POINTS_PER_DECADE), 10))
 
 
-def _curve(result: AllanResult) -> AllanCurve:
-    return AllanCurve(result.tau_s, result.adev, result.adev_lo, result.adev_hi, result.edf,
-                      result.alpha, result.n_samples, result.rate_hz, METHOD)
-
-
-def allan_curve(y, rate_hz: float) -> AllanCurve:
+def allan_curve(y, rate_hz: float) -> AllanResult:
     """Overlapping ADEV with intervals of an in-memory record (exact at any length)."""
     data = np.asarray(y, dtype=np.float64)
-    return _curve(overlapping_adev(data, rate_hz, m=curve_m(data.size)))
+    return overlapping_adev(data, rate_hz, m=curve_m(data.size))
 
 
 def allan_curve_streamed(blocks: RateBlocks, n_samples: int, rate_hz: float,
-                         tmp_dir: str | Path | None = None) -> AllanCurve:
+                         tmp_dir: str | Path | None = None) -> AllanResult:
     """The same curve for a record streamed block by block (``blocks()`` re-iterable)."""
-    return _curve(adev_from_blocks(blocks, rate_hz, m=curve_m(n_samples), tmp_dir=tmp_dir,
-                                   in_memory=n_samples <= IN_MEMORY_SAMPLES))
+    return adev_from_blocks(blocks, rate_hz, m=curve_m(n_samples), tmp_dir=tmp_dir,
+                            in_memory=n_samples <= IN_MEMORY_SAMPLES)
 
 
-def fit_curve(curve: AllanCurve) -> NoiseFit:
+def fit_curve(curve: AllanResult) -> NoiseFit:
     """Joint noise-term fit weighted by the curve's EDF and noise types."""
     return fit_noise_terms(curve.tau_s, curve.adev, edf=curve.edf, alpha=curve.alpha)
 
 
-def curve_json(curve: AllanCurve, fit: NoiseFit) -> dict:
+def curve_json(curve: AllanResult, fit: NoiseFit) -> dict:
     """The `analyze allan --json` object: exactly the keys of interfaces.md."""
-    return {
-        "tau_s": curve.tau_s.tolist(),
-        "adev_dph": curve.adev.tolist(),
-        "adev_lo_dph": curve.adev_lo.tolist(),
-        "adev_hi_dph": curve.adev_hi.tolist(),
-        "fit": fit.to_json(),
-    }
+    if curve.adev_lo is None or curve.adev_hi is None:
+        raise ValueError("the report's curve carries its interval; computed without confidence")
+    return curve.to_json("dph") | {"fit": fit.to_json()}
 
 
 def identifiability_json(fit: NoiseFit) -> dict:

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from gyrocal.orchestrator.record.logged_steps import HOLD_KINDS
 from gyrocal.reports import compensation as comp
 from gyrocal.reports.gum import Contribution, EvalType, Uncertainty, combine
 from gyrocal.reports.uncertainty import (
@@ -28,8 +29,6 @@ from gyrocal.reports.uncertainty import (
     slope_uncertainty,
     sweep_uncertainty,
 )
-
-_HOLD_KINDS = ("static", "allan")
 
 
 @dataclass(frozen=True)
@@ -66,7 +65,7 @@ def add_uncertainties(results: dict[str, Any], steps: list[StepMean], plan: dict
     for s in usable:
         if s.kind == "dwell":
             sweeps[s.mean.temp_c].append(s.mean)
-        elif s.kind in _HOLD_KINDS:
+        elif s.kind in HOLD_KINDS:
             holds[s.mean.temp_c].append(s.mean)
     paths: dict[str, Uncertainty] = {}
     per_temp: dict[float, dict[str, Uncertainty]] = {}

@@ -165,3 +165,19 @@ def test_reports_read_runs_only_through_the_run_record():
     record_users = [m for m, t in GRAPH.items() if m.startswith("gyrocal.reports")
                     and any(x.startswith("gyrocal.orchestrator.record") for x in t)]
     assert "gyrocal.reports.build" in record_users and "gyrocal.reports.verify" in record_users
+
+
+def test_no_product_module_sets_the_plotting_backend():
+    """Plots draw on ``matplotlib.figure.Figure`` (the Agg canvas, as ``reports/plots.py``),
+    never through pyplot's global state: importing or running gyrocal does not change the
+    backend of the process it runs in (``MPLBACKEND`` stays the user's)."""
+    found = []
+    for module, path in _modules().items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and ast.unparse(node.func) == "matplotlib.use":
+                found.append(f"{module}: matplotlib.use")
+            elif isinstance(node, ast.Import | ast.ImportFrom):
+                names = [a.name for a in node.names] + [getattr(node, "module", None) or ""]
+                if any(n == "matplotlib.pyplot" or n == "pyplot" for n in names):
+                    found.append(f"{module}: imports pyplot")
+    assert found == []

@@ -11,8 +11,11 @@ from __future__ import annotations
 
 from typing import Any
 
-#: Plan step kinds that are holds at rest (the Allan record is chosen among them).
-HOLD_KINDS = ("static", "allan")
+from gyrocal.orchestrator.record.step_kind import StepKind
+
+#: Plan step kinds that are holds at rest: the Allan record is chosen among them, and the
+#: uncertainty budget pools them per temperature for the bias.
+HOLD_KINDS = (StepKind.STATIC, StepKind.ALLAN)
 
 
 def completed_attempts(events: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:

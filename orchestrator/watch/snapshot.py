@@ -239,8 +239,3 @@ def _pid_alive(pid: Any) -> bool:
     return True
 
 
-def hms(seconds: float | None) -> str:
-    if seconds is None:
-        return "--:--:--"
-    seconds = max(0, int(seconds))
-    return f"{seconds // 3600:02d}:{seconds % 3600 // 60:02d}:{seconds % 60:02d}"

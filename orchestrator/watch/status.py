@@ -13,7 +13,8 @@ import json
 from pathlib import Path
 
 from gyrocal.orchestrator.engine import PAUSE_FILE
-from gyrocal.orchestrator.watch.snapshot import RunSnapshot, hms, read_snapshot
+from gyrocal.orchestrator.units import format_hms
+from gyrocal.orchestrator.watch.snapshot import RunSnapshot, read_snapshot
 
 #: How every view of a dry run says what it is (status, the live page, the report's banner).
 SIMULATED_TEXT = "SIMULATED run: simulated instruments, not a calibration"
@@ -36,9 +37,9 @@ def status_text(snap: RunSnapshot) -> str:
              f"  unit: {snap.serial or '-'}  procedure: {snap.procedure or '-'}"]
     nxt = f"; next: {snap.current_step}" if snap.current_step else ""
     lines.append(f"  steps: {snap.steps_done}/{snap.step_count} completed{nxt}")
-    lines.append(f"  ETA (plan, procedure time): {hms(snap.eta_s)}")
+    lines.append(f"  ETA (plan, procedure time): {format_hms(snap.eta_s, live=True)}")
     if snap.last_event_age_s is not None:
-        age = f"  last event: {hms(snap.last_event_age_s)} ago"
+        age = f"  last event: {format_hms(snap.last_event_age_s, live=True)} ago"
         if snap.events:
             last = snap.events[-1]
             age += f" (#{last.seq} {last.event} {last.step_id})".rstrip()

@@ -18,17 +18,14 @@ import io
 from pathlib import Path
 
 import jinja2
-import matplotlib
+import numpy as np
+from matplotlib.collections import PolyCollection
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.collections import PolyCollection  # noqa: E402
-
-from gyrocal.models.effects import EFFECTS  # noqa: E402
-from gyrocal.reports.allan import overlapping_adev  # noqa: E402
-from gyrocal.reports.discrepancy.gap import allan_taus_m  # noqa: E402
-from gyrocal.reports.discrepancy.workflow import DiscrepancyResult  # noqa: E402
+from gyrocal.models.effects import EFFECTS
+from gyrocal.reports.allan import overlapping_adev
+from gyrocal.reports.discrepancy.gap import allan_taus_m
+from gyrocal.reports.discrepancy.workflow import DiscrepancyResult
 
 _TEMPLATE = """<!doctype html>
 <html lang="en"><head><meta charset="utf-8">
@@ -114,10 +111,9 @@ METRIC_UNITS = {"g1_segment_mean": "", "segment_mean_rms_dph": " deg/h",
                 "allan_mismatch": " (ln ratio)", "spectrum_peak": " × noise PSD"}
 
 
-def _png(fig) -> str:
+def _png(fig: Figure) -> str:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=90, bbox_inches="tight")
-    plt.close(fig)
     return base64.b64encode(buffer.getvalue()).decode("ascii")
 
 
@@ -133,7 +129,8 @@ def _shade(ax, result: DiscrepancyResult, t_bins: np.ndarray) -> None:
 def _fig_time(result: DiscrepancyResult) -> str:
     t = result.bins.centre_s
     geometry = result.geometry
-    fig, axes = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
+    fig = Figure(figsize=(11, 6))
+    axes = fig.subplots(2, 1, sharex=True)
     for ax, resid, title in ((axes[0], result.resid_before_bins, "before (input model, refitted)"),
                              (axes[1], result.resid_after_bins, "after (updated model, refitted)")):
         _shade(ax, result, t)
@@ -156,7 +153,8 @@ def _fig_time(result: DiscrepancyResult) -> str:
 def _fig_inputs(result: DiscrepancyResult) -> str:
     geometry = result.geometry
     means = geometry.means(result.resid_before_bins)
-    fig, axes = plt.subplots(2, 3, figsize=(11, 6))
+    fig = Figure(figsize=(11, 6))
+    axes = fig.subplots(2, 3)
     for ax, (name, values) in zip(axes.ravel(), result.signals.items(), strict=False):
         x = geometry.means(values)
         ax.errorbar(x, means, yerr=2.0 * geometry.stderr_dph, fmt="o", ms=3, color="C0")
@@ -170,7 +168,7 @@ def _fig_inputs(result: DiscrepancyResult) -> str:
 def _fig_gap(result: DiscrepancyResult) -> str:
     """Spectra before and after in panels of their own (drawn in one, the after trace hid
     the before one), on the same axes so they compare; the Allan deviations beside them."""
-    fig = plt.figure(figsize=(11, 6.5))
+    fig = Figure(figsize=(11, 6.5))
     grid = fig.add_gridspec(2, 2)
     spectra = [fig.add_subplot(grid[0, 0])]
     spectra.append(fig.add_subplot(grid[1, 0], sharex=spectra[0], sharey=spectra[0]))
@@ -214,7 +212,8 @@ def _param_unit(effect: str, key: str) -> str:
 def _fig_effect_gaps(result: DiscrepancyResult) -> str:
     """One panel per named effect: its own metric before, after and at the noise floor, with units."""
     items = [(effect, key) for effect, key in result.effect_gaps.items() if key in result.metrics]
-    fig, axes = plt.subplots(1, max(len(items), 1), figsize=(3.2 * max(len(items), 1), 3.2), squeeze=False)
+    fig = Figure(figsize=(3.2 * max(len(items), 1), 3.2))
+    axes = fig.subplots(1, max(len(items), 1), squeeze=False)
     for ax, (effect, key) in zip(axes[0], items, strict=False):
         m = result.metrics[key]
         ax.bar(["before", "after"], [m.before, m.after], color=["C3", "C0"])

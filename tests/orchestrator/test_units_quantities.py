@@ -11,6 +11,7 @@ from gyrocal.orchestrator.units import (
     TEMPERATURE_RATE,
     UnitError,
     format_duration,
+    format_hms,
     parse_duration_s,
     parse_quantity,
 )
@@ -86,6 +87,18 @@ def test_bad_quantities_say_why(value, dimension, message):
     with pytest.raises(UnitError) as error:
         parse_quantity(value, dimension)
     assert message in str(error.value)
+
+
+def test_format_hms_plan_times_round_to_the_nearest_second():
+    assert format_hms(1799.9999) == "0:30:00"      # a sum of float durations is half an hour
+    assert format_hms(16 * 3600 + 5 * 60 + 20.4) == "16:05:20"
+    assert format_hms(100 * 3600) == "100:00:00"
+
+
+def test_format_hms_live_counters_count_whole_seconds_never_below_zero():
+    assert format_hms(3 * 3600 + 5.9, live=True) == "03:00:05"
+    assert format_hms(-2.0, live=True) == "00:00:00"
+    assert format_hms(None, live=True) == "--:--:--"
 
 
 def test_format_duration_reads_like_a_person_would_write_it():
