@@ -47,6 +47,10 @@ def _fault_types() -> tuple[type[BaseException], ...]:
     return (RunFaultError, InstrumentError, LockBusyError)
 
 
+#: The lab's runs database, in the working folder unless ``--db`` names another.
+RUNS_DB = "runs.duckdb"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="gyrocal", description=__doc__.splitlines()[0])
     parser.add_argument("--debug", action="store_true", help="show tracebacks")
@@ -147,10 +151,10 @@ def build_parser() -> argparse.ArgumentParser:
     rsub = p.add_subparsers(dest="runs_command", required=True, metavar="RUNS_COMMAND")
     r = rsub.add_parser("index", help="add or update run folders (found under each DIR)")
     r.add_argument("dirs", nargs="+", metavar="DIR")
-    r.add_argument("--db", default="runs.duckdb")
+    r.add_argument("--db", default=RUNS_DB)
     r.set_defaults(func=_lazy("gyrocal.reports.runs.commands", "cmd_runs_index"))
     r = rsub.add_parser("list", help="the indexed runs")
-    r.add_argument("--db", default="runs.duckdb")
+    r.add_argument("--db", default=RUNS_DB)
     r.set_defaults(func=_lazy("gyrocal.reports.runs.commands", "cmd_runs_list"))
 
     p = sub.add_parser("history", help="one unit (serial, and model when several share it) "
@@ -158,14 +162,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("serial")
     p.add_argument("--model", default=None,
                    help="the unit's model, when units of several models share the serial")
-    p.add_argument("--db", default="runs.duckdb")
+    p.add_argument("--db", default=RUNS_DB)
     p.add_argument("--plot", default=None, help="PNG path (default history-SERIAL.png)")
     p.set_defaults(func=_lazy("gyrocal.reports.runs.commands", "cmd_history"))
 
     p = sub.add_parser("compare", help="two runs side by side, with overlay plots")
     p.add_argument("run_a", help="a run folder or an indexed run id")
     p.add_argument("run_b")
-    p.add_argument("--db", default="runs.duckdb")
+    p.add_argument("--db", default=RUNS_DB)
     p.add_argument("--plot", default=None, help="PNG path (default compare.png)")
     p.set_defaults(func=_lazy("gyrocal.reports.runs.commands", "cmd_compare"))
 

@@ -244,12 +244,3 @@ _CATALOGUE: tuple[EffectDef, ...] = (
 #: The catalogue, by effect name (the order is the spec's order).
 EFFECTS: dict[str, EffectDef] = {e.name: e for e in _CATALOGUE}
 
-
-def effect_def(name: str) -> EffectDef:
-    """The catalogue entry for ``name``; the error lists the known names."""
-    try:
-        return EFFECTS[name]
-    except KeyError:
-        raise KeyError(
-            f"unknown effect {name!r}; known effects: {', '.join(EFFECTS)}"
-        ) from None

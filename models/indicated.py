@@ -326,11 +326,6 @@ def indicated_rate(
     )
 
 
-def indicated_rate_dps(model: GyroModel, inputs: ModelInputs, state: ModelState | None = None) -> np.ndarray:
-    """The noise-free indicated rate ω_ind (deg/s) on ``inputs``."""
-    return indicated_rate(model, inputs, state).rate_dps
-
-
 def effect_contribution_dph(
     model: GyroModel, name: str, inputs: ModelInputs, state: ModelState | None = None
 ) -> np.ndarray:

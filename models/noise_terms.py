@@ -30,6 +30,5 @@ NOISE_TERMS: tuple[NoiseTerm, ...] = (
     NoiseTerm("K", "rate random walk", "rrw_deg_per_h_rth", "K_dph_per_rth", "deg/h/√h"),
     NoiseTerm("R", "rate ramp", "rate_ramp_dph_per_h", "R_dph_per_h", "deg/h/h"),
 )
-BY_SYMBOL = {t.symbol: t for t in NOISE_TERMS}
 FIT_KEYS = tuple(t.fit_key for t in NOISE_TERMS)
 MODEL_KEYS = tuple(t.model_key for t in NOISE_TERMS)

@@ -64,8 +64,6 @@ from gyrocal.orchestrator.station_fit import check_runnable, is_simulated
 from gyrocal.orchestrator.unit_power import UnitPowerPolicy
 from gyrocal.orchestrator.units import format_hms
 
-DEFAULT_SIM_STATION = Path("stations/sim.yaml")
-
 #: Called with each ``SimulatedStation`` right after ``--sim`` starts it, before any
 #: driver connects (``gyrocal.cli.main(..., on_sim_started=)``). Fault-injection tests
 #: arm simulator faults through it, so faults reach the very simulators a real

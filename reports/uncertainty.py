@@ -280,7 +280,3 @@ def slope_uncertainty(temps_c: Sequence[float], values: Sequence[Uncertainty],
     return propagate(f, inputs)
 
 
-def with_uncertainty(entry: dict, unc: Uncertainty) -> dict:
-    """``entry`` with u, U, k, dof_eff and budget added beside its value (new keys only)."""
-    return entry | unc.to_json()
-

@@ -1,4 +1,4 @@
-"""Pure encodings between engineering values and Modbus registers, and RTU framing.
+"""Pure encodings between engineering values and Modbus registers.
 
 Kept free of any I/O so that each can be pinned by byte pairs taken from the
 controller manuals: a wrong word order or a sign slip here would silently
@@ -9,8 +9,9 @@ shift every temperature of a calibration run.
 - Watlow F4T (Modbus TCP): IEEE-754 float32 in two registers, **low word
   first** (``25.0`` = ``0x41C80000`` is sent as ``[0x0000, 0x41C8]``); signed
   32-bit integers use the same word order.
-- Modbus RTU frames end with CRC-16/MODBUS (poly 0xA001 reflected, init
-  0xFFFF) sent low byte first.
+
+RTU framing and its CRC-16 are pymodbus's (the link); the tests pin them against the
+manual's frames with a textbook CRC of their own (``tests/support/modbus_rtu.py``).
 """
 
 from __future__ import annotations
@@ -86,27 +87,6 @@ def encode_text_one_char_per_register(text: str, count: int) -> list[int]:
 
 def decode_text_one_char_per_register(registers: Sequence[int]) -> str:
     return "".join(chr(reg & 0xFF) for reg in registers if reg & 0xFF).strip()
-
-
-def crc16_modbus(data: bytes) -> int:
-    """CRC-16/MODBUS of ``data`` (the value; it goes on the wire low byte first)."""
-    crc = 0xFFFF
-    for byte in data:
-        crc ^= byte
-        for _ in range(8):
-            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
-    return crc
-
-
-def rtu_frame(unit_id: int, pdu: bytes) -> bytes:
-    """Address + PDU + CRC (low byte first): the bytes that go on the RS-485 line."""
-    body = bytes([unit_id]) + pdu
-    return body + crc16_modbus(body).to_bytes(2, "little")
-
-
-def rtu_frame_ok(frame: bytes) -> bool:
-    """True when the last two bytes are the CRC of the rest."""
-    return len(frame) >= 4 and crc16_modbus(frame[:-2]).to_bytes(2, "little") == frame[-2:]
 
 
 def _check_register(register: int) -> None:

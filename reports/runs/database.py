@@ -19,8 +19,6 @@ import duckdb
 
 from gyrocal.reports.runs.metrics import metric_values
 
-DEFAULT_DB = "runs.duckdb"
-
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
     run_id VARCHAR PRIMARY KEY, run_dir VARCHAR, serial VARCHAR, model VARCHAR,
