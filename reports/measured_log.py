@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from gyrocal.inputs import check_text_head, require_regular_file
+from gyrocal.orchestrator.record.journal import JournalEvent
 from gyrocal.reports.log_contract import (
     LogFormatError,
     check_parquet_schema,
@@ -163,7 +164,7 @@ def read_run_folder_log(run_dir: Path) -> MeasuredLog:
 
     folder = RunFolder.open(run_dir)
     steps = [event for event in folder.journal_events()
-             if event.get("event") == "step_completed" and event.get("chunks")]
+             if event.get("event") == JournalEvent.STEP_COMPLETED and event.get("chunks")]
     if not steps:
         raise LogFormatError(f"{run_dir}: the run folder has no completed logged steps")
     # one read of every chunk (not one per step: on an overnight folder the per-step

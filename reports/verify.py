@@ -49,6 +49,7 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 from gyrocal.orchestrator.ledger import LedgerError, check_against, read_ledger
 from gyrocal.orchestrator.record.journal import (
     JournalError,
+    JournalEvent,
     read_journal,
     sha256_bytes,
     sha256_file,
@@ -192,10 +193,10 @@ def _shape(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResult
            ) -> dict[str, Any]:
     path = folder.path / JOURNAL
     first = events[0]
-    if first.get("event") != "run_started":
+    if first.get("event") != JournalEvent.RUN_STARTED:
         raise _Mismatch(f"{path}:1: the journal opens with {first.get('event')!r}, "
                         "not run_started")
-    closed = [i for i, e in enumerate(events, start=1) if e.get("event") == "run_closed"]
+    closed = [i for i, e in enumerate(events, start=1) if e.get("event") == JournalEvent.RUN_CLOSED]
     if not closed:
         last = events[-1]
         raise _Mismatch(f"{path}: INCOMPLETE: no run_closed; the history ends at line "
@@ -269,15 +270,15 @@ def _set_aside_and_certificates(folder: RunFolder, events: list[dict[str, Any]],
     for line, event in enumerate(events, start=1):
         name = event.get("event")
         where = f"{JOURNAL}:{line} {name}"
-        if name == "orphan_set_aside":
+        if name == JournalEvent.ORPHAN_SET_ASIDE:
             _check_file(root / str(event.get("moved_to", "")), event.get("sha256"), where)
             result.orphans.append(f"{event.get('path')} → {event.get('moved_to')} "
                                   f"({event.get('reason')})")
-        elif name == "torn_tail_set_aside":
+        elif name == JournalEvent.TORN_TAIL_SET_ASIDE:
             result.orphans.append(f"torn journal tail → {event.get('path')}")
-        elif name == "certificate_written":
+        elif name == JournalEvent.CERTIFICATE_WRITTEN:
             certificates[str(event.get("path"))] = (line, event)
-    torn = [(i, e) for i, e in enumerate(events, start=1) if e.get("event") == "torn_tail_set_aside"]
+    torn = [(i, e) for i, e in enumerate(events, start=1) if e.get("event") == JournalEvent.TORN_TAIL_SET_ASIDE]
     if torn:
         line, event = torn[-1]
         _check_file(root / str(event.get("path", "")), event.get("torn_sha256"),
@@ -305,7 +306,7 @@ def _nothing_unrecorded(folder: RunFolder, events: list[dict[str, Any]],
 
 def _samples(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResult) -> None:
     root = folder.path
-    chunks = [(i, e) for i, e in enumerate(events, start=1) if e.get("event") == "chunk_written"]
+    chunks = [(i, e) for i, e in enumerate(events, start=1) if e.get("event") == JournalEvent.CHUNK_WRITTEN]
     journaled: set[str] = set()
     for line, event in chunks:
         _check_file(root / str(event.get("path", "")), event.get("sha256"),
@@ -317,7 +318,7 @@ def _samples(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResu
         raise _Mismatch(f"{root / extra[0]}: on disk but not journaled "
                         f"({len(extra)} such file(s)); samples may not be added afterwards")
     for line, event in enumerate(events, start=1):
-        if event.get("event") == "step_completed":
+        if event.get("event") == JournalEvent.STEP_COMPLETED:
             missing = [c for c in event.get("chunks") or [] if c not in journaled]
             if missing:
                 raise _Mismatch(f"{JOURNAL}:{line}: step {event.get('step_id')} lists chunk "
@@ -328,7 +329,7 @@ def _samples(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResu
 def _report(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResult,
             recompute: bool, key: Ed25519PublicKey | None) -> None:
     root = folder.path
-    reports = [(i, e) for i, e in enumerate(events, start=1) if e.get("event") == "report_written"]
+    reports = [(i, e) for i, e in enumerate(events, start=1) if e.get("event") == JournalEvent.REPORT_WRITTEN]
     if not reports:
         raise _Mismatch(f"{root / 'report'}: no report_written event: the report was never "
                         "built; a closed run always has one")
@@ -338,7 +339,7 @@ def _report(folder: RunFolder, events: list[dict[str, Any]], result: VerifyResul
         _check_file(root / rel, digest, f"{JOURNAL}:{line} report_written")
     present = {str(p.relative_to(root)) for p in (root / "report").rglob("*") if p.is_file()}
     certified = {str(e.get("path")) for e in events
-                 if e.get("event") == "certificate_written" and e.get("in_run_folder")}
+                 if e.get("event") == JournalEvent.CERTIFICATE_WRITTEN and e.get("in_run_folder")}
     extra = sorted(present - set(files) - certified)
     if extra:
         raise _Mismatch(f"{root / extra[0]}: in report/ but not recorded by {JOURNAL}:{line} "

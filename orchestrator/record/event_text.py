@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from gyrocal.orchestrator.record.journal import JournalEvent
+
 #: Keys that identify or chain the event rather than say what happened.
 HIDDEN_KEYS = frozenset({"seq", "wall_time", "event", "prev_sha256", "step_id", "signature",
                          "identity", "inputs", "sha256", "plan_sha256", "signing_key",
@@ -60,7 +62,7 @@ def describe_event(event: dict[str, Any]) -> str:
     if isinstance(message, str) and message:
         return message
     name = event.get("event")
-    if name == "chunk_written" and isinstance(event.get("rows"), int):
+    if name == JournalEvent.CHUNK_WRITTEN and isinstance(event.get("rows"), int):
         path = str(event.get("path", ""))
         return f"{event['rows']} samples written ({path.rsplit('/', 1)[-1]})"
     parts = []

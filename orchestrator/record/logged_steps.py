@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from gyrocal.orchestrator.record.journal import JournalEvent
 from gyrocal.orchestrator.record.step_kind import StepKind
 
 #: Plan step kinds that are holds at rest: the Allan record is chosen among them, and the
@@ -22,7 +23,7 @@ def completed_attempts(events: list[dict[str, Any]]) -> dict[str, dict[str, Any]
     """step_id → its last step_completed event that logged chunks (a repeat supersedes)."""
     done: dict[str, dict[str, Any]] = {}
     for event in events:
-        if event.get("event") == "step_completed" and event.get("chunks"):
+        if event.get("event") == JournalEvent.STEP_COMPLETED and event.get("chunks"):
             done[event["step_id"]] = event
     return done
 

@@ -16,6 +16,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from gyrocal.orchestrator.record.journal import JournalEvent
 from gyrocal.orchestrator.record.run_folder import RunFolderError
 from gyrocal.orchestrator.watch.snapshot import PlanStep
 
@@ -92,7 +93,7 @@ def conditions(run_dir: Path, events: list[dict[str, Any]], plan: list[PlanStep]
                                           "table_dps": [], "plan_dps": []}
     last_end_s: float | None = None
     for event in events:
-        if event.get("event") != "chunk_written" or "path" not in event:
+        if event.get("event") != JournalEvent.CHUNK_WRITTEN or "path" not in event:
             continue
         step_id = str(event.get("step_id", ""))
         stats = _chunk_stats(Path(run_dir) / str(event["path"]), step_id)
@@ -115,7 +116,7 @@ def conditions(run_dir: Path, events: list[dict[str, Any]], plan: list[PlanStep]
 def step_signal(run_dir: Path, events: list[dict[str, Any]], max_points: int = 1500,
                 max_chunks: int = 4) -> dict[str, Any]:
     """The gyro output of the most recent logged step (its latest chunks), decimated."""
-    chunks = [e for e in events if e.get("event") == "chunk_written" and "path" in e]
+    chunks = [e for e in events if e.get("event") == JournalEvent.CHUNK_WRITTEN and "path" in e]
     if not chunks:
         return {"step_id": None, "t_s": [], "gyro": []}
     step_id = chunks[-1].get("step_id")

@@ -20,6 +20,7 @@ from typing import Any
 
 from gyrocal.orchestrator.locks import LockHolder, holder
 from gyrocal.orchestrator.record.event_text import describe_event
+from gyrocal.orchestrator.record.journal import JournalEvent
 from gyrocal.orchestrator.record.run_folder import JOURNAL, MANIFEST, RunFolderError
 
 PLAN_FILE = "plan.json"
@@ -152,7 +153,7 @@ def read_snapshot(run_dir: Path, *, now: float | None = None, last_events: int =
     step_ids = [s.step_id for s in plan] or [
         str(s) for s in _list_of(manifest_path, "steps", manifest.get("steps"), str)]
     done = [str(e["step_id"]) for e in events
-            if e.get("event") == "step_completed" and "step_id" in e]
+            if e.get("event") == JournalEvent.STEP_COMPLETED and "step_id" in e]
     done_set = set(done)
     remaining = [s for s in step_ids if s not in done_set]
     current = remaining[0] if remaining else None
@@ -191,23 +192,23 @@ def read_snapshot(run_dir: Path, *, now: float | None = None, last_events: int =
 def _simulated(events: list[dict[str, Any]], manifest: dict[str, Any]) -> bool:
     """As run_started recorded it (signed history); the manifest's mode before the first line."""
     for event in events:
-        if event.get("event") == "run_started":
+        if event.get("event") == JournalEvent.RUN_STARTED:
             return bool(event.get("sim"))
     return manifest.get("mode") == "sim"
 
 
 def _paused_in_journal(events: list[dict[str, Any]]) -> bool:
     for event in reversed(events):
-        if event.get("event") == "paused":
+        if event.get("event") == JournalEvent.PAUSED:
             return True
-        if event.get("event") in ("unpaused", "step_started", "resumed"):
+        if event.get("event") in (JournalEvent.UNPAUSED, JournalEvent.STEP_STARTED, JournalEvent.RESUMED):
             return False
     return False
 
 
 def _procedure_name(events: list[dict[str, Any]]) -> str:
     for event in events:
-        if event.get("event") == "run_started":
+        if event.get("event") == JournalEvent.RUN_STARTED:
             return str(event.get("procedure", ""))
     return ""
 
