@@ -40,11 +40,11 @@ class NotifyOn(str, Enum):
 #: Journal event → what it means to the people told. ``operator_needed`` is the event
 #: for a step that waits on a person (remount); the engine journals it when it asks.
 TRIGGERS: dict[str, NotifyOn] = {
-    "run_completed": NotifyOn.FINISHED,
-    "fault": NotifyOn.FAULTED,
-    "interrupted": NotifyOn.FAULTED,
-    "paused": NotifyOn.PAUSED,
-    "operator_needed": NotifyOn.NEEDS_OPERATOR,
+    JournalEvent.RUN_COMPLETED: NotifyOn.FINISHED,
+    JournalEvent.FAULT: NotifyOn.FAULTED,
+    JournalEvent.INTERRUPTED: NotifyOn.FAULTED,
+    JournalEvent.PAUSED: NotifyOn.PAUSED,
+    JournalEvent.OPERATOR_NEEDED: NotifyOn.NEEDS_OPERATOR,
 }
 COMMAND_TIMEOUT_S = 30.0
 
