@@ -26,6 +26,7 @@ from gyrocal.models.clock import Clock
 
 MODE_OFF = "off"
 MODE_RATE = "rate"
+MODE_SYNTHESIS = "synthesis"
 
 
 class TableLimitError(ValueError):
@@ -64,6 +65,39 @@ class _Segment:
         ramp_dt_s = np.minimum(dt_s, self.ramp_s)
         ramp_angle = self.rate0_dps * ramp_dt_s + 0.5 * sign * self.accel_dps2 * ramp_dt_s**2
         return self.angle0_deg + ramp_angle + self.target_dps * (dt_s - ramp_dt_s)
+
+
+@dataclass(frozen=True)
+class _SineSegment:
+    """Synthesis mode from ``t0_s`` (TM-8004 §4.3.4, §4.7.6): the position is a sinusoid
+    of peak displacement ``amplitude_deg`` at ``freq_hz`` with initial phase ``phase_deg``,
+    centred so the angle is continuous where it starts. The rate is its exact derivative,
+    so a gyro on the table and the table's readback see the same sinusoid. The amplitude
+    slew of a real controller (Configure:Oscillator, §4.2.19) is not modelled: the motion
+    is at its steady amplitude from the first instant.
+    """
+
+    t0_s: float
+    angle0_deg: float
+    amplitude_deg: float
+    freq_hz: float
+    phase_deg: float
+    ramp_s: float = 0.0         # no ramp: settle_time_s is the segment's start
+    target_dps: float = 0.0     # the rate the servo returns to when synthesis ends
+
+    @property
+    def peak_rate_dps(self) -> float:
+        return abs(self.amplitude_deg) * 2.0 * np.pi * self.freq_hz
+
+    def _arg(self, dt_s: np.ndarray) -> np.ndarray:
+        return 2.0 * np.pi * self.freq_hz * dt_s + np.radians(self.phase_deg)
+
+    def rate_dps(self, dt_s: np.ndarray) -> np.ndarray:
+        return self.amplitude_deg * 2.0 * np.pi * self.freq_hz * np.cos(self._arg(dt_s))
+
+    def angle_deg(self, dt_s: np.ndarray) -> np.ndarray:
+        start = np.sin(np.radians(self.phase_deg))
+        return self.angle0_deg + self.amplitude_deg * (np.sin(self._arg(dt_s)) - start)
 
 
 class TablePhysics:
@@ -108,7 +142,7 @@ class TablePhysics:
         self._demand_dps = 0.0
         self._accel_limit_dps2 = self.max_accel_dps2
         self._interlock_closed = False
-        self._segments: list[_Segment] = [
+        self._segments: list[_Segment | _SineSegment] = [
             _Segment(clock.now_s(), 0.0, 0.0, 0.0, self.max_accel_dps2)
         ]
         self._starts_s: list[float] = [self._segments[0].t0_s]
@@ -190,7 +224,39 @@ class TablePhysics:
                     f"(0, {self.max_accel_dps2:g}] deg/s^2"
                 )
             self._accel_limit_dps2 = accel_dps2
-            self._retarget(self._segments[-1].target_dps)
+            if self._mode != MODE_SYNTHESIS:
+                self._retarget(self._segments[-1].target_dps)
+
+    def set_mode_synthesis(self, amplitude_deg: float, freq_hz: float, phase_deg: float) -> None:
+        """Start the sinusoid (TM-8004 §4.7.6) from rest; refused beyond the table's limits.
+
+        The sinusoid's peak rate 2πfA and peak acceleration (2πf)²A must be within the
+        table's rate and acceleration limits (the physical ones: synthesis bypasses the
+        rate-mode profiler's limit). Entered only from rest: a real controller is taken
+        there from position mode, whose demand is the centre of the motion.
+        """
+        amplitude_deg, freq_hz, phase_deg = float(amplitude_deg), float(freq_hz), float(phase_deg)
+        with self._lock:
+            if not self._interlock_closed:
+                raise TableInterlockError("synthesis mode refused: interlock open")
+            if not (np.isfinite(amplitude_deg) and np.isfinite(freq_hz) and freq_hz > 0
+                    and np.isfinite(phase_deg)):
+                raise TableLimitError(f"oscillator ({amplitude_deg!r} deg, {freq_hz!r} Hz, "
+                                      f"{phase_deg!r} deg) is not a sinusoid")
+            omega = 2.0 * np.pi * freq_hz
+            peak_rate_dps, peak_accel_dps2 = abs(amplitude_deg) * omega, abs(amplitude_deg) * omega**2
+            if peak_rate_dps > self.max_rate_dps or peak_accel_dps2 > self.max_accel_dps2:
+                raise TableLimitError(
+                    f"sinusoid peaks at {peak_rate_dps:.6g} deg/s and {peak_accel_dps2:.6g} "
+                    f"deg/s^2, beyond {self.max_rate_dps:g} deg/s or {self.max_accel_dps2:g} deg/s^2")
+            now_s = max(self.clock.now_s(), self._segments[-1].t0_s)
+            if abs(float(self.rate_dps(now_s))) > 1e-9:
+                raise TableModeError("synthesis mode refused: the table is not at rest")
+            segment = _SineSegment(now_s, float(self.angle_deg(now_s)), amplitude_deg,
+                                   freq_hz, phase_deg)
+            self._mode = MODE_SYNTHESIS
+            self._demand_dps = 0.0
+            self._push(segment)
 
     # ----- motion queries -----------------------------------------------------------------
 
@@ -234,11 +300,15 @@ class TablePhysics:
             float(target_dps),
             self._accel_limit_dps2,
         )
-        if now_s == last.t0_s:
+        self._push(segment)
+
+    def _push(self, segment: _Segment | _SineSegment) -> None:
+        """Make ``segment`` the current one (replacing one that starts at the same time)."""
+        if segment.t0_s == self._segments[-1].t0_s:
             self._segments[-1] = segment
         else:
             self._segments.append(segment)
-            self._starts_s.append(now_s)
+            self._starts_s.append(segment.t0_s)
         if len(self._segments) > self._history_segments:
             del self._segments[0]
             del self._starts_s[0]
@@ -274,6 +344,7 @@ class TablePhysics:
 __all__ = [
     "MODE_OFF",
     "MODE_RATE",
+    "MODE_SYNTHESIS",
     "TableInterlockError",
     "TableLimitError",
     "TableModeError",

@@ -9,15 +9,18 @@ case-insensitively in the manual's long form, its short form and the
 single-letter form of its examples (``:Demand:Rate``, ``:DEM:RATE``, ``:D:R``)::
 
     *IDN?  *CLS  *ESR?  *STB?          identity, clear status, event status, status byte
-    :Mode? <axis>                      the mode letter: R rate, O off
+    :Mode? <axis>                      the mode letter: R rate, S synthesis, O off
     :Mode:Rate <axis>                  rate mode (refused while the interlock is open)
     :Mode:Off <axis>                   servo to rest (always accepted)
-    :Mode:Position / :Mode:Synthesis   refused: "Not simulated" (the physics is rate-only)
+    :Mode:Synthesis <axis>             the loaded oscillator's sinusoid (§4.7.6), from rest
+    :Mode:Position                     refused: "Not simulated"
     :Demand:Rate <axis>,<deg/s>        rate demand (rate mode only, within the rate limit)
     :Demand:Rate? <axis>               current demand
     :Demand:Position <axis>,<deg>      stored (position mode is not simulated)
-    :Demand:Oscillator <axis>,<mag>,<Hz>,<deg>   stored (synthesis is not simulated)
-    :Read:Rate[?] <axis>               rate readback, deg/s ("?" optional, §4.10.5)
+    :Demand:Oscillator <axis>,<mag>,<Hz>,<deg>   peak position (deg), frequency, initial phase
+    :Demand:Oscillator? <axis>         the loaded oscillator, ``;``-separated (§4.3.4)
+    :Read:Rate[?] <axis>               rate readback, deg/s ("?" optional, §4.10.5); follows
+                                       the sinusoid in synthesis mode, as does the position
     :Read:Position[?] <axis>           position readback, deg in [0, 360)
     :Interlock? <axis>                 Close | Open | Fault
     :Interlock:Close <axis>            close (refused while the safety chain is open)
@@ -49,6 +52,7 @@ from dataclasses import dataclass
 from gyrocal.instruments.table import acutrol_protocol as proto
 from gyrocal.models.table import (
     MODE_RATE,
+    MODE_SYNTHESIS,
     TableInterlockError,
     TableLimitError,
     TableModeError,
@@ -161,11 +165,12 @@ class AcutrolInterpreter:
             (("MODE", "RATE"), False): self._mode_rate,
             (("MODE", "OFF"), False): self._mode_off,
             (("MODE", "POSITION"), False): self._not_simulated,
-            (("MODE", "SYNTHESIS"), False): self._not_simulated,
+            (("MODE", "SYNTHESIS"), False): self._mode_synthesis,
             (("DEMAND", "RATE"), False): self._demand_rate,
             (("DEMAND", "RATE"), True): self._demand_rate_query,
             (("DEMAND", "POSITION"), False): self._demand_position,
             (("DEMAND", "OSCILLATOR"), False): self._demand_oscillator,
+            (("DEMAND", "OSCILLATOR"), True): self._demand_oscillator_query,
             (("READ", "RATE"), True): self._read_rate,
             (("READ", "POSITION"), True): self._read_position,
             (("INTERLOCK",), True): self._interlock_query,
@@ -291,8 +296,16 @@ class AcutrolInterpreter:
 
     def _mode_query(self, command: AclCommand) -> str:
         self._axis(*self._arity(command, 1), command)
-        mode = proto.TableMode.RATE if self.physics.mode == MODE_RATE else proto.TableMode.OFF
-        return mode.value
+        modes = {MODE_RATE: proto.TableMode.RATE, MODE_SYNTHESIS: proto.TableMode.SYNTHESIS}
+        return modes.get(self.physics.mode, proto.TableMode.OFF).value
+
+    def _mode_synthesis(self, command: AclCommand) -> None:
+        """§4.7.6: the sinusoid loaded by :Demand:Oscillator; none loaded is a settings conflict."""
+        self._axis(*self._arity(command, 1), command)
+        magnitude, frequency_hz, phase_deg = self.oscillator
+        if frequency_hz <= 0:
+            raise CommandFailed(ERR_SETTINGS_CONFLICT, "no oscillator loaded")
+        self._refusing(lambda: self.physics.set_mode_synthesis(magnitude, frequency_hz, phase_deg))
 
     def _demand_rate(self, command: AclCommand) -> None:
         axis_text, rate_text = self._arity(command, 2)
@@ -316,6 +329,10 @@ class AcutrolInterpreter:
         if frequency_hz <= 0:
             raise CommandFailed(ERR_BAD_PARAMETER, f"frequency {frequency_hz}")
         self.oscillator = (magnitude, frequency_hz, phase_deg)
+
+    def _demand_oscillator_query(self, command: AclCommand) -> str:
+        self._axis(*self._arity(command, 1), command)
+        return ";".join(f"{value:.6f}" for value in self.oscillator)
 
     def _read_rate(self, command: AclCommand) -> str:
         self._axis(*self._arity(command, 1), command)

@@ -217,3 +217,60 @@ def test_asking_before_the_kept_history_is_an_error_naming_the_time():
         table.set_rate_demand_dps(demand)
     with pytest.raises(ValueError, match="t=0.5"):
         table.rate_dps(0.5)
+
+
+def test_synthesis_turns_the_position_sinusoid_and_its_exact_rate():
+    """TM-8004 §4.3.4: peak position 0.5 deg at 1 Hz, initial phase 90 deg, entered at rest
+    at t = 10 s. By hand: angle = a0 + 0.5 (sin(2π t' + π/2) − 1), rate = −π sin(2π t')."""
+    clock = SimClock()
+    table = running_table(clock)
+    table.set_rate_demand_dps(10.0)          # 0.5 s ramp, then 10 deg/s
+    clock.advance_to(4.0)
+    table.set_rate_demand_dps(0.0)           # back to rest by 4.5 s
+    clock.advance_to(10.0)
+    a0 = 0.5 * 10.0 * 0.5 + 10.0 * 3.5 + 0.5 * 10.0 * 0.5   # 37.5 deg
+    table.set_mode_synthesis(0.5, 1.0, 90.0)
+    assert table.mode == "synthesis"
+    assert table.rate_dps() == pytest.approx(0.0, abs=1e-12)     # cos(90°) = 0 at the start
+    assert table.angle_deg() == pytest.approx(a0)
+    clock.advance_to(10.25)
+    assert table.rate_dps() == pytest.approx(-np.pi)
+    assert table.angle_deg() == pytest.approx(a0 - 0.5)
+    clock.advance_to(10.75)
+    assert table.rate_dps() == pytest.approx(np.pi)
+    assert table.angle_deg() == pytest.approx(a0 - 0.5)
+    # a block of times (the simulated gyro asks this way), across the rest and the sinusoid
+    times = np.array([9.0, 10.0, 10.5, 11.0 + 1.0 / 8.0])
+    np.testing.assert_allclose(table.rate_dps(times),
+                               [0.0, 0.0, 0.0, -np.pi * np.sin(np.pi / 4)], atol=1e-12)
+    assert table.read_rate_dps() == pytest.approx(np.pi)         # readback follows it
+
+
+def test_synthesis_ends_by_decelerating_from_the_sinusoids_rate():
+    clock = SimClock()
+    table = running_table(clock)
+    table.set_mode_synthesis(0.5, 1.0, 0.0)       # rate π cos(2π t): π at the start
+    clock.advance_to(1.0)
+    table.set_mode_off()                          # π deg/s to rest at 20 deg/s²
+    assert table.mode == MODE_OFF
+    assert table.settle_time_s() == pytest.approx(1.0 + np.pi / 20.0)
+    clock.advance_to(2.0)
+    assert table.rate_dps() == 0.0
+
+
+def test_synthesis_is_refused_beyond_the_limits_away_from_rest_or_with_the_interlock_open():
+    clock = SimClock()
+    table = running_table(clock)
+    with pytest.raises(TableLimitError, match="deg/s"):
+        table.set_mode_synthesis(0.5, 1.1, 0.0)   # 0.5 (2π 1.1)² = 23.9 deg/s² > 20
+    with pytest.raises(TableLimitError):
+        table.set_mode_synthesis(0.5, 0.0, 0.0)
+    table.set_rate_demand_dps(5.0)
+    clock.advance_to(1.0)
+    with pytest.raises(TableModeError, match="not at rest"):
+        table.set_mode_synthesis(0.1, 1.0, 0.0)
+    table.open_interlock()
+    clock.advance_to(6.0)
+    with pytest.raises(TableInterlockError):
+        table.set_mode_synthesis(0.1, 1.0, 0.0)
+    assert table.mode == MODE_OFF

@@ -8,6 +8,7 @@ with ``struct``, not with the project's codec, so a mistake shared by the
 driver and the simulator cannot hide.
 """
 
+import math
 import socket
 import struct
 import threading
@@ -150,12 +151,40 @@ def test_an_unknown_header_is_answered_never_silent(client):
     assert client.ok(f":Query:Error? {code}") == "Undefined header"
 
 
-def test_position_and_synthesis_are_refused_as_not_simulated(client):
+def test_position_mode_is_refused_as_not_simulated(client):
     client.ok(":Demand:Position 1,135.223")                      # §4.3.5 p. 112 (stored)
-    client.ok(":DEM:OSC 1,10.0,2.50,90")                         # §4.3.4 p. 111 (stored)
-    for line in (":Mode:Position 1", ":MODE:SYNT 1"):            # §4.7.4, §4.7.6
-        code, _ = client.ask(line)
-        assert client.ok(f":Query:Error? {code}") == "Not simulated"
+    code, _ = client.ask(":Mode:Position 1")                     # §4.7.4 p. 151
+    assert client.ok(f":Query:Error? {code}") == "Not simulated"
+
+
+def test_synthesis_turns_the_loaded_sinusoid_and_the_readback_follows_it(client, clock):
+    """§4.3.4 p. 111 (peak position, Hz, initial phase; query ;-separated as its example),
+    §4.7.6 p. 153 (:MODE:SYNT), §4.7 p. 147 (mode letter S). 2 deg at 0.5 Hz, phase 0:
+    by hand, rate = 2·2π·0.5·cos(π t) = 2π cos(π t), position = 2 sin(π t)."""
+    client.ok(":Interlock:Reset;:INT:CLOS 1")
+    client.ok(":DEM:OSC 1,2.0,0.5,0")
+    assert [float(v) for v in client.ok(":DEM:OSC? 1").split(";")] == [2.0, 0.5, 0.0]
+    client.ok(":MODE:SYNT 1")
+    assert client.ok(":Mode? 1") == "S"
+    clock.advance_to(1.0)                                        # cos π = −1, sin π = 0
+    assert float(client.ok(":Read:Rate? 1")) == pytest.approx(-2 * math.pi, abs=1e-5)
+    position_deg = float(client.ok(":Read:Position? 1"))             # [0, 360): 0 or 359.99…
+    assert min(position_deg, 360.0 - position_deg) == pytest.approx(0.0, abs=1e-5)
+    clock.advance_to(1.5)                                        # cos 1.5π = 0, sin 1.5π = −1
+    assert float(client.ok(":R:R 1")) == pytest.approx(0.0, abs=1e-5)
+    assert float(client.ok(":R:P 1")) == pytest.approx(358.0, abs=1e-5)
+    client.ok(":Mode:Off 1")                                     # §4.7.6: another mode ends it
+    assert client.ok(":Mode? 1") == "O"
+
+
+def test_synthesis_without_an_oscillator_or_beyond_the_limits_is_refused(client):
+    client.ok(":Interlock:Reset;:INT:CLOS 1")
+    code, _ = client.ask(":Mode:Synthesis 1")
+    assert client.ok(f":Query:Error? {code}") == "Settings conflict"
+    client.ok(":DEM:OSC 1,1.0,2.0,0")                            # 1·(4π)² = 158 deg/s² > 50
+    code, _ = client.ask(":Mode:Synthesis 1")
+    assert client.ok(f":Query:Error? {code}") == "Parameter out of range"
+    assert client.ok(":Mode? 1") == "O"
 
 
 def test_an_interlock_refusal_sets_the_status_byte_interlock_bit(client):

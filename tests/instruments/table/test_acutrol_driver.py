@@ -15,6 +15,7 @@ from gyrocal.instruments.errors import (
 from gyrocal.instruments.interfaces import RateTable
 from gyrocal.instruments.retry import RetryPolicy
 from gyrocal.instruments.sim.table_server import SimulatedAcutrol
+from gyrocal.instruments.table import acutrol_protocol as proto
 from gyrocal.instruments.table.acutrol import Acutrol3000Table
 from gyrocal.models.clock import SimClock
 from gyrocal.models.table import MODE_OFF, MODE_RATE, TablePhysics
@@ -297,3 +298,20 @@ def test_close_is_idempotent_and_a_closed_driver_refuses_commands(table):
     table.close()
     with pytest.raises(InstrumentError, match="closed"):
         table.read_rate_dps()
+
+
+def test_synthesis_through_the_driver_turns_the_sinusoid_the_readback_traces(table, clock, physics):
+    """set_oscillator then set_synthesis_mode (TM-8004 §4.3.4, §4.7.6) move the simulated
+    table: 0.1 deg peak at 5 Hz, phase 0 -> rate π cos(10π t) deg/s (peak 0.1·2π·5 = π)."""
+    table.close_interlock()
+    table.set_oscillator(0.1, 5.0, 0.0)
+    table.set_synthesis_mode()
+    assert table.read_mode() is proto.TableMode.SYNTHESIS
+    start_s = clock.now_s()
+    for dt_s in (0.0, 0.025, 0.05, 0.1, 0.13):
+        clock.advance_to(start_s + dt_s)
+        expected = math.pi * math.cos(10.0 * math.pi * dt_s)
+        assert table.read_rate_dps() == pytest.approx(expected, abs=5 * NOISE_DPS)
+    table.stop()
+    clock.advance_to(start_s + 5.0)
+    assert physics.rate_dps() == 0.0
