@@ -108,6 +108,15 @@ class RateTable(Protocol):
     def close(self) -> None: ...
 
 
+@runtime_checkable
+class SynthesisTable(RateTable, Protocol):
+    """A rate table that also turns sinusoids (ACUTROL synthesis mode, TM-8004 §4.7.6):
+    what a frequency-response step needs beyond rate mode."""
+
+    def set_oscillator(self, magnitude: float, frequency_hz: float, phase_deg: float) -> None: ...
+    def set_synthesis_mode(self) -> None: ...
+
+
 @dataclass
 class GyroBlock:
     """Decoded gyro samples: only frames whose CRC checked, in arrival order.

@@ -165,10 +165,31 @@ class GyroSimulator:
         t_last = self.t0_s + (k_target - 1) / self.fs_hz
         count = max(2, int(np.ceil((t_last - t_first) / step_s)) + 1)
         grid = np.linspace(t_first, t_last, count) if t_last > t_first else np.array([t_last])
+        grid = self._fine_tail(grid)
         rate, chamber, angle = inputs_at(grid)
         ideal = indicated_rate(self.model, ModelInputs.of(grid, rate, chamber, angle), self._state)
         self._state = ideal.state
         self._index = k_target
+
+
+    def _fine_tail(self, grid: np.ndarray) -> np.ndarray:
+        """With a rate bandwidth, the skip's last ten time constants on the frame grid.
+
+        The low-pass state at the end of a skip is what the first read frames start
+        from. On the coarse grid a table turning a sinusoid (a frequency-response
+        step's settle) is undersampled and that state is wrong; its decay would sit in
+        the logged data as a transient (0.2-0.4 % of gain at 1-3 Hz for a 2 Hz
+        bandwidth, measured). The filter forgets everything older than a few τ, so
+        only the tail needs the frames' own spacing.
+        """
+        effect = self.model.effect("rate_bandwidth")
+        if effect is None or grid.size < 2:
+            return grid
+        tail_s = 10.0 / (2.0 * np.pi * float(effect["bandwidth_hz"]))
+        t_last = float(grid[-1])
+        start = max(float(grid[0]), t_last - tail_s)
+        fine = t_last - np.arange(int((t_last - start) * self.fs_hz) + 1)[::-1] / self.fs_hz
+        return np.concatenate((grid[grid < fine[0]], fine))
 
 
 def _emit(

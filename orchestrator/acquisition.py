@@ -23,6 +23,7 @@ from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.record.journal import Journal, JournalEvent
 from gyrocal.orchestrator.record.run_folder import SAMPLE_FLAG_GYRO_FLAGGED, RunFolder
+from gyrocal.orchestrator.table_synthesis import Sinusoid
 
 
 @dataclass
@@ -81,12 +82,15 @@ class Acquisition:
         return wall_s + self.policy.read_timeout_margin_s
 
     def record(self, step: PlanStep, attempt: int, rate_dps: float,
-               at_rate_since_wall_s: float | None = None) -> StepResult:
+               at_rate_since_wall_s: float | None = None,
+               reference: Sinusoid | None = None) -> StepResult:
         """Log ``step.duration_s`` of gyro samples with chamber and table context, in chunks.
 
         ``at_rate_since_wall_s``: when the table was confirmed at ``rate_dps``
         (monotonic wall time); on a real clock, frames the gyro's counter shows
         were sampled before it make the attempt implausible (stale data).
+        ``reference``: the sinusoid the table turns (a frequency-response step); it is
+        the logged table rate, and each readback is checked against it at that instant.
         """
         fs = self.inst.sample_rate_hz
         n_total = int(round(step.duration_s * fs))
@@ -109,8 +113,11 @@ class Acquisition:
         angle_start = (t0, 0.0, self._safe_position())
         context_t = [t0]
         context_chamber = [self.poll_chamber()]
-        self._check_table_rate(result, rate_dps, self.inst.table.read_rate_dps())
-        angle_start = (t0, rate_dps, angle_start[2])
+        def demand_now() -> float:
+            return rate_dps if reference is None else float(reference.rate_dps(self.clock.now_s()))
+
+        self._check_table_rate(result, demand_now(), self.inst.table.read_rate_dps())
+        angle_start = (t0, demand_now(), angle_start[2])
         pending: dict[str, list[np.ndarray]] = {"index": [], "gyro": [], "sensor": [], "xyz": [], "raw_status": [],
                    "flagged": []}
         channels: list[SensorChannels] = []     # accelerometers, inclinometers, temperatures
@@ -158,11 +165,11 @@ class Acquisition:
             context_t.append(t0 + (last_index + 1) / fs)
             context_chamber.append(self.poll_chamber())
             reading = self.inst.table.read_rate_dps()
-            self._check_table_rate(result, rate_dps, reading)
+            self._check_table_rate(result, demand_now(), reading)
             self.progress.update(table_dps=reading, elapsed_s=self.elapsed_s())
             if pending_n >= chunk_n or result.samples >= n_total:
                 columns = self._assemble(pending, t0, fs, context_t, context_chamber,
-                                         rate_dps, angle_start)
+                                         rate_dps, angle_start, reference)
                 if channels and sum(c.rows for c in channels) == pending_n:
                     columns.update(concat_channels(channels).columns())
                 angle_start = (float(columns["t_s"][-1]), float(columns["table_rate_dps"][-1]),
@@ -203,8 +210,8 @@ class Acquisition:
     @staticmethod
     def _assemble(pending: dict[str, list[np.ndarray]], t0: float, fs: float,
                   context_t: list[float], context_chamber: list[float],
-                  rate_dps: float, angle_start: tuple[float, float, float]
-                  ) -> dict[str, np.ndarray]:
+                  rate_dps: float, angle_start: tuple[float, float, float],
+                  reference: Sinusoid | None = None) -> dict[str, np.ndarray]:
         """Per-sample columns: chamber temperature interpolated between polls, table rate.
 
         The logged table rate is the demanded rate. In rate mode the table
@@ -219,7 +226,8 @@ class Acquisition:
         index = np.concatenate(pending["index"])
         t_s = t0 + index / fs
         chamber = np.interp(t_s, context_t, context_chamber)
-        rate = np.full(t_s.shape, float(rate_dps))
+        rate = (np.full(t_s.shape, float(rate_dps)) if reference is None
+                else np.asarray(reference.rate_dps(t_s), dtype=float))
         angle = integrate_angle(rate, t_s, angle_start)
         columns = {
             "t_s": t_s,

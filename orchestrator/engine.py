@@ -37,6 +37,11 @@ from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.remount import FixtureOperator, RemountExecutor
 from gyrocal.orchestrator.run_errors import RunFaultError, StepQualityError
 from gyrocal.orchestrator.safe_state import SafeOutcome, SafePolicy, make_safe
+from gyrocal.orchestrator.table_synthesis import (
+    REST_BEFORE_SYNTHESIS_S,
+    Sinusoid,
+    start_sinusoid,
+)
 from gyrocal.orchestrator.unit_power import UnitPowerPolicy, power_on
 from gyrocal.orchestrator.unit_power import check as check_power
 
@@ -131,6 +136,7 @@ class RunEngine:
             StepKind.DRIVE_OFF: self._drive_off_step,
             StepKind.THRESHOLD: self._log_step,
             StepKind.RATE_LIMIT: self._log_step,
+            StepKind.FREQUENCY_RESPONSE: self._frequency_step,
         }
         if operator is not None:
             self._executors[StepKind.REMOUNT] = self._remount_executor().execute
@@ -336,7 +342,37 @@ class RunEngine:
         self.journal.append(JournalEvent.TABLE_DRIVE, step_id=step.step_id, drive="on",
                             interlock_closed=True)
 
-    def _log_step(self, step: PlanStep) -> None:
+    def _frequency_step(self, step: PlanStep) -> None:
+        """A frequency-response step: from rest, the table turns the step's sinusoid
+        (synthesis mode, journaled with its start), ``settle_s`` of whole periods pass, the
+        gyro is logged against the sinusoid, then the table is back in rate mode at rest.
+
+        A fault mid-sinusoid leaves it to the safe state (the driver's stop ends synthesis,
+        TM-8004 §4.7.6); a resumed run starts the step again from rest.
+        """
+        table = self.inst.table
+        if step.freq_hz is None or step.amplitude_dps is None:
+            raise RunFaultError(f"plan step {step.step_id}: no sinusoid in the plan")
+        self.conditions.set_table_rate(0.0, step.accel_dps2)
+        self.clock.sleep(REST_BEFORE_SYNTHESIS_S)
+        self.machine.spin()
+        sine = start_sinusoid(table, self.clock.now_s, step.amplitude_dps, step.freq_hz)
+        self.conditions.forget_demand()
+        self.journal.append(JournalEvent.TABLE_SYNTHESIS, step_id=step.step_id,
+                            amplitude_dps=sine.amplitude_dps, freq_hz=sine.freq_hz,
+                            displacement_deg=round(sine.displacement_deg, 9),
+                            start_s=round(sine.start_s - self._t_run_start, 6))
+        if step.settle_s > REST_BEFORE_SYNTHESIS_S:
+            self.machine.settle()
+            self.clock.sleep(step.settle_s - REST_BEFORE_SYNTHESIS_S)
+        self.machine.settled()
+        self._log_step(step, reference=sine)
+        table.set_rate_mode()
+        table.set_rate_dps(0.0)
+        self.conditions.forget_demand()
+        self.conditions.set_table_rate(0.0, step.accel_dps2)
+
+    def _log_step(self, step: PlanStep, reference: Sinusoid | None = None) -> None:
         """Log a step; a bad attempt (frame loss, a gyro read that failed) is repeated.
 
         A gyro read that times out or loses its port leaves a hole in the
@@ -347,19 +383,21 @@ class RunEngine:
         """
         rate_dps = step.rate_dps
         settle_s = step.settle_s
-        # Attempt numbers continue after those of an interrupted session: its chunks are
+        # ``reference``: the table turns this sinusoid (synthesis mode), logged as the rate        # Attempt numbers continue after those of an interrupted session: its chunks are
         # journaled with their hashes and must never be overwritten by a new attempt.
         first = self._attempts_before.get(step.step_id, 0) + 1
         attempts = first + self.policy.max_repeats
         for attempt in range(first, attempts + 1):
             self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind=step.kind,
                                 rate_dps=rate_dps, attempt=attempt)
-            self.conditions.set_table_rate(rate_dps, step.accel_dps2, settle_s,
-                                           exact=step.kind == StepKind.THRESHOLD)
+            if reference is None:
+                self.conditions.set_table_rate(rate_dps, step.accel_dps2, settle_s,
+                                               exact=step.kind == StepKind.THRESHOLD)
             self.machine.log()
             try:
                 result = self.acquisition.record(step, attempt, rate_dps,
-                                                 self.conditions.at_rate_since_wall_s())
+                                                 self.conditions.at_rate_since_wall_s(),
+                                                 reference=reference)
             except InstrumentError as exc:
                 if not (exc.transient and exc.instrument == self._gyro_name()) or attempt == attempts:
                     raise

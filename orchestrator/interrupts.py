@@ -26,7 +26,14 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any, Generic, TypeVar
 
-from gyrocal.instruments.interfaces import Chamber, ChamberStatus, Identity, RateTable, TableStatus
+from gyrocal.instruments.interfaces import (
+    Chamber,
+    ChamberStatus,
+    Identity,
+    RateTable,
+    SynthesisTable,
+    TableStatus,
+)
 
 InstrumentT = TypeVar("InstrumentT", Chamber, RateTable)
 
@@ -225,3 +232,16 @@ class GatedTable(_Gated[RateTable]):
     def stop(self) -> None:
         with self._gate.held():
             self.inner.stop()
+
+    def set_oscillator(self, magnitude: float, frequency_hz: float, phase_deg: float) -> None:
+        with self._gate.held():
+            self._synthesis_table().set_oscillator(magnitude, frequency_hz, phase_deg)
+
+    def set_synthesis_mode(self) -> None:
+        with self._gate.held():
+            self._synthesis_table().set_synthesis_mode()
+
+    def _synthesis_table(self) -> SynthesisTable:
+        if not isinstance(self.inner, SynthesisTable):
+            raise TypeError(f"{type(self.inner).__name__} has no synthesis mode")
+        return self.inner

@@ -514,6 +514,37 @@ TEST_RATE_LIMIT = Section(
             False, "defaults.accel_dps2"),
     ))
 
+TEST_FREQUENCY_RESPONSE = Section(
+    "test-frequency_response", "test kind: frequency_response",
+    "Frequency response (IEEE Std 952 / 1431): from rest, the table turns a sinusoid in "
+    "synthesis mode (ACUTROL TM-8004 §4.3.4 `:Demand:Oscillator` with the peak displacement "
+    "`amplitude_dps`/(2πf), then `:Mode:Synthesis`, §4.7.6; journal `table_synthesis`) at "
+    "each frequency in turn; `settle_cycles` periods pass, `cycles` periods (at least "
+    "`min_duration`) are logged with the sinusoid as the table rate, then the table returns "
+    "to rate mode at rest. Sines fitted at the known frequency to the output and to that "
+    "rate give the gain (over the nominal scale factor) and the phase, each with its type A "
+    "u; the phase adds a rectangular one-sample timing term (360°·f/fs). The −3 dB "
+    "bandwidth is the first crossing between the linear and logarithmic interpolations of "
+    "the gains (their spread a rectangular term), U = 2u. Every frequency needs at least "
+    f"{proc.MIN_SAMPLES_PER_PERIOD} samples a period, and the sinusoid's peak acceleration "
+    "(2πf × amplitude) must be within the procedure's and the station's table limits. "
+    "Results: `frequency_response.bandwidth_hz`, `frequency_response.phase_deg` (at "
+    "`phase_at_hz`).",
+    (
+        *_COMMON_TEST_KEYS,
+        Key("frequencies_hz", ListOf(_q(FREQUENCY, above=0.0)), "the sweep, increasing; at "
+            "least two"),
+        Key("amplitude_dps", _q(RATE, above=0.0), "peak rate of the sinusoid, within the "
+            "table's rate limit"),
+        Key("phase_at_hz", _q(FREQUENCY, above=0.0), "the frequency the phase is stated at, "
+            "inside the sweep (interpolated linearly between its neighbours)"),
+        Key("cycles", _int(1, 100000), "whole periods logged at each frequency", False,
+            str(proc.DEFAULT_FR_CYCLES)),
+        Key("settle_cycles", _int(0, 100000), "periods turned before logging (the unit's "
+            "transient)", False, str(proc.DEFAULT_FR_SETTLE_CYCLES)),
+        Key("min_duration", _duration(), "the least logged time at a frequency", False, "1 s"),
+    ))
+
 TEMPERATURE_STEP = Section(
     "sequence", "sequence[] (a temperature step)",
     "One chamber setpoint: ramp to it, soak until stable, then run its tests in order.",
@@ -528,7 +559,9 @@ TEMPERATURE_STEP = Section(
                                               ("allan", TEST_ALLAN),
                                               ("table_interference", TEST_INTERFERENCE),
                                               ("threshold", TEST_THRESHOLD),
-                                              ("rate_limit", TEST_RATE_LIMIT))), min_items=0),
+                                              ("rate_limit", TEST_RATE_LIMIT),
+                                              ("frequency_response", TEST_FREQUENCY_RESPONSE))),
+                            min_items=0),
             "what is measured at this temperature, in order (an empty list just soaks)", False),
     ))
 

@@ -23,6 +23,7 @@ class Metric:
 
 _SWEEP, _SWEEP_TEMPS, _BIAS_TEMPS, _ALLAN = "sweep", "sweep_temps", "bias_temps", "allan"
 _THRESHOLD = "threshold"
+_FREQUENCY = "frequency_response"
 _LIMIT_POS, _LIMIT_NEG = "rate_limit_positive", "rate_limit_negative"
 
 METRICS: dict[str, Metric] = {
@@ -43,6 +44,8 @@ METRICS: dict[str, Metric] = {
         Metric("threshold.resolution_dps", "deg/s", _THRESHOLD),
         Metric("rate_limits.max_positive_dps", "deg/s", _LIMIT_POS),
         Metric("rate_limits.max_negative_dps", "deg/s", _LIMIT_NEG),
+        Metric("frequency_response.bandwidth_hz", "Hz", _FREQUENCY),
+        Metric("frequency_response.phase_deg", "deg", _FREQUENCY),
     )
 }
 
@@ -54,6 +57,7 @@ NEEDS_TEXT = {
     _THRESHOLD: "a threshold test",
     _LIMIT_POS: "a rate_limit test walking the positive direction",
     _LIMIT_NEG: "a rate_limit test walking the negative direction",
+    _FREQUENCY: "a frequency_response test",
 }
 
 

@@ -20,6 +20,7 @@ from gyrocal.errors import BadInput
 from gyrocal.instruments.table.acutrol_protocol import commanded_rate_dps
 from gyrocal.orchestrator.procedure import (
     AllanTest,
+    FrequencyResponseTest,
     MountingSpec,
     Procedure,
     RateLimitTest,
@@ -30,6 +31,7 @@ from gyrocal.orchestrator.procedure import (
     ThresholdTest,
 )
 from gyrocal.orchestrator.record.step_kind import StepKind
+from gyrocal.orchestrator.table_synthesis import REST_BEFORE_SYNTHESIS_S
 from gyrocal.orchestrator.units import format_duration, format_hms, format_number
 
 ASSUMED_START_TEMP_C = 25.0   # chamber temperature at the start when the station does not say
@@ -73,6 +75,11 @@ class PlanStep:
     # rate-limit steps: the linearity criterion and how many lowest rates make the fit
     linearity_tolerance_pct: float | None = None
     fit_rates: int | None = None
+    # frequency-response steps: the sinusoid the table turns (peak rate, frequency) and the
+    # frequency the report states the phase at
+    freq_hz: float | None = None
+    amplitude_dps: float | None = None
+    phase_at_hz: float | None = None
 
 
 @dataclass(frozen=True)
@@ -108,7 +115,8 @@ def _rate_tag(rate_dps: float) -> str:
 def _test_tags(step: TemperatureStep) -> list[str]:
     """``sf``, ``static``, ``allan``; numbered (``sf1``, ``sf2``) when a kind repeats in a step."""
     base = {"sf_sweep": "sf", "static": "static", "allan": "allan",
-            "table_interference": "interference", "threshold": "thr", "rate_limit": "lim"}
+            "table_interference": "interference", "threshold": "thr", "rate_limit": "lim",
+            "frequency_response": "freq"}
     kinds = [base[test.kind] for test in step.tests]
     seen: dict[str, int] = {}
     tags = []
@@ -225,6 +233,9 @@ class _Expander:
                 if isinstance(test, RateLimitTest):
                     self.rate_limit(prefix, tag, suffix, test, base)
                     continue
+                if isinstance(test, FrequencyResponseTest):
+                    self.frequency_response(prefix, tag, suffix, test, base)
+                    continue
                 self.sweep(prefix, tag, suffix, test, base)
 
     def remount(self, step_id: str, spec: MountingSpec, index: int, step: TemperatureStep) -> None:
@@ -281,6 +292,17 @@ class _Expander:
                 self.add(step_id=f"{prefix}.{tag}.{_rate_tag(rate)}{suffix}",
                          kind=StepKind.RATE_LIMIT, rate_dps=rate,
                          direction="+" if sign > 0 else "-", **common)
+
+    def frequency_response(self, prefix: str, tag: str, suffix: str,
+                           test: FrequencyResponseTest, base: dict) -> None:
+        """One step per frequency, centred at rest: ``T01.freq.2Hz`` … (settle: the rest
+        before synthesis, then whole periods)."""
+        for freq in test.frequencies_hz:
+            self.add(step_id=f"{prefix}.{tag}.{freq:g}Hz{suffix}",
+                     kind=StepKind.FREQUENCY_RESPONSE, rate_dps=0.0, direction="",
+                     settle_s=REST_BEFORE_SYNTHESIS_S + test.settle_s(freq), duration_s=test.duration_s(freq),
+                     freq_hz=freq, amplitude_dps=test.amplitude_dps,
+                     phase_at_hz=test.phase_at_hz, **base)
 
     def finish(self) -> float:
         """Stop the table, then bring the chamber to its safe setpoint (if it has one)."""

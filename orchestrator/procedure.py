@@ -54,7 +54,15 @@ PROCEDURE_VERSION = 1
 OUTPUT_UNITS = ("deg/s", "deg/h", "rad/s", "V", "LSB")
 DIRECTIONS = ("both", "positive", "negative")
 SPACINGS = ("linear", "log")
-TEST_KINDS = ("static", "sf_sweep", "allan", "table_interference", "threshold", "rate_limit")
+TEST_KINDS = ("static", "sf_sweep", "allan", "table_interference", "threshold", "rate_limit",
+              "frequency_response")
+#: Frequency-response defaults: whole sinusoid periods logged per frequency (at least
+#: ``min_duration``), and periods turned before logging so the unit's transient has gone.
+DEFAULT_FR_CYCLES = 10
+DEFAULT_FR_SETTLE_CYCLES = 3
+#: A sinusoid needs this many samples per period for its amplitude and phase (and the
+#: simulator's first-order hold of the table rate) to be meaningful.
+MIN_SAMPLES_PER_PERIOD = 10
 #: Input-rate limit defaults: a rate leaves the linear fit when its output is more than this
 #: many % of the fitted output away from it; the fit uses this many of the lowest rates.
 DEFAULT_LINEARITY_TOLERANCE_PCT = 1.0
@@ -239,8 +247,36 @@ class RateLimitTest:
     kind: str = "rate_limit"
 
 
+@dataclass(frozen=True)
+class FrequencyResponseTest:
+    """Frequency response (IEEE Std 952 / 1431): the table in synthesis mode (TM-8004
+    §4.7.6), a sinusoid of rate amplitude ``amplitude_dps`` at each frequency in turn.
+
+    Each frequency turns ``settle_cycles`` periods, then logs ``cycles`` periods (at least
+    ``min_duration_s``); the report fits sines to the gyro output and the table rate
+    (reports/frequency_response.py) for gain and phase, the −3 dB bandwidth and the phase
+    at ``phase_at_hz``.
+    """
+
+    frequencies_hz: tuple[float, ...]   # increasing
+    amplitude_dps: float                # peak rate of the sinusoid
+    cycles: int
+    settle_cycles: int
+    min_duration_s: float
+    phase_at_hz: float
+    repeats: int
+    label: str | None
+    kind: str = "frequency_response"
+
+    def duration_s(self, freq_hz: float) -> float:
+        return max(self.min_duration_s, self.cycles / freq_hz)
+
+    def settle_s(self, freq_hz: float) -> float:
+        return self.settle_cycles / freq_hz
+
+
 Test = (StaticTest | AllanTest | SweepTest | TableInterferenceTest | ThresholdTest
-        | RateLimitTest)
+        | RateLimitTest | FrequencyResponseTest)
 
 
 @dataclass(frozen=True)
@@ -755,6 +791,8 @@ class _Parser:
             return self.threshold_test(fields, defaults, repeats, label)
         if kind == "rate_limit":
             return self.rate_limit_test(fields, defaults, repeats, label)
+        if kind == "frequency_response":
+            return self.frequency_response_test(fields, defaults, repeats, label)
         if kind != "sf_sweep":
             # after a sweep the table needs settling before a static hold too, but a
             # procedure that never spins may leave settle out altogether
@@ -797,6 +835,70 @@ class _Parser:
         fields.finish()
         return ThresholdTest(bases, increments, dwell, settle, accel, confidence, fraction,
                              repeats, label)
+
+    def frequency_response_test(self, fields: Fields, defaults: Defaults, repeats: int,
+                                label: str | None) -> FrequencyResponseTest:
+        """Frequencies increasing, below the sample rate's limit; the sinusoid's peak rate
+        and peak acceleration (2πf × amplitude) within the table's limits."""
+        amplitude = fields.take("amplitude_dps", quantity(RATE, above=0.0))
+        self.check_rate(fields.child("amplitude_dps"), amplitude)
+        cycles = fields.take("cycles", integer(1, 100000), required=False, default=DEFAULT_FR_CYCLES)
+        settle_cycles = fields.take("settle_cycles", integer(0, 100000), required=False,
+                                    default=DEFAULT_FR_SETTLE_CYCLES)
+        min_duration = fields.take("min_duration", _duration(), required=False, default=1.0)
+        frequencies = self.frequency_list(fields, defaults.sample_rate_hz)
+        phase_at = fields.take("phase_at_hz", quantity(FREQUENCY, above=0.0))
+        fields.finish()
+        if frequencies and phase_at is not None and not (
+                frequencies[0] <= phase_at <= frequencies[-1]):
+            self.ctx.report(fields.child("phase_at_hz"), f"{format_number(phase_at)} Hz is outside "
+                            f"the swept {format_number(frequencies[0])}..{format_number(frequencies[-1])}"
+                            " Hz; the phase is interpolated, never extrapolated")
+        if amplitude is not None:
+            for index, freq in enumerate(frequencies):
+                peak_accel = 2.0 * math.pi * freq * amplitude
+                before = len(self.ctx.problems)
+                self.check_bounds((*fields.child("frequencies_hz"), index), peak_accel, "deg/s² "
+                                  f"(peak acceleration 2π·{format_number(freq)} Hz × "
+                                  f"{format_number(amplitude)} deg/s)",
+                                  highs=self._limits("table.max_accel_dps2",
+                                                     "table.limits.max_accel_dps2"))
+                if len(self.ctx.problems) > before:
+                    break
+        return FrequencyResponseTest(frequencies, amplitude or 0.0, cycles or DEFAULT_FR_CYCLES,
+                                     DEFAULT_FR_SETTLE_CYCLES if settle_cycles is None else settle_cycles,
+                                     min_duration or 1.0, phase_at or 0.0, repeats, label)
+
+    def frequency_list(self, fields: Fields, sample_rate_hz: float) -> tuple[float, ...]:
+        key = "frequencies_hz"
+        present, raw = fields.raw(key)
+        if not present:
+            if fields.valid:
+                self.ctx.report(fields.child(key), "required key is missing")
+            return ()
+        convert = quantity(FREQUENCY, above=0.0)
+        freqs: list[float] = []
+        for index, item in enumerate(_list(self.ctx, fields.child(key), raw, key)):
+            item_path = (*fields.child(key), index)
+            try:
+                freq = convert(item)
+            except UnitError as error:
+                self.ctx.report(item_path, str(error))
+                return ()
+            if freqs and freq <= freqs[-1]:
+                self.ctx.report(item_path, f"{format_number(freq)} Hz is not above the frequency "
+                                f"before it ({format_number(freqs[-1])} Hz); the sweep goes up")
+                return ()
+            if sample_rate_hz and freq * MIN_SAMPLES_PER_PERIOD > sample_rate_hz:
+                self.ctx.report(item_path, f"{format_number(freq)} Hz has fewer than "
+                                f"{MIN_SAMPLES_PER_PERIOD} samples a period at "
+                                f"{format_number(sample_rate_hz)} Hz sampling")
+                return ()
+            freqs.append(freq)
+        if len(freqs) < 2:
+            self.ctx.report(fields.child(key), "a sweep needs at least two frequencies")
+            return ()
+        return tuple(freqs)
 
     def rate_limit_test(self, fields: Fields, defaults: Defaults, repeats: int,
                         label: str | None) -> RateLimitTest:
@@ -1023,6 +1125,8 @@ def _what_is_measured(sequence: tuple[TemperatureStep, ...]) -> set[str]:
                 sweep_temps.add(step.setpoint_c)
             elif isinstance(test, ThresholdTest):
                 measured.add("threshold")
+            elif isinstance(test, FrequencyResponseTest):
+                measured.add("frequency_response")
             elif isinstance(test, RateLimitTest):
                 ways = ("positive", "negative") if test.directions == "both" else (test.directions,)
                 measured.update(f"rate_limit_{way}" for way in ways)

@@ -53,7 +53,7 @@ from gyrocal.orchestrator.record.strays import set_aside
 from gyrocal.orchestrator.signing import Signer
 from gyrocal.reports import bias as bias_mod
 from gyrocal.reports import compensation as comp
-from gyrocal.reports import rate_limits
+from gyrocal.reports import frequency_section, rate_limits
 from gyrocal.reports.allan_summary import (
     allan_curve,
     curve_json,
@@ -127,14 +127,15 @@ def _read_plan(folder: RunFolder) -> dict[str, Any]:
         raise RunFolderError(f"{path}: not valid JSON: {exc}") from None
 
 
-def _read_columns(folder: RunFolder, chunks: list[str]) -> dict[str, np.ndarray]:
+def _read_columns(folder: RunFolder, chunks: list[str],
+                  names_read: tuple[str, ...] = tuple(_READ_COLUMNS)) -> dict[str, np.ndarray]:
     """The analysed columns of a step's chunks, good samples only.
 
     A chunk's ``status`` column (0 = good) marks the samples the gyro itself
     flagged as saturated or in error; they are bad data, never averaged in.
     Chunks written before the column existed have every sample good.
     """
-    names = list(_READ_COLUMNS)
+    names = list(names_read)
     schemas = [pq.read_schema(folder.path / rel).names for rel in chunks]
     if all("status" in schema for schema in schemas):
         names.append("status")
@@ -455,17 +456,21 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
                                                    nominal_sf, notes),
         "threshold": _threshold(data, nominal_sf, notes),
         "rate_limits": _rate_limits(data, notes),
+        "frequency_response": _frequency_response(data, nominal_sf, notes),
         "earth_rate_removed_dph": earth_dph,
         "reference_temp_c": REFERENCE_TEMP_C,
         **_provenance(data, notes),
         "definitions": DEFINITIONS,
     }
     add_uncertainties(results, [_mean_u(s) for s in data.steps
-                                if s.step.kind not in (StepKind.THRESHOLD, StepKind.RATE_LIMIT)],
+                                if s.step.kind not in (StepKind.THRESHOLD, StepKind.RATE_LIMIT,
+                                                       StepKind.FREQUENCY_RESPONSE)],
                       data.plan,
                       REFERENCE_TEMP_C, notes)
     results.setdefault("uncertainty", {}).update(headline_uncertainty(results["threshold"]))
     results["uncertainty"].update(rate_limits.headline_uncertainty(results["rate_limits"]))
+    results["uncertainty"].update(
+        frequency_section.headline_uncertainty(results["frequency_response"]))
     results["acceptance"] = evaluate_acceptance(results, data.plan.get("acceptance") or [], notes,
                                                 measured=measured_needs(data))
     sf_tolerance = (data.plan.get("sanity") or {}).get("sf_tolerance_pct")
@@ -502,6 +507,8 @@ def measured_needs(data: RunData) -> frozenset[str]:
         needs.add("allan")
     if _all_done(data, StepKind.THRESHOLD):
         needs.add("threshold")
+    if _all_done(data, StepKind.FREQUENCY_RESPONSE):
+        needs.add("frequency_response")
     for sign, way in ((1.0, "positive"), (-1.0, "negative")):
         if _all_done(data, StepKind.RATE_LIMIT, sign):
             needs.add(f"rate_limit_{way}")
@@ -530,6 +537,26 @@ def _threshold(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, 
     return threshold_section(dwells, nominal_sf, notes)
 
 
+def _frequency_response(data: RunData, nominal_sf: float, notes: list[str]
+                        ) -> dict[str, Any] | None:
+    """Gain, phase, −3 dB bandwidth from the frequency steps' samples (reports/frequency_section.py)."""
+    done = completed_attempts(data.events)
+    order = {s.step_id: i for i, s in enumerate(data.record.steps)}
+    dwells = []
+    for s in sorted(data.steps, key=lambda s: order[s.step.step_id]):
+        step = s.step
+        if step.kind != StepKind.FREQUENCY_RESPONSE or step.freq_hz is None:
+            continue
+        columns = _read_columns(data.folder, done[step.step_id]["chunks"],
+                                ("t_s", "gyro", "table_rate_dps"))
+        dwells.append(frequency_section.FrequencyDwell(
+            step.step_id, step.setpoint_c, float(step.freq_hz), float(step.amplitude_dps or 0.0),
+            float(step.phase_at_hz or step.freq_hz), columns["t_s"], columns["gyro"],
+            columns["table_rate_dps"]))
+    return frequency_section.frequency_section(dwells, nominal_sf, data.record.sample_rate_hz,
+                                               notes)
+
+
 def _rate_limits(data: RunData, notes: list[str]) -> dict[str, Any] | None:
     """Maximum input rate each way from the rate-limit walk (reports/rate_limits.py)."""
     dwells = [rate_limits.LimitDwell(s.step.step_id, s.step.setpoint_c, s.step.rate_dps,
@@ -554,6 +581,10 @@ DEFINITIONS = {
     "threshold": "threshold_dps: smallest increment at zero rate resolved at the stated "
                  "confidence and within the stated fraction, every larger one too (worst over "
                  "temperatures); resolution_dps: the same at the non-zero bases (worst)",
+    "frequency_response": "bandwidth_hz: first −3 dB crossing of the gain (output amplitude over "
+                          "nominal SF × table rate amplitude), smallest over temperatures; "
+                          "phase_deg: output against table rate at the stated frequency (first "
+                          "temperature)",
     "rate_limits": "max_positive_dps / max_negative_dps: the largest walked rate that, with every "
                    "smaller one, stays within the stated % of the linear fit (smallest over "
                    "temperatures)",

@@ -63,7 +63,12 @@ _SINGLE = (("Scale factor, LS line at the reference temperature", "scale_factor_
            ("Maximum input rate, positive, IEEE Std 952 / 1431 (U from the rate walk)",
             "rate_limits.max_positive_dps", "deg/s"),
            ("Maximum input rate, negative, IEEE Std 952 / 1431 (U from the rate walk)",
-            "rate_limits.max_negative_dps", "deg/s"))
+            "rate_limits.max_negative_dps", "deg/s"),
+           ("Bandwidth (−3 dB), IEEE Std 952 / 1431 frequency response test (table in "
+            "synthesis mode; U from the sine fits and the interpolation)",
+            "frequency_response.bandwidth_hz", "Hz"),
+           ("Phase at the stated frequency, IEEE Std 952 / 1431 frequency response test "
+            "(U from the sine fits and the sample timing)", "frequency_response.phase_deg", "deg"))
 
 
 def result_rows(results: dict[str, Any]) -> list[list[str]]:

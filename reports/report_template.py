@@ -108,6 +108,15 @@ Positive: {{ vu(r.rate_limits.max_positive_dps, un["rate_limits.max_positive_dps
 {% endfor %}</table>
 {% endif %}
 
+{% if r.frequency_response %}
+<h2>Frequency response (IEEE Std 952 / IEEE Std 1431)</h2>
+<p>The table turned a sinusoid in synthesis mode at each frequency; sines fitted to the gyro output and to the table rate give the gain (over the nominal scale factor) and the phase. The −3 dB bandwidth is the first crossing, between the linear and logarithmic interpolations, with the fits' type A and a rectangular interpolation term; the phase's u adds a one-sample timing term (k = {{ fmt(r.frequency_response.k) }}).
+Bandwidth: {{ vu(r.frequency_response.bandwidth_hz, un["frequency_response.bandwidth_hz"] and un["frequency_response.bandwidth_hz"].U) }} Hz; phase at {{ fmt(r.frequency_response.tests[0].phase_at_hz) }} Hz: {{ vu(r.frequency_response.phase_deg, un["frequency_response.phase_deg"] and un["frequency_response.phase_deg"].U) }}°.</p>
+<table><tr><th>°C</th><th>Hz</th><th>Gain (dB) ± u</th><th>Phase (°) ± u</th></tr>
+{% for t in r.frequency_response.tests %}{% for p in t.points %}<tr><td>{{ fmt(t.temp_c) }}</td><td>{{ fmt(p.freq_hz) }}</td><td>{{ fmt(p.gain_db, 4) }} ± {{ fmt(p.u_gain_db, 2) }}</td><td>{{ fmt(p.phase_deg, 4) }} ± {{ fmt(p.u_phase_deg, 2) }}</td></tr>
+{% endfor %}{% endfor %}</table>
+{% endif %}
+
 <h2>Compensation tables</h2>
 {% for what, t in r.compensation.tables.items() %}
 {% set label, cunit = compensation[what] if what in compensation else (what, "") %}

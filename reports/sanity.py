@@ -84,7 +84,27 @@ def check_physics(results: dict[str, Any], sf_tolerance_pct: float | None = None
                               "every bias is a finite number" if not bad_bias else "; ".join(bad_bias)))
     if results.get("rate_limits"):
         checks.append(_rate_walk_line(results["rate_limits"], nominal, tolerance))
+    if results.get("frequency_response"):
+        checks.append(_low_frequency_follows(results["frequency_response"], tolerance))
     return checks
+
+
+def _low_frequency_follows(section: dict[str, Any], tolerance: float) -> SanityCheck:
+    """At the lowest frequency swept the output must follow the table: a gain far from 1 or a
+    phase beyond ±90° (a swapped axis, a wrong SF, a table that did not move) makes the
+    bandwidth meaningless."""
+    bad = []
+    for t in section.get("tests") or []:
+        low = (t.get("points") or [None])[0]
+        if low is None:
+            continue
+        gain, phase = low.get("gain"), low.get("phase_deg")
+        if not (_finite(gain) and _finite(phase)) or abs(phase) >= 90.0 or \
+                abs(gain - 1.0) * 100 > max(tolerance, 30.0):
+            bad.append(f"{t.get('temp_c')} °C at {low.get('freq_hz')} Hz: gain {gain!r}, "
+                       f"phase {phase!r}°")
+    return SanityCheck("frequency response follows the table at its lowest frequency", not bad,
+                       "gain near 1 and phase within ±90°" if not bad else "; ".join(bad))
 
 
 def _rate_walk_line(section: dict[str, Any], nominal: float, tolerance: float) -> SanityCheck:

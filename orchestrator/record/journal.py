@@ -56,6 +56,8 @@ class JournalEvent(str, Enum):
     MOUNT_RECHECK = "mount_recheck"
     #: the table's drive switched off (interlock opened) or back on for a table_interference step
     TABLE_DRIVE = "table_drive"
+    #: the table entered synthesis mode (a frequency_response step): the sinusoid and its start
+    TABLE_SYNTHESIS = "table_synthesis"
     FAULT_INJECTED = "fault_injected"
     FAULT = "fault"
     INTERRUPTED = "interrupted"

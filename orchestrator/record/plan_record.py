@@ -104,6 +104,9 @@ class RecordedStep:
     max_error_fraction: float | None = None
     linearity_tolerance_pct: float | None = None   # rate-limit steps
     fit_rates: int | None = None
+    freq_hz: float | None = None                   # frequency-response steps
+    amplitude_dps: float | None = None
+    phase_at_hz: float | None = None
 
     @classmethod
     def of(cls, raw: dict[str, Any]) -> RecordedStep:
@@ -112,7 +115,8 @@ class RecordedStep:
                    float(raw.get("duration_s") or 0.0), raw.get("revolutions"),
                    raw.get("mounting"), raw.get("label"), raw.get("base_rate_dps"),
                    raw.get("confidence"), raw.get("max_error_fraction"),
-                   raw.get("linearity_tolerance_pct"), raw.get("fit_rates"))
+                   raw.get("linearity_tolerance_pct"), raw.get("fit_rates"),
+                   raw.get("freq_hz"), raw.get("amplitude_dps"), raw.get("phase_at_hz"))
 
 
 @dataclass(frozen=True)

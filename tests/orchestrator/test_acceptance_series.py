@@ -14,6 +14,8 @@ pytestmark = pytest.mark.timeout(300)
 REPO = Path(__file__).resolve().parents[2]
 DEAD_ZONE_DPS = 0.025     # typed from gyro-models/series-fog.yaml, not read from it
 SATURATION_DPS = {"positive": 320.0, "negative": 270.0}
+BANDWIDTH_HZ = 1.0        # rate_bandwidth, typed
+PHASE_AT_HALF_HZ_DEG = -26.565051177   # −atan(0.5 / 1.0) in degrees, worked by hand
 
 
 def test_the_acceptance_series_recovers_each_truth(tmp_path, capsys):
@@ -34,9 +36,25 @@ def test_the_acceptance_series_recovers_each_truth(tmp_path, capsys):
         assert walk["next_dps"] - walk["max_dps"] == 50.0
     assert (results["rate_limits"]["max_positive_dps"],
             results["rate_limits"]["max_negative_dps"]) == (300.0, 250.0)
-    assert [a["decision"] for a in results["acceptance"]] == ["PASS"] * 5
+    response = results["frequency_response"]
+    test = response["tests"][0]
+    assert test["standard_test"] == "frequency response (IEEE Std 952 / 1431)"
+    assert abs(response["bandwidth_hz"] - BANDWIDTH_HZ) <= test["U_bandwidth_hz"]
+    assert 0 < test["U_bandwidth_hz"] < 0.01
+    assert abs(response["phase_deg"] - PHASE_AT_HALF_HZ_DEG) <= test["U_phase_deg"]
+    one_hz = next(p for p in test["points"] if p["freq_hz"] == 1.0)
+    assert one_hz["gain_db"] == pytest.approx(-3.0103, abs=0.01)     # 1/√2 at the corner
+    assert results["uncertainty"]["frequency_response.bandwidth_hz"]["U"] == \
+        test["U_bandwidth_hz"]
+    assert [a["decision"] for a in results["acceptance"]] == ["PASS"] * 7
     html = (out / "report" / "report.html").read_text()
     assert "<h2>Threshold and resolution (IEEE Std 952 / IEEE Std 1431)</h2>" in html
     assert "0.03 (in (0.02, 0.03])" in html
     assert "<h2>Input rate limits (IEEE Std 952 / IEEE Std 1431)</h2>" in html
     assert "300 (limit in [300, 350))" in html
+    assert "<h2>Frequency response (IEEE Std 952 / IEEE Std 1431)</h2>" in html
+    synthesis = [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()
+                 if '"table_synthesis"' in line]
+    assert [e["freq_hz"] for e in synthesis] == [0.25, 0.5, 0.75, 0.9, 1.0, 1.1, 1.25, 1.5, 2.0]
+    # TM-8004 §4.3.4: the oscillator takes the peak displacement, 1 deg/s / (2π · 0.25 Hz)
+    assert synthesis[0]["displacement_deg"] == pytest.approx(0.636619772, abs=1e-9)
