@@ -841,7 +841,10 @@ class _Parser:
         """Frequencies increasing, below the sample rate's limit; the sinusoid's peak rate
         and peak acceleration (2πf × amplitude) within the table's limits."""
         amplitude = fields.take("amplitude_dps", quantity(RATE, above=0.0))
+        before = len(self.ctx.problems)
         self.check_rate(fields.child("amplitude_dps"), amplitude)
+        if len(self.ctx.problems) > before:
+            amplitude = None      # refused: its accelerations would only repeat the problem
         cycles = fields.take("cycles", integer(1, 100000), required=False, default=DEFAULT_FR_CYCLES)
         settle_cycles = fields.take("settle_cycles", integer(0, 100000), required=False,
                                     default=DEFAULT_FR_SETTLE_CYCLES)
@@ -855,19 +858,27 @@ class _Parser:
                             f"the swept {format_number(frequencies[0])}..{format_number(frequencies[-1])}"
                             " Hz; the phase is interpolated, never extrapolated")
         if amplitude is not None:
-            for index, freq in enumerate(frequencies):
-                peak_accel = 2.0 * math.pi * freq * amplitude
-                before = len(self.ctx.problems)
-                self.check_bounds((*fields.child("frequencies_hz"), index), peak_accel, "deg/s² "
-                                  f"(peak acceleration 2π·{format_number(freq)} Hz × "
-                                  f"{format_number(amplitude)} deg/s)",
-                                  highs=self._limits("table.max_accel_dps2",
-                                                     "table.limits.max_accel_dps2"))
-                if len(self.ctx.problems) > before:
-                    break
+            self.check_peak_accel(fields.child("frequencies_hz"), frequencies, amplitude)
         return FrequencyResponseTest(frequencies, amplitude or 0.0, cycles or DEFAULT_FR_CYCLES,
                                      DEFAULT_FR_SETTLE_CYCLES if settle_cycles is None else settle_cycles,
                                      min_duration or 1.0, phase_at or 0.0, repeats, label)
+
+    def check_peak_accel(self, path: KeyPath, frequencies: tuple[float, ...],
+                         amplitude_dps: float) -> None:
+        """The sinusoid's peak acceleration 2πf·A within the table limits (the first too high)."""
+        limits = [lim for lim in self._limits("table.max_accel_dps2", "table.limits.max_accel_dps2")
+                  if lim.value is not None]
+        for index, freq in enumerate(frequencies):
+            peak = 2.0 * math.pi * freq * amplitude_dps
+            over = [lim for lim in limits if peak > lim.value]
+            if over:
+                tightest = min(over, key=lambda lim: lim.value)
+                self.ctx.report((*path, index), f"{format_number(freq)} Hz at "
+                                f"{format_number(amplitude_dps)} deg/s peaks at "
+                                f"{format_number(peak)} deg/s² (2πf × amplitude), beyond the "
+                                f"{tightest.what} {format_number(tightest.value)} deg/s² "
+                                f"({tightest.where})")
+                return
 
     def frequency_list(self, fields: Fields, sample_rate_hz: float) -> tuple[float, ...]:
         key = "frequencies_hz"
