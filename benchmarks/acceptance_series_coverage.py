@@ -21,6 +21,8 @@ from gyrocal.cli import main
 REPO = Path(__file__).resolve().parents[1]
 DEAD_ZONE_DPS = 0.025      # gyro-models/series-fog.yaml, typed
 SATURATION_DPS = {"positive": 320.0, "negative": 270.0}
+BANDWIDTH_HZ = 1.0         # rate_bandwidth, typed
+PHASE_AT_HALF_HZ_DEG = -26.565051177   # −atan(0.5 Hz / 1 Hz)
 
 
 def one_run(seed: int, folder: Path) -> tuple[int, str, dict | None]:
@@ -40,6 +42,7 @@ def main_cli() -> None:
     runs = parser.parse_args().runs
     covered = failed = 0
     limits = {"positive": 0, "negative": 0}
+    response = {"bandwidth": 0, "phase": 0}
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(1, runs + 1):
             code, console, results = one_run(seed, Path(tmp))
@@ -61,12 +64,30 @@ def main_cli() -> None:
                 limits[walk["direction"]] += hit
                 print(f"  max rate {walk['direction']}: {walk['max_dps']} (next {walk['next_dps']}) "
                       f"U {walk['U_dps']:.4g}: {'covered' if hit else 'MISSED'}")
+            response_hits = _frequency_response(results["frequency_response"])
+            for key, hit in response_hits.items():
+                response[key] += hit
     done = runs - failed
     print(f"{done} of {runs} runs completed with every limit passed")
     print(f"threshold (dead zone {DEAD_ZONE_DPS} deg/s): {covered}/{done} covered")
     for direction, hits in limits.items():
         print(f"max input rate {direction} (truth {SATURATION_DPS[direction]:g} deg/s): "
               f"{hits}/{done} covered")
+    print(f"bandwidth (truth {BANDWIDTH_HZ:g} Hz): {response['bandwidth']}/{done} covered")
+    print(f"phase at 0.5 Hz (truth {PHASE_AT_HALF_HZ_DEG:.3f} deg): {response['phase']}/{done} "
+          "covered")
+
+
+def _frequency_response(section: dict) -> dict[str, bool]:
+    """Bandwidth and phase at the stated frequency against the typed truths, printed."""
+    test = section["tests"][0]
+    band, phase = section["bandwidth_hz"], section["phase_deg"]
+    hits = {"bandwidth": band is not None and abs(band - BANDWIDTH_HZ) <= test["U_bandwidth_hz"],
+            "phase": phase is not None and abs(phase - PHASE_AT_HALF_HZ_DEG) <= test["U_phase_deg"]}
+    print(f"  bandwidth {band:.5f} U {test['U_bandwidth_hz']:.2g} Hz: "
+          f"{'covered' if hits['bandwidth'] else 'MISSED'}; phase at 0.5 Hz {phase:.3f} "
+          f"U {test['U_phase_deg']:.2g} deg: {'covered' if hits['phase'] else 'MISSED'}")
+    return hits
 
 
 if __name__ == "__main__":
