@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import base64
 import io
+from dataclasses import dataclass
 from pathlib import Path
 
 import jinja2
@@ -24,7 +25,7 @@ from matplotlib.figure import Figure
 
 from gyrocal.models.effects import EFFECTS
 from gyrocal.reports.allan import overlapping_adev
-from gyrocal.reports.discrepancy.gap import allan_taus_m
+from gyrocal.reports.discrepancy.gap import Metric, allan_taus_m
 from gyrocal.reports.discrepancy.workflow import DiscrepancyResult
 
 _TEMPLATE = """<!doctype html>
@@ -34,7 +35,13 @@ _TEMPLATE = """<!doctype html>
 body { font-family: sans-serif; max-width: 1100px; margin: 2em auto; color: #222; }
 table { border-collapse: collapse; margin: 0.5em 0; }
 td, th { border: 1px solid #bbb; padding: 3px 8px; text-align: left; }
+td.num { white-space: nowrap; }
 pre { background: #f4f4f4; padding: 0.6em; white-space: pre-wrap; overflow-wrap: anywhere; }
+.passes { display: flex; flex-wrap: wrap; gap: 0 2em; align-items: flex-start; }
+.effect-gaps { display: flex; flex-wrap: wrap; gap: 1em; }
+figure.effect-gap { margin: 0; border: 1px solid #ddd; padding: 0.4em; }
+figure.effect-gap img { display: block; width: 320px; }
+figcaption { font-size: 0.9em; max-width: 320px; }
 .verdict { font-size: 1.2em; padding: 0.5em; background: #eef; }
 img { max-width: 100%; }
 </style></head><body>
@@ -52,7 +59,7 @@ procedure's steps (blue: temperature ramps, grey: table moving). Segment means w
 
 <h2>2. What was named</h2>
 {% if found %}
-<table><tr><th>effect</th><th>parameters</th><th>probability</th><th>score</th><th>threshold</th><th>look-alikes</th></tr>
+<table id="named"><tr><th>effect</th><th>parameters</th><th>probability</th><th>score</th><th>threshold</th><th>look-alikes</th></tr>
 {% for f in found %}
 <tr><td>{{ f.name }}</td>
 <td>{% for k, v in f.parameters.items() %}{{ k }} = {{ "%.4g"|format(v) }} {{ param_unit(f.name, k) }}<br>{% endfor %}</td>
@@ -62,7 +69,7 @@ procedure's steps (blue: temperature ramps, grey: table moving). Segment means w
 {% endfor %}</table>
 {% for f in found if f.separating_experiment %}
 <p>Experiment that would separate <b>{{ f.name }}</b> from its look-alikes (procedure fragment):</p>
-<pre>{{ f.separating_experiment }}</pre>
+<pre class="experiment">{{ f.separating_experiment }}</pre>
 {% endfor %}
 {% else %}
 <p>No catalogue effect passed the threshold.</p>
@@ -70,12 +77,12 @@ procedure's steps (blue: temperature ramps, grey: table moving). Segment means w
 <p>Scores are −log10 of each effect's likelihood-gain tail probability; the threshold is the
 {{ "%.0f"|format(100 * (1 - alpha)) }} % quantile of the best score over the whole library on
 effect-free data simulated from the refitted model and the noise model.</p>
-{% for it in iterations %}
-<p>Pass {{ loop.index }}: threshold {{ "%.2f"|format(it.threshold) }}, accepted: {{ it.accepted or "none" }}</p>
+<div class="passes">{% for it in iterations %}
+<div><p>Pass {{ loop.index }}: threshold {{ "%.2f"|format(it.threshold) }}, accepted: {{ it.accepted or "none" }}</p>
 <table><tr><th>effect</th><th>score</th><th>Δχ²</th></tr>
 {% for name, score in it.ranked %}<tr><td>{{ name }}</td><td>{{ "%.2f"|format(score) }}</td>
-<td>{{ "%.1f"|format(it.delta[name]) }}</td></tr>{% endfor %}</table>
-{% endfor %}
+<td>{{ "%.1f"|format(it.delta[name]) }}</td></tr>{% endfor %}</table></div>
+{% endfor %}</div>
 {% if unexplained %}<p><b>Unexplained remainder:</b> {{ where }}</p>{% endif %}
 
 <h2>3. The gap before and after</h2>
@@ -83,13 +90,17 @@ effect-free data simulated from the refitted model and the noise model.</p>
 <p>Each named effect's gap in the metric where that effect lives (its own segments, the short-τ
 Allan deviation for quantization, the spectrum for interference, the Allan curve for a Markov
 bias): before (input model, refitted), after (updated model), and the noise floor.</p>
-<img src="data:image/png;base64,{{ fig_effect_gaps }}" alt="each named effect's gap before and after">
+<div class="effect-gaps">{% for g in effect_gaps %}
+<figure class="effect-gap" data-effect="{{ g.effect }}" title="{{ g.label }}">
+<img src="data:image/png;base64,{{ g.png }}" alt="{{ g.effect }}: its gap before and after">
+<figcaption><b>{{ g.effect }}</b>, its own gap in {{ g.unit }}: before {{ "%.3g"|format(g.metric.before) }},
+after {{ "%.3g"|format(g.metric.after) }}, noise floor {{ "%.3g"|format(g.metric.noise_floor) }}</figcaption></figure>{% endfor %}</div>
 {% endif %}
-<table><tr><th>metric</th><th>unit</th><th>before</th><th>after</th><th>noise floor</th></tr>
+<table id="gap-metrics"><tr><th>metric</th><th>unit</th><th>before</th><th>after</th><th>noise floor</th></tr>
 {% for name, m in metrics %}{% set label, unit = metric_label(name, m) %}
-<tr><td>{{ label }} <code>{{ name }}</code>{% if name == primary %} (primary){% endif %}</td><td>{{ unit }}</td>
-<td>{{ "%.4g"|format(m.before) }}</td><td>{{ "%.4g"|format(m.after) }}</td>
-<td>{{ "%.4g"|format(m.noise_floor) }}</td><td>{{ m.description }}</td></tr>{% endfor %}</table>
+<tr><td>{{ label }} <code>{{ name }}</code>{% if name == primary %} (primary){% endif %}{% if m.description and m.description != label %}<br><small>{{ m.description }}</small>{% endif %}</td><td>{{ unit }}</td>
+<td class="num">{{ "%.4g"|format(m.before) }}</td><td class="num">{{ "%.4g"|format(m.after) }}</td>
+<td class="num">{{ "%.4g"|format(m.noise_floor) }}</td></tr>{% endfor %}</table>
 <img src="data:image/png;base64,{{ fig_gap }}" alt="spectrum and Allan deviation">
 <h3>Notes</h3>
 <ul>{% for n in notes %}<li>{{ n }}</li>{% endfor %}</ul>
@@ -209,21 +220,37 @@ def _param_unit(effect: str, key: str) -> str:
     return param.unit if param is not None else ""
 
 
-def _fig_effect_gaps(result: DiscrepancyResult) -> str:
-    """One panel per named effect: its own metric before, after and at the noise floor, with units."""
-    items = [(effect, key) for effect, key in result.effect_gaps.items() if key in result.metrics]
-    fig = Figure(figsize=(3.2 * max(len(items), 1), 3.2))
-    axes = fig.subplots(1, max(len(items), 1), squeeze=False)
-    for ax, (effect, key) in zip(axes[0], items, strict=False):
+@dataclass(frozen=True)
+class EffectGapPanel:
+    """One named effect's gap, drawn in a figure of its own: in one shared image the panels
+    were squeezed side by side and a reader could not tell one effect's bars from another's."""
+
+    effect: str
+    label: str
+    unit: str
+    metric: Metric
+    png: str
+
+
+def _effect_gap_panels(result: DiscrepancyResult) -> list[EffectGapPanel]:
+    """Each named effect's own metric before, after and at the noise floor, with its unit."""
+    panels = []
+    for effect, key in result.effect_gaps.items():
+        if key not in result.metrics:
+            continue
         m = result.metrics[key]
+        label, unit = metric_label(key, m)
+        fig = Figure(figsize=(4.0, 3.2))
+        ax = fig.subplots()
         ax.bar(["before", "after"], [m.before, m.after], color=["C3", "C0"])
         ax.axhline(m.noise_floor, color="k", ls="--", lw=1, label="noise floor")
         ax.axhline(2.0 * m.noise_floor, color="k", ls=":", lw=0.8, label="2 × floor")
-        ax.set_title(effect, fontsize=9)
-        ax.set_ylabel(f"{key} ({m.unit})", fontsize=8)
+        ax.set_title(effect, fontsize=10)
+        ax.set_ylabel(f"its own gap ({unit})", fontsize=8)
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    return _png(fig)
+        fig.tight_layout()
+        panels.append(EffectGapPanel(effect, label, unit, m, _png(fig)))
+    return panels
 
 
 def verdict(result: DiscrepancyResult) -> str:
@@ -258,8 +285,7 @@ def write_html(result: DiscrepancyResult, source: str, path: str | Path) -> Path
         metrics=list(result.metrics.items()), notes=result.notes, metric_label=metric_label,
         param_unit=_param_unit,
         fig_time=_fig_time(result), fig_inputs=_fig_inputs(result), fig_gap=_fig_gap(result),
-        effect_gaps=bool(result.effect_gaps),
-        fig_effect_gaps=_fig_effect_gaps(result) if result.effect_gaps else "",
+        effect_gaps=_effect_gap_panels(result),
     )
     path = Path(path)
     path.write_text(html, encoding="utf-8")
