@@ -1,8 +1,8 @@
 """Acquisition: a logged step's gyro samples, with chamber and table context, into chunks.
 
 One job, apart from the engine that decides when to log: read the gyro in
-blocks, read the table back between blocks and poll the chamber between chunks, build the per-sample
-columns (chamber temperature interpolated between polls, the demanded table
+blocks, read the table back after each block and the chamber after each
+chunk, build the per-sample columns (chamber temperature interpolated between polls, the demanded table
 rate, the integrated table angle, all three axes when the gyro gives them)
 and write them as journaled Parquet chunks.
 """
