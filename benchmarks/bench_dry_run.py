@@ -55,6 +55,8 @@ def main() -> int:
         ("run state", run.state),
         ("wall time incl. report", f"{run.wall_s:.1f} s (median of {len(runs)}: "
          + ", ".join(f"{r.wall_s:.1f}" for r in runs) + ")"),
+        ("CPU time (user+sys)", f"{run.cpu_s:.1f} s (median run; all: "
+         + ", ".join(f"{r.cpu_s:.1f}" for r in runs) + ")"),
         ("speed-up vs real time", f"{plan.total_s / run.wall_s:,.0f}×"),
         ("peak RSS", f"{max(r.peak_rss_mib for r in runs):.0f} MiB"),
         ("phases of the median run", ""),

@@ -50,6 +50,8 @@ def main() -> int:
     print(f"plan ETA                {plan.total_s / 3600:.2f} h")
     print(f"wall time incl. report  {wall_s:.1f} s ({plan.total_s / wall_s:,.0f}× real time; median of "
           f"{len(runs)}: {', '.join(f'{r.wall_s:.1f}' for r in runs)})")
+    print(f"CPU time (user+sys)     {run.cpu_s:.1f} s (median run; all: "
+          f"{', '.join(f'{r.cpu_s:.1f}' for r in runs)})")
     print(f"peak RSS                {peak_kib / 1024:.0f} MiB")
     print("phases of the median run")
     for name, value in phase_table(run, floor_s):

@@ -38,6 +38,7 @@ class DryRun:
     """One timed dry run of a procedure (a whole ``gyrocal run --sim`` process)."""
 
     wall_s: float
+    cpu_s: float           # user + sys of the run's process: steadier than wall on a shared machine
     peak_rss_mib: float
     phases_s: dict[str, float]
     samples: int
@@ -50,7 +51,8 @@ def timed_dry_run(repo: Path, procedure: str, seed: int) -> DryRun:
     """Run ``procedure`` with ``--sim --seed`` in a child process; time it and split it."""
     with tempfile.TemporaryDirectory(prefix="gyrocal-dry-run-") as tmp:
         out = Path(tmp) / "run"
-        before_kib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        before_kib = before.ru_maxrss
         start_wall = time.time()
         start = time.perf_counter()
         proc = subprocess.run(
@@ -59,7 +61,9 @@ def timed_dry_run(repo: Path, procedure: str, seed: int) -> DryRun:
         wall_s = time.perf_counter() - start
         # ru_maxrss of children is the largest child so far: runs are ordered so that a
         # smaller one after a larger one is still reported honestly (see peak_note)
-        peak_kib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        peak_kib = after.ru_maxrss
+        cpu_s = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
         if proc.returncode not in (0, 1):
             raise RuntimeError(f"dry run failed ({proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
         events = [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()]
@@ -67,7 +71,7 @@ def timed_dry_run(repo: Path, procedure: str, seed: int) -> DryRun:
         results = json.loads((out / "report" / "results.json").read_text())
         state = json.loads((out / "manifest.json").read_text())["state"]
     samples = sum(e.get("samples", 0) for e in events if e["event"] == "step_completed")
-    return DryRun(wall_s, max(peak_kib, before_kib) / 1024, phases(events, start_wall, wall_s),
+    return DryRun(wall_s, cpu_s, max(peak_kib, before_kib) / 1024, phases(events, start_wall, wall_s),
                   samples, data_mib, state, results)
 
 

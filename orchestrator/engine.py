@@ -55,7 +55,7 @@ class EnginePolicy:
 
     poll_s: float = 10.0                # chamber/table polling period while waiting (clock time)
     chunk_s: float = 60.0               # seconds of samples per Parquet chunk
-    block_s: float = 10.0               # seconds of samples per driver read (and per context poll)
+    block_s: float = 10.0               # seconds of samples per driver read (and per table readback)
     read_timeout_margin_s: float = 5.0  # wall seconds beyond the block's wall duration before a read times out
     rate_tolerance_dps: float = 0.05    # table "at rate" band (plus 0.1 % of the rate)
     spin_timeout_factor: float = 3.0    # × the acceleration time before "table never reached rate"

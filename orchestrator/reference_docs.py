@@ -452,7 +452,7 @@ def run_folder_doc() -> str:
 |---|---|
 | `{MANIFEST}` | run id, operator, unit under test, station, copies and SHA-256 of the procedure, station and gyro model, software version, instrument identities, start and end, state |
 | `plan.json` | the expanded plan the report needs (steps, setpoints, rates, durations) |
-| `{JOURNAL}` | the audit trail: one JSON event a line, fsynced, each carrying the SHA-256 of the line before |
+| `{JOURNAL}` | the audit trail: one JSON event a line, fsynced as written (a dry run: when it closes), each carrying the SHA-256 of the line before |
 | `{SAMPLES}/` | gyro samples per logged step, as Parquet chunks whose hashes are journaled |
 | `report/results.json` | the numbers (keys below) |
 | `report/report.html` | the human report with its plots |

@@ -31,8 +31,15 @@ TMP_PREFIX, TMP_SUFFIX = ".", ".tmp"
 RECORD_MODE = 0o640
 
 
-def write_atomic(path: Path, writer: Callable[[Path], None], mode: int = RECORD_MODE) -> None:
-    """Call ``writer(tmp_path)`` then move the result to ``path`` atomically."""
+def write_atomic(path: Path, writer: Callable[[Path], None], mode: int = RECORD_MODE,
+                 durable: bool = True) -> None:
+    """Call ``writer(tmp_path)`` then move the result to ``path`` atomically.
+
+    ``durable=False`` (a dry run's sample chunks: see :attr:`RunFolder.durable`) keeps the
+    temporary file and the rename, so a kill -9 still leaves the old file or the whole new
+    one (the page cache outlives the process), and skips the two fsyncs that only a power
+    cut needs.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp_name = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.name}.", suffix=TMP_SUFFIX, dir=path.parent)
@@ -41,11 +48,13 @@ def write_atomic(path: Path, writer: Callable[[Path], None], mode: int = RECORD_
     tmp = Path(tmp_name)
     try:
         writer(tmp)
-        with open(tmp, "rb") as handle:
-            os.fsync(handle.fileno())
+        if durable:
+            with open(tmp, "rb") as handle:
+                os.fsync(handle.fileno())
         at_atomic_write()
         os.replace(tmp, path)
-        fsync_dir(path.parent)
+        if durable:
+            fsync_dir(path.parent)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

@@ -101,6 +101,22 @@ class RunFolder:
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self.journal: Journal | None = None
+        self._durable: bool | None = None
+
+    @property
+    def durable(self) -> bool:
+        """Whether each journal line and chunk is fsynced as it is written.
+
+        Always for a run on a station: its history must survive a power cut.
+        A dry run (``mode: sim``) skips the per-write fsyncs (thousands of them
+        in a simulated night, seconds of its wall time): every write still
+        reaches the kernel before the call returns, so a kill -9 at any point
+        loses nothing and leaves the same files (what the crash tests rehearse);
+        only a power cut could lose the tail, and the same seed makes it again.
+        """
+        if self._durable is None:
+            self._durable = self.read_manifest().get("mode") != "sim"
+        return self._durable
 
     # -- creation and reopening ------------------------------------------------------------
     @classmethod
@@ -154,7 +170,7 @@ class RunFolder:
 
     def open_journal(self) -> Journal:
         if self.journal is None:
-            self.journal = Journal(self.path / JOURNAL)
+            self.journal = Journal(self.path / JOURNAL, durable=self.durable)
         return self.journal
 
     def close(self) -> None:
@@ -197,7 +213,8 @@ class RunFolder:
                 data[name] = pa.array(np.asarray(columns[name], dtype=kind))
         table = pa.table(data)
         rel = Path(SAMPLES) / step_id / f"attempt{attempt}-chunk{chunk_index:05d}.parquet"
-        write_atomic(self.path / rel, lambda tmp: pq.write_table(table, tmp, compression="zstd"))
+        write_atomic(self.path / rel, lambda tmp: pq.write_table(table, tmp, compression="zstd"),
+                     durable=self.durable)
         return ChunkRecord(str(rel), sha256_file(self.path / rel), rows)
 
     def read_chunks(self, records: list[str]) -> dict[str, np.ndarray]:

@@ -68,3 +68,20 @@ def test_type_a_inputs_are_scaled_t_as_in_a_large_monte_carlo_draw(dof):
     u_c = math.sqrt(1.0 + 0.36 + 0.16)
     # 2e6 draws: the 95 % point to about ±0.2 %
     assert k_of(parts) == pytest.approx(float(np.quantile(np.abs(total), P)) / u_c, rel=4e-3)
+
+
+@pytest.mark.parametrize("dof_main", [1.0, 3.0, 9.0])
+def test_a_long_budget_on_the_short_window_equals_the_full_convolution(monkeypatch, dof_main):
+    """121 type A terms and a rectangular (a compensation table's budget, reports/uncertainty_section.py):
+    the convolution kept over four reaches gives the k of the full n-reach one. A dominant
+    low-dof term puts the most mass in the folded end cells, the case the window could miss."""
+    import gyrocal.reports.gum as gum
+
+    rng = np.random.default_rng(30)
+    parts = [part(float(u), dof=9.0) for u in rng.uniform(0.01, 0.1, 120)]
+    parts += [part(1.0, dof=dof_main), part(0.3, "rectangular")]
+    u_c = math.sqrt(sum(c.u_contribution ** 2 for c in parts))
+    short = linear_coverage_factor(parts, u_c)
+    monkeypatch.setattr(gum, "COVERAGE_WINDOW_REACHES", len(parts))
+    full = linear_coverage_factor(parts, u_c)
+    assert short == pytest.approx(full, rel=1e-9, abs=0.0)
