@@ -233,13 +233,15 @@ def simulate(
     seed: int | None = None,
     table_angle_deg=None,
     sensor_temp_c=None,
+    field_t=None,
 ) -> GyroSamples:
     """Simulate a whole record at the given time stamps (strictly increasing).
 
     The noise is generated at fs = 1/median(Δt); the equation and the pulse
     counter use the actual intervals, so slightly irregular logs are fine.
     """
-    inputs = ModelInputs.of(t_s, table_rate_dps, chamber_temp_c, table_angle_deg, sensor_temp_c)
+    inputs = ModelInputs.of(t_s, table_rate_dps, chamber_temp_c, table_angle_deg, sensor_temp_c,
+                            field_t)
     n = len(inputs)
     if n < 2:
         raise ValueError("simulate needs at least 2 time stamps to know the sample rate")
