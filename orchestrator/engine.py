@@ -137,6 +137,7 @@ class RunEngine:
             StepKind.THRESHOLD: self._log_step,
             StepKind.RATE_LIMIT: self._log_step,
             StepKind.FREQUENCY_RESPONSE: self._frequency_step,
+            StepKind.MAGNETIC: self._magnetic_step,
         }
         if operator is not None:
             self._executors[StepKind.REMOUNT] = self._remount_executor().execute
@@ -372,6 +373,34 @@ class RunEngine:
         self.conditions.forget_demand()
         self.conditions.set_table_rate(0.0, step.accel_dps2)
 
+
+    def _magnetic_step(self, step: PlanStep) -> None:
+        """A static with the station's coil at the step's field: set, read back, log, read back,
+        switch off (read back off). The table is at rest; a fault leaves the coil off (safe state)."""
+        coil = self.inst.coil
+        if coil is None or step.field_t is None:
+            raise RunFaultError(f"{step.step_id}: a magnetic step needs the station's coil")
+        self.conditions.set_table_rate(0.0)
+        for when in ("set", "after"):
+            reading = coil.set_field(step.field_t) if when == "set" else coil.read()
+            problem = coil.mismatch(reading, step.field_t)
+            self.journal.append(JournalEvent.COIL_FIELD, step_id=step.step_id, when=when,
+                                set_field_t=step.field_t, field_t=reading.field_t,
+                                positive_current_a=reading.positive_current_a,
+                                negative_current_a=reading.negative_current_a,
+                                ok=problem is None)
+            if problem is not None:
+                raise RunFaultError(f"coil: {step.step_id}: {problem}")
+            if when == "set":
+                self._log_step(step)
+        reading = coil.off()
+        if reading.positive_on or reading.negative_on:
+            raise RunFaultError(f"coil: after {step.step_id}: a channel still reads on")
+        self.journal.append(JournalEvent.COIL_FIELD, step_id=step.step_id, when="off",
+                            set_field_t=0.0, field_t=reading.field_t,
+                            positive_current_a=reading.positive_current_a,
+                            negative_current_a=reading.negative_current_a, ok=True)
+
     def _log_step(self, step: PlanStep, reference: Sinusoid | None = None) -> None:
         """Log a step; a bad attempt (frame loss, a gyro read that failed) is repeated.
 
@@ -469,7 +498,8 @@ class RunEngine:
         station's safe setpoint, each confirmed by read-back and journaled (``returned_safe``)."""
         policy = SafePolicy(self.policy.safe_setpoint_c, self.policy.chamber_retries,
                             self.policy.table_retries)
-        outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock)
+        outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock,
+                            coil=self.inst.coil)
         for action in outcome.actions:
             print(f"gyrocal: returned to the safe state: {action.text}", file=sys.stderr)
         self.journal.append(JournalEvent.RETURNED_SAFE, **outcome.journal_fields())
@@ -496,7 +526,7 @@ class RunEngine:
                             power.attempts if power else 3)
         with self._gate.shielded():
             outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock,
-                                self.inst.supply)
+                                self.inst.supply, self.inst.coil)
             outcome.print()
             if self.machine.state == "safing":
                 self.machine.safed()

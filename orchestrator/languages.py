@@ -289,6 +289,33 @@ STATION_SUPPLY = Section(
         *_LINK_KEYS,
     ))
 
+STATION_COIL = Section(
+    "coil", "coil",
+    "A Helmholtz coil for the `magnetic` test kind (optional; needs the `supply` section). A "
+    "supply channel is unipolar, so the coil's two polarities are two further channels of "
+    "that supply wired in opposition: `positive_channel` gives +B along `axis`, "
+    "`negative_channel` -B. Each runs in constant current (its voltage set to "
+    "`compliance_v`, its current limit to |B| / `constant_t_per_a`); both are read back and "
+    "the field they make must be within 1 % (+0.1 % of the coil's reach) of the set one, "
+    "else a fault. Between magnetic steps, at the end of a run and in the safe state both "
+    "channels are switched off (read back). On `--sim` the simulated gyro sees the coil "
+    "constant × the simulated supply's channel currents along its input axis (`axis: "
+    "input`) or nothing (`transverse`).",
+    (
+        Key("constant_t_per_a", _num(maximum=1.0, above=0.0), "field at the coil's centre per "
+            "ampere, T/A (its calibration)"),
+        Key("u_constant_rel", _num(0.0, 0.5), "relative standard uncertainty of the coil "
+            "constant (a type B line of the sensitivity's budget)", False, "0"),
+        Key("axis", _choice(sta.COIL_AXES), "the coil's axis: along the gyro's input axis, or "
+            "across it"),
+        Key("positive_channel", _int(1, 3), "supply channel driving +B (not `supply.channel`)"),
+        Key("negative_channel", _int(1, 3), "supply channel driving -B (another channel)"),
+        Key("compliance_v", _num(maximum=100.0, above=0.0), "voltage set on the working "
+            "channel, V: above what the coil needs at its maximum current"),
+        Key("max_current_a", _num(maximum=100.0, above=0.0), "the coil's rated current, A; a "
+            "test's field_t must be within constant_t_per_a × this"),
+    ))
+
 SIMULATION = Section(
     "simulation", "simulation",
     "What `--sim` and `gyrocal sim serve` start; ignored on real hardware. Needed when any "
@@ -354,6 +381,7 @@ STATION_ROOT = Section(
         Key("table", STATION_TABLE, "rate table"),
         Key("gyro", STATION_GYRO, "gyro interface"),
         Key("supply", STATION_SUPPLY, "the unit's programmable supply", False),
+        Key("coil", STATION_COIL, "Helmholtz coil on two channels of that supply", False),
         Key("simulation", SIMULATION, "simulated instruments", False),
         Key("signing_key", Scalar("path"), "the station's Ed25519 private key (`gyrocal keys`); "
             "runs are signed with it", False),
@@ -424,6 +452,22 @@ TEST_INTERFERENCE = Section(
     "and closed again afterwards). The report's `table_interference` compares them: the "
     "drift (std of 1-s means) and its ratio, and the spectral lines the drive adds "
     "(frequency, 0-to-peak amplitude in both records).", _HOLD_KEYS)
+
+TEST_MAGNETIC = Section(
+    "test-magnetic", "test kind: magnetic",
+    "Magnetic (Faraday) bias sensitivity (the vendor notes' coil test): three statics of "
+    "`duration` at rest with the station's coil (the `coil` section) at +`field_t` "
+    "(`.pos`), 0 (`.zero`, both channels off) and -`field_t` (`.neg`); the field is set, "
+    "read back (journal `coil_field`) and switched off after each. The report's `magnetic` "
+    "regresses the bias on the read-back field by weighted least squares: the sensitivity "
+    "in deg/(h·T) with its GUM budget (each dwell's batch-means type A, the coil constant's "
+    "type B) and where it falls against the notes' figures (1-10 navigation grade, ~1e4 "
+    "unshielded).",
+    (
+        *_HOLD_KEYS,
+        Key("field_t", _num(maximum=1.0, above=0.0), "|B| of the +B and -B dwells, T; within "
+            "what the station's coil reaches (coil.constant_t_per_a × coil.max_current_a)"),
+    ))
 
 SCHEDULE = Section(
     "test-sf_sweep-schedule", "sf_sweep schedule",
@@ -560,7 +604,8 @@ TEMPERATURE_STEP = Section(
                                               ("table_interference", TEST_INTERFERENCE),
                                               ("threshold", TEST_THRESHOLD),
                                               ("rate_limit", TEST_RATE_LIMIT),
-                                              ("frequency_response", TEST_FREQUENCY_RESPONSE))),
+                                              ("frequency_response", TEST_FREQUENCY_RESPONSE),
+                                              ("magnetic", TEST_MAGNETIC))),
                             min_items=0),
             "what is measured at this temperature, in order (an empty list just soaks)", False),
     ))

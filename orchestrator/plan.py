@@ -21,6 +21,7 @@ from gyrocal.instruments.table.acutrol_protocol import commanded_rate_dps
 from gyrocal.orchestrator.procedure import (
     AllanTest,
     FrequencyResponseTest,
+    MagneticTest,
     MountingSpec,
     Procedure,
     RateLimitTest,
@@ -80,6 +81,8 @@ class PlanStep:
     freq_hz: float | None = None
     amplitude_dps: float | None = None
     phase_at_hz: float | None = None
+    # magnetic steps: the coil's field along its axis during the step, tesla (signed)
+    field_t: float | None = None
 
 
 @dataclass(frozen=True)
@@ -116,7 +119,7 @@ def _test_tags(step: TemperatureStep) -> list[str]:
     """``sf``, ``static``, ``allan``; numbered (``sf1``, ``sf2``) when a kind repeats in a step."""
     base = {"sf_sweep": "sf", "static": "static", "allan": "allan",
             "table_interference": "interference", "threshold": "thr", "rate_limit": "lim",
-            "frequency_response": "freq"}
+            "frequency_response": "freq", "magnetic": "mag"}
     kinds = [base[test.kind] for test in step.tests]
     seen: dict[str, int] = {}
     tags = []
@@ -226,6 +229,13 @@ class _Expander:
                     for half, kind in (("powered", StepKind.STATIC), ("off", StepKind.DRIVE_OFF)):
                         self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=kind, direction="",
                                  duration_s=test.duration_s, settle_s=test.settle_s, **base)
+                    continue
+                if isinstance(test, MagneticTest):
+                    # +B, 0, -B: reports/magnetic_section.py regresses the bias on the field
+                    for half, field_t in (("pos", test.field_t), ("zero", 0.0), ("neg", -test.field_t)):
+                        self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=StepKind.MAGNETIC,
+                                 direction="", duration_s=test.duration_s, settle_s=test.settle_s,
+                                 field_t=field_t, **base)
                     continue
                 if isinstance(test, ThresholdTest):
                     self.threshold(prefix, tag, suffix, test, base)

@@ -55,7 +55,7 @@ OUTPUT_UNITS = ("deg/s", "deg/h", "rad/s", "V", "LSB")
 DIRECTIONS = ("both", "positive", "negative")
 SPACINGS = ("linear", "log")
 TEST_KINDS = ("static", "sf_sweep", "allan", "table_interference", "threshold", "rate_limit",
-              "frequency_response")
+              "frequency_response", "magnetic")
 #: Frequency-response defaults: whole sinusoid periods logged per frequency (at least
 #: ``min_duration``), and periods turned before logging so the unit's transient has gone.
 DEFAULT_FR_CYCLES = 10
@@ -176,6 +176,19 @@ class TableInterferenceTest:
 
 
 @dataclass(frozen=True)
+class MagneticTest:
+    """Static dwells at +B, 0 and -B along the station's coil axis (Helmholtz coil driven by
+    the station's supply): the bias sensitivity in deg/(h·T) (reports/magnetic.py)."""
+
+    field_t: float            # |B| of the +B and -B dwells, tesla
+    duration_s: float
+    settle_s: float
+    repeats: int
+    label: str | None
+    kind: str = "magnetic"
+
+
+@dataclass(frozen=True)
 class AllanTest:
     """A long static hold for the Allan variance (noise terms Q, N, B, K, R)."""
 
@@ -276,7 +289,7 @@ class FrequencyResponseTest:
 
 
 Test = (StaticTest | AllanTest | SweepTest | TableInterferenceTest | ThresholdTest
-        | RateLimitTest | FrequencyResponseTest)
+        | RateLimitTest | FrequencyResponseTest | MagneticTest)
 
 
 @dataclass(frozen=True)
@@ -793,6 +806,8 @@ class _Parser:
             return self.rate_limit_test(fields, defaults, repeats, label)
         if kind == "frequency_response":
             return self.frequency_response_test(fields, defaults, repeats, label)
+        if kind == "magnetic":
+            return self.magnetic_test(fields, defaults, repeats, label)
         if kind != "sf_sweep":
             # after a sweep the table needs settling before a static hold too, but a
             # procedure that never spins may leave settle out altogether
@@ -816,6 +831,29 @@ class _Parser:
         fields.finish()
         return SweepTest(rates, schedule, directions, dwell, settle, accel, revolutions,
                          repeats, label)
+
+    def magnetic_test(self, fields: Fields, defaults: Defaults, repeats: int,
+                      label: str | None) -> MagneticTest | None:
+        """|B| must be one the station's coil reaches (coil constant × its max current)."""
+        settle = fields.take("settle", _duration(positive=False), required=False,
+                             default=defaults.settle_s if defaults.settle_s is not None else 0.0)
+        duration_s = fields.take("duration", _duration())
+        field_t = fields.take("field_t", number(above=0.0, maximum=1.0, unit="T"))
+        station = self.station
+        if station is not None and station.coil is None:
+            self.ctx.report(fields.child("kind"), f"a magnetic test needs a coil; the station "
+                            f"{station.file} has no coil: section")
+        elif station is not None and station.coil is not None and field_t is not None \
+                and field_t > station.coil.max_field_t:
+            coil = station.coil
+            self.ctx.report(fields.child("field_t"), f"{format_number(field_t)} T is above what the "
+                            f"coil reaches: {format_number(coil.max_field_t)} T ({station.file}: "
+                            f"coil.constant_t_per_a {format_number(coil.constant_t_per_a)} × "
+                            f"coil.max_current_a {format_number(coil.max_current_a)})")
+        fields.finish()
+        if None in (settle, duration_s, field_t):
+            return None
+        return MagneticTest(field_t, duration_s, settle, repeats, label)
 
     def threshold_test(self, fields: Fields, defaults: Defaults, repeats: int,
                        label: str | None) -> ThresholdTest:

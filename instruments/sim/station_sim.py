@@ -11,7 +11,9 @@ each frame time, through the measurement model in ``models/``.
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -29,6 +31,14 @@ from gyrocal.models.imu_model import ImuModel, load_any_model
 from gyrocal.models.seeding import attempt_seed
 from gyrocal.models.table import TablePhysics
 
+
+@runtime_checkable
+class CoilCurrents(Protocol):
+    """A simulated supply that says what current each channel drives (a coil on it)."""
+
+    def output_current_a(self, channel: int) -> float: ...
+
+
 #: Seed offsets so the chamber, table and gyro noise streams are independent.
 _SEED_CHAMBER, _SEED_TABLE, _SEED_GYRO, _SEED_PTY, _SEED_DRIVE = 101, 202, 303, 404, 505
 
@@ -38,8 +48,11 @@ class GyroPhysicsSource:
 
     def __init__(self, simulator: GyroSimulator, table: TablePhysics, chamber: ChamberPhysics,
                  start_s: float, skip_step_s: float = 1.0,
-                 interference: DriveInterference | None = None) -> None:
+                 interference: DriveInterference | None = None,
+                 field: Callable[[], float] | None = None) -> None:
         self.simulator = simulator
+        #: the magnetic field along the gyro's sensitive axis now (T); None: no coil
+        self.field = field
         #: what the table's drive adds while powered (interlock closed); None: nothing
         self.interference = interference
         self.table = table
@@ -72,7 +85,8 @@ class GyroPhysicsSource:
         if gap_s > 0.5 / sim.fs_hz:
             sim.skip_to(float(t_s[0]), self._inputs, self.skip_step_s)
             self.skipped_s += gap_s
-        samples = sim.generate(*inputs)
+        field_t = None if self.field is None else self.field()
+        samples = sim.generate(*inputs, field_t=field_t)
         gyro = samples.gyro
         if self.interference is not None and self.table.interlock_closed:
             gyro = gyro + self.interference(t_s) / 3600.0 * sim.model.scale_factor
@@ -171,6 +185,8 @@ class SimulatedStation:
         if supply_spec is not None:
             self.supply_server = _simulator(supply_spec, self._request(
                 station.supply.settings, self.supply_faults))
+        if station.coil is not None and isinstance(self.source, GyroPhysicsSource):
+            self.source.field = self._coil_field(station.coil)
         self.gyro_port: SimServer
         if gyro_port is not None:
             self.gyro_port = gyro_port
@@ -179,6 +195,20 @@ class SimulatedStation:
                                     self.gyro_faults, seed_offset=_SEED_PTY)
             self.gyro_port = _simulator(specs[Role.GYRO], request)
         self._started = False
+
+    def _coil_field(self, coil) -> Callable[[], float]:
+        """B along the gyro's sensitive axis: the coil constant × (I(+) - I(-)) of the simulated
+        supply's coil channels when the coil's axis is the input axis, else 0."""
+        supply = self.supply_server
+        if not isinstance(supply, CoilCurrents):
+            raise ValueError(f"{self.station.file}: the coil needs a simulated supply that "
+                             "reports its channels' currents; this one does not")
+        along = 1.0 if coil.axis == "input" else 0.0
+
+        def field_t() -> float:
+            return along * coil.constant_t_per_a * (supply.output_current_a(coil.positive_channel)
+                                                    - supply.output_current_a(coil.negative_channel))
+        return field_t
 
     def begin_attempt(self, step_id: str, attempt: int) -> None:
         """Every simulator draws from (seed, step id, attempt) from here (``models/seeding.py``).

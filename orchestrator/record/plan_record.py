@@ -53,6 +53,8 @@ def plan_record(procedure, plan) -> dict[str, Any]:
             "file": station.file,
             "site": _plain(station.site),
             "uncertainty": station.uncertainty,
+            # the magnetic steps' coil (constant and its uncertainty enter the sensitivity)
+            "coil": _plain(station.coil) if station.coil is not None else None,
             "instruments": {
                 "chamber": {"driver": station.chamber.driver, "address": station.chamber.address,
                             "identity": _plain(station.chamber.identity)},
@@ -107,6 +109,7 @@ class RecordedStep:
     freq_hz: float | None = None                   # frequency-response steps
     amplitude_dps: float | None = None
     phase_at_hz: float | None = None
+    field_t: float | None = None              # magnetic steps: the coil's set field, T
 
     @classmethod
     def of(cls, raw: dict[str, Any]) -> RecordedStep:
@@ -116,7 +119,8 @@ class RecordedStep:
                    raw.get("mounting"), raw.get("label"), raw.get("base_rate_dps"),
                    raw.get("confidence"), raw.get("max_error_fraction"),
                    raw.get("linearity_tolerance_pct"), raw.get("fit_rates"),
-                   raw.get("freq_hz"), raw.get("amplitude_dps"), raw.get("phase_at_hz"))
+                   raw.get("freq_hz"), raw.get("amplitude_dps"), raw.get("phase_at_hz"),
+                   raw.get("field_t"))
 
 
 @dataclass(frozen=True)
