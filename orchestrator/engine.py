@@ -47,6 +47,10 @@ from gyrocal.orchestrator.unit_power import check as check_power
 
 #: An operator creates this file in the run folder to pause before the next step.
 PAUSE_FILE = "PAUSE"
+#: a tilt step's angle counts as reached within this (the position readout has 1e-6 deg)
+POSITION_BAND_DEG = 0.001
+#: the longest a position move may take before it is a fault (±90 deg at any sane limit)
+MOVE_TIMEOUT_S = 120.0
 
 
 @dataclass(frozen=True)
@@ -119,6 +123,7 @@ class RunEngine:
         self._attempts_before: dict[str, int] = {}  # step_id → last attempt journaled by earlier sessions
         self._closing_from: int | None = None  # len(gate.deferred) when the close began
         self._t_run_start = self.clock.now_s()
+        self._position_mode = False         # the table serves position mode (tilt steps)
         self.conditions = Conditions(instruments, self.clock, self.machine, self.journal,
                                      self.progress, policy, elapsed_s=self._elapsed)
         self.acquisition = Acquisition(
@@ -138,6 +143,7 @@ class RunEngine:
             StepKind.RATE_LIMIT: self._log_step,
             StepKind.FREQUENCY_RESPONSE: self._frequency_step,
             StepKind.MAGNETIC: self._magnetic_step,
+            StepKind.TILT: self._tilt_step,
         }
         if operator is not None:
             self._executors[StepKind.REMOUNT] = self._remount_executor().execute
@@ -373,6 +379,42 @@ class RunEngine:
         self.conditions.forget_demand()
         self.conditions.set_table_rate(0.0, step.accel_dps2)
 
+    def _tilt_step(self, step: PlanStep) -> None:
+        """The table (axis horizontal) as the indexing head: position mode, move to the step's
+        angle, wait until the position reads it back, settle, log. After the last tilt step
+        of a run of them the table goes back to 0 and to rate mode at rest."""
+        table = self.inst.table
+        if not table.serves_position or step.angle_deg is None:
+            raise RunFaultError(f"table: {step.step_id}: the table driver has no position mode")
+        if not self._position_mode:
+            self.conditions.set_table_rate(0.0)
+            table.set_position_mode()
+            self._position_mode = True
+        read_deg = self._move_to_angle(step, step.angle_deg)
+        self.journal.append(JournalEvent.TABLE_POSITION, step_id=step.step_id,
+                            angle_deg=step.angle_deg, read_deg=read_deg)
+        self.clock.sleep(step.settle_s)
+        self._log_step(step)
+        following = self.steps[self.steps.index(step) + 1:]
+        if not following or following[0].kind != StepKind.TILT:
+            self._move_to_angle(step, 0.0)
+            table.set_rate_mode()
+            table.set_rate_dps(0.0)
+            self._position_mode = False
+
+    def _move_to_angle(self, step: PlanStep, angle_deg: float) -> float:
+        """Demand ``angle_deg``, poll the position until it reads it (within POSITION_BAND_DEG)."""
+        table = self.inst.table
+        table.set_position_deg(angle_deg)
+        deadline = self.clock.now_s() + MOVE_TIMEOUT_S
+        while True:
+            read = table.read_position_deg()
+            if abs((read - angle_deg + 180.0) % 360.0 - 180.0) <= POSITION_BAND_DEG:
+                return read
+            if self.clock.now_s() > deadline:
+                raise RunFaultError(f"table: {step.step_id}: position reads {read:.4f} deg, "
+                                    f"demanded {angle_deg:g} deg, after {MOVE_TIMEOUT_S:g} s")
+            self.clock.sleep(self.policy.poll_s)
 
     def _magnetic_step(self, step: PlanStep) -> None:
         """A static with the station's coil at the step's field: set, read back, log, read back,

@@ -251,6 +251,10 @@ STATION_TABLE = Section(
             Key("max_rate_dps", _q(RATE, above=0.0), "largest rate magnitude"),
             Key("max_accel_dps2", _q(ACCELERATION, above=0.0), "largest acceleration"),
         )), "hard limits"),
+        Key("orientation", _choice(sta.TABLE_ORIENTATIONS), "`vertical` (a rate table) or "
+            "`horizontal` (turned on its side: in position mode the indexing head that tips the "
+            "unit's x axis through gravity, a_x = g·sin θ; the `tilt_linearity` test needs it)",
+            False, "vertical"),
         *_LINK_KEYS,
     ))
 
@@ -345,6 +349,17 @@ SIMULATION = Section(
             Key("drive_noise_dph", _num(0.0), "extra white noise per sample while the drive is "
                 "powered, deg/h (1 σ)", False, "0"),
         )), "table physics"),
+        Key("inclinometer", Section("simulation-inclinometer", "simulation.inclinometer",
+            "The simulated unit's inclinometer errors (instruments/sim/tilt_force.py): on a "
+            "horizontal table the x channel reads scale·a_x + quadratic_per_g·a_x² + bias_g, "
+            "the y channel cross_axis·a_x, each plus white noise (the z channel reads a_z).", (
+                Key("scale", _num(0.5, 2.0), "x channel output per input, g/g", False, "1"),
+                Key("bias_g", _num(-0.1, 0.1), "x channel zero output, g", False, "0"),
+                Key("quadratic_per_g", _num(-0.1, 0.1), "x channel curvature, 1/g", False, "0"),
+                Key("cross_axis", _num(-0.5, 0.5), "y channel output per g of a_x (the leak "
+                    "the lateral sensitivity measures)", False, "0"),
+                Key("noise_g", _num(0.0, 0.1), "white noise per sample, g (1 σ)", False, "0"),
+            )), "inclinometer errors", False),
     ))
 
 NOTIFY = Section(
@@ -467,6 +482,28 @@ TEST_MAGNETIC = Section(
         *_HOLD_KEYS,
         Key("field_t", _num(maximum=1.0, above=0.0), "|B| of the +B and -B dwells, T; within "
             "what the station's coil reaches (coil.constant_t_per_a × coil.max_current_a)"),
+    ))
+
+TEST_TILT = Section(
+    "test-tilt_linearity", "test kind: tilt_linearity",
+    "An inclinometer's static test (the vendor notes' tilt-sensor test; the STIM300's "
+    "inclinometers, datagram 0x93 or 0xA7): the table, its axis horizontal "
+    "(`table.orientation: horizontal`), in position mode as the indexing head. At each "
+    "angle point (`.+15deg`, …) the table moves there at its limits, the position is read "
+    "back (journal `table_position`), then `settle`, then `dwell` of logging; last a "
+    "`zero_stability` hold at 0 (`.zero`); then back to 0 and rate mode. The report's "
+    "`tilt_linearity`: the sensitivity and linearity (largest LS residual over the "
+    "full-scale span, %) of `incl_x_g` against g·sin θ (the station's local gravity), the "
+    "lateral sensitivity (the slope of `incl_y_g` against g·sin θ over the sensitivity, %) "
+    "and the zero stability (std of the zero hold's 1-s means over the sensitivity, g).",
+    (
+        *_COMMON_TEST_KEYS,
+        Key("points", _choice(tuple(proc.TILT_POINTS)), "the angle points: `vendor_90` "
+            "(-90…90° in 15° steps) or `vendor_30` (-30…30° in 5° steps)"),
+        Key("dwell", _duration(), "logged time at each angle point"),
+        Key("zero_stability", _duration(), "logged time of the zero hold at 0°"),
+        Key("settle", _duration(positive=False), "time at each angle before logging starts",
+            False, "defaults.settle, else 0 s"),
     ))
 
 SCHEDULE = Section(
@@ -605,7 +642,8 @@ TEMPERATURE_STEP = Section(
                                               ("threshold", TEST_THRESHOLD),
                                               ("rate_limit", TEST_RATE_LIMIT),
                                               ("frequency_response", TEST_FREQUENCY_RESPONSE),
-                                              ("magnetic", TEST_MAGNETIC))),
+                                              ("magnetic", TEST_MAGNETIC),
+                                              ("tilt_linearity", TEST_TILT))),
                             min_items=0),
             "what is measured at this temperature, in order (an empty list just soaks)", False),
     ))

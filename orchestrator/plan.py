@@ -30,6 +30,7 @@ from gyrocal.orchestrator.procedure import (
     TableInterferenceTest,
     TemperatureStep,
     ThresholdTest,
+    TiltLinearityTest,
 )
 from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.table_synthesis import REST_BEFORE_SYNTHESIS_S
@@ -83,6 +84,8 @@ class PlanStep:
     phase_at_hz: float | None = None
     # magnetic steps: the coil's field along its axis during the step, tesla (signed)
     field_t: float | None = None
+    # tilt steps: the table angle (position mode, axis horizontal), deg
+    angle_deg: float | None = None
 
 
 @dataclass(frozen=True)
@@ -119,7 +122,7 @@ def _test_tags(step: TemperatureStep) -> list[str]:
     """``sf``, ``static``, ``allan``; numbered (``sf1``, ``sf2``) when a kind repeats in a step."""
     base = {"sf_sweep": "sf", "static": "static", "allan": "allan",
             "table_interference": "interference", "threshold": "thr", "rate_limit": "lim",
-            "frequency_response": "freq", "magnetic": "mag"}
+            "frequency_response": "freq", "magnetic": "mag", "tilt_linearity": "tilt"}
     kinds = [base[test.kind] for test in step.tests]
     seen: dict[str, int] = {}
     tags = []
@@ -236,6 +239,17 @@ class _Expander:
                         self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=StepKind.MAGNETIC,
                                  direction="", duration_s=test.duration_s, settle_s=test.settle_s,
                                  field_t=field_t, **base)
+                    continue
+                if isinstance(test, TiltLinearityTest):
+                    # each angle point, then the zero-stability hold at 0 (the table as the
+                    # indexing head; reports/tilt_section.py fits them)
+                    for angle in test.angles_deg:
+                        self.add(step_id=f"{prefix}.{tag}{suffix}.{angle:+g}deg",
+                                 kind=StepKind.TILT, direction="", duration_s=test.dwell_s,
+                                 settle_s=test.settle_s, angle_deg=angle, **base)
+                    self.add(step_id=f"{prefix}.{tag}{suffix}.zero", kind=StepKind.TILT,
+                             direction="", duration_s=test.zero_stability_s,
+                             settle_s=test.settle_s, angle_deg=0.0, **base)
                     continue
                 if isinstance(test, ThresholdTest):
                     self.threshold(prefix, tag, suffix, test, base)

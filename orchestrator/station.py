@@ -154,6 +154,9 @@ class TableConfig:
     #: how the controller answers (instruments/table/acutrol_protocol.py DIALECTS: the manual's only)
     dialect: str = DEFAULT_DIALECT
     settings: Mapping[str, SettingValue] = field(default_factory=dict)
+    #: "vertical" (a rate table) or "horizontal" (turned on its side: an indexing head that
+    #: tilts the unit through gravity, for the tilt_linearity test)
+    orientation: str = "vertical"
 
 
 @dataclass(frozen=True)
@@ -193,6 +196,22 @@ class SupplyConfig:
     timeout_s: float
     retries: int
     settings: Mapping[str, SettingValue] = field(default_factory=dict)
+
+
+#: the table axis: vertical (a rate table) or horizontal (an indexing head through gravity)
+TABLE_ORIENTATIONS = ("vertical", "horizontal")
+
+
+@dataclass(frozen=True)
+class InclinometerSim:
+    """The simulated unit's inclinometers (station simulation.inclinometer): the x channel
+    reads scale·a_x + quadratic·a_x² + bias, the y channel cross_axis·a_x, each + noise (g)."""
+
+    scale: float = 1.0
+    bias_g: float = 0.0
+    quadratic_per_g: float = 0.0
+    cross_axis: float = 0.0
+    noise_g: float = 0.0
 
 
 #: the coil's axis relative to the gyro: along its input (sensitive) axis, or across it
@@ -249,6 +268,7 @@ class SimulationConfig:
     seed: int
     chamber: ChamberPhysics
     table: TablePhysics
+    inclinometer: InclinometerSim = InclinometerSim()
 
 
 @dataclass(frozen=True)
@@ -578,11 +598,14 @@ def _table(ctx: Context, parent: Fields) -> TableConfig:
         lim.take("max_accel_dps2", quantity(ACCELERATION, above=0.0)),
     )
     lim.finish()
+    orientation = fields.take("orientation", choice(TABLE_ORIENTATIONS), required=False,
+                              default="vertical")
     timeout_s, retries = _common_link(fields)
     fields.finish()
     typed = _Typed(settings)
     return TableConfig(spec.name if spec else None, address, typed.get("axis", 1), identity,
-                       limits, timeout_s, retries, typed.get("dialect", DEFAULT_DIALECT), settings)
+                       limits, timeout_s, retries, typed.get("dialect", DEFAULT_DIALECT), settings,
+                       orientation)
 
 
 def _gyro(ctx: Context, parent: Fields) -> GyroConfig:
@@ -656,5 +679,20 @@ def _simulation(ctx: Context, where: KeyPath, value: object, base_dir: Path) -> 
                          _drive_lines(ctx, tb),
                          tb.take("drive_noise_dph", number(0.0), required=False, default=0.0))
     tb.finish()
+    inclinometer = _inclinometer_sim(ctx, fields) if fields.raw("inclinometer")[0] \
+        else InclinometerSim()
     fields.finish()
-    return SimulationConfig(gyro_model, seed, chamber, table)
+    return SimulationConfig(gyro_model, seed, chamber, table, inclinometer)
+
+
+def _inclinometer_sim(ctx: Context, parent: Fields) -> InclinometerSim:
+    fields = _section(ctx, parent, "inclinometer")
+    values = InclinometerSim(
+        fields.take("scale", number(0.5, 2.0), required=False, default=1.0),
+        fields.take("bias_g", number(-0.1, 0.1, unit="g"), required=False, default=0.0),
+        fields.take("quadratic_per_g", number(-0.1, 0.1), required=False, default=0.0),
+        fields.take("cross_axis", number(-0.5, 0.5), required=False, default=0.0),
+        fields.take("noise_g", number(0.0, 0.1, unit="g"), required=False, default=0.0),
+    )
+    fields.finish()
+    return values

@@ -71,6 +71,7 @@ from gyrocal.reports.results import evaluate_acceptance, finite_or_none, results
 from gyrocal.reports.sanity import check_physics
 from gyrocal.reports.scale_factor import ScaleFactorResult, analyze_scale_factor
 from gyrocal.reports.threshold import ThresholdDwell, headline_uncertainty, threshold_section
+from gyrocal.reports.tilt_section import tilt_section
 from gyrocal.reports.uncertainty import MeanU
 from gyrocal.reports.uncertainty_section import StepMean, add_uncertainties
 
@@ -456,6 +457,8 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
         "table_interference": interference_section(data.folder.path, data.plan, data.events,
                                                    nominal_sf, notes),
         "magnetic": magnetic_section(data.steps, data.plan, data.events, nominal_sf, notes),
+        "tilt_linearity": tilt_section(data.folder.path, data.plan, data.events,
+                                       data.record.gravity_g, notes),
         "threshold": _threshold(data, nominal_sf, notes),
         "rate_limits": _rate_limits(data, notes),
         "frequency_response": _frequency_response(data, nominal_sf, notes),
@@ -467,7 +470,7 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
     add_uncertainties(results, [_mean_u(s) for s in data.steps
                                 if s.step.kind not in (StepKind.THRESHOLD, StepKind.RATE_LIMIT,
                                                        StepKind.FREQUENCY_RESPONSE,
-                                                       StepKind.MAGNETIC)],
+                                                       StepKind.MAGNETIC, StepKind.TILT)],
                       data.plan,
                       REFERENCE_TEMP_C, notes)
     results.setdefault("uncertainty", {}).update(headline_uncertainty(results["threshold"]))

@@ -22,6 +22,7 @@ from gyrocal.instruments.registry import registry
 from gyrocal.instruments.sim.faults import FaultInjector
 from gyrocal.instruments.sim.imu_source import FIXTURE_FAULTS, ImuPhysicsSource, SimulatedFixture
 from gyrocal.instruments.sim.replay_pty import ReplayGyroPort
+from gyrocal.instruments.sim.tilt_force import TiltForce
 from gyrocal.models.chamber import ChamberPhysics
 from gyrocal.models.clock import RealClock, SimClock
 from gyrocal.models.drive_interference import DriveInterference
@@ -41,6 +42,7 @@ class CoilCurrents(Protocol):
 
 #: Seed offsets so the chamber, table and gyro noise streams are independent.
 _SEED_CHAMBER, _SEED_TABLE, _SEED_GYRO, _SEED_PTY, _SEED_DRIVE = 101, 202, 303, 404, 505
+_SEED_TILT = 606
 
 
 class GyroPhysicsSource:
@@ -172,6 +174,11 @@ class SimulatedStation:
             self.source = GyroPhysicsSource(self.gyro_simulator, self.table_physics,
                                             self.chamber_physics, start_s=clock.now_s(),
                                             interference=drive if drive.active else None)
+        #: the table turned on its side tilts the unit through gravity (tilt_linearity)
+        self.tilt: TiltForce | None = None
+        if station.table.orientation == "horizontal" and isinstance(self.source, GyroPhysicsSource):
+            self.tilt = TiltForce(self.table_physics, station.site.gravity_g, sim.inclinometer,
+                                  self.seed + _SEED_TILT)
         if gyro_block_frames is None:
             # Per block the model is evaluated once (its fixed cost is ~0.2 ms), so blocks must
             # be large; 512 frames (0.26 s at 2 kHz, 2 s at 250 Hz) keeps that cost under 1 µs a
@@ -236,7 +243,8 @@ class SimulatedStation:
                           table=self.table_physics, gyro_source=self.source,
                           sample_rate_hz=self.sample_rate_hz,
                           specific_force=(self.source.specific_force
-                                          if isinstance(self.source, ImuPhysicsSource) else None))
+                                          if isinstance(self.source, ImuPhysicsSource)
+                                          else self.tilt))
 
     @property
     def addresses(self) -> SimAddresses:

@@ -15,8 +15,9 @@ pytestmark = pytest.mark.timeout(30)
 REPO = Path(__file__).resolve().parents[2]
 PROCEDURES = sorted((REPO / "procedures").glob("*.yaml"))
 SIM = REPO / "stations" / "sim.yaml"
-#: procedures whose tests need what sim.yaml lacks (a coil on a supply): their own station
-OWN_STATION = {"magnetic-sensitivity.yaml"}
+#: procedures whose tests need what sim.yaml lacks (a coil on a supply, a horizontal table):
+#: their own station
+OWN_STATION = {"magnetic-sensitivity.yaml", "tilt-linearity.yaml"}
 
 
 def plan_of(name):
