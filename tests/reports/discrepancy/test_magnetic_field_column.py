@@ -50,3 +50,17 @@ def test_without_the_field_column_the_effect_is_not_searched():
     with_field = ModelInputs.of(prof.t_s, prof.table_rate_dps, prof.chamber_temp_c,
                                 field_t=_field_t(prof.t_s))
     assert "magnetic_sensitivity" in searched_effects(nominal, with_field)
+
+
+def test_a_csv_log_with_field_t_is_read_and_an_impossible_field_named(tmp_path):
+    from gyrocal.reports.measured_log import LogFormatError, read_measured_log
+
+    good = tmp_path / "log.csv"
+    good.write_text("t_s,table_rate_dps,chamber_temp_c,gyro,field_t\n"
+                    "0.0,0.0,25.0,0.001,0.0005\n0.2,0.0,25.0,0.001,0.0\n0.4,0.0,25.0,0.001,-0.0005\n")
+    log = read_measured_log(good)
+    np.testing.assert_array_equal(log.field_t, [5e-4, 0.0, -5e-4])
+    bad = tmp_path / "bad.csv"
+    bad.write_text(good.read_text().replace("-0.0005", "250"))
+    with pytest.raises(LogFormatError, match=r"field_t"):
+        read_measured_log(bad)
