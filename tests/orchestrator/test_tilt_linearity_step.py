@@ -101,3 +101,20 @@ def test_a_datagram_without_inclinometers_is_refused(tmp_path, capsys):
     text = STATION.read_text().replace("datagram: 0xA7", "datagram: 0x94")
     assert main(["validate", str(_write(tmp_path, text))]) == EXIT_BAD_INPUT
     assert "0x94 carries no inclinometers" in capsys.readouterr().err
+
+
+@pytest.mark.timeout(180)
+def test_an_interlock_opening_at_an_angle_point_is_a_fault_and_the_run_resumes(tmp_path):
+    from gyrocal.cli import EXIT_FAULT
+
+    out = tmp_path / "run"
+    code = main(["run", str(_write(tmp_path)), "--sim", "--out", str(out),
+                 "--inject", "table.interlock_open:always@T01.tilt.+30deg"])
+    assert code == EXIT_FAULT
+    events = [json.loads(x) for x in (out / "journal.jsonl").read_text().splitlines()]
+    fault = [e for e in events if e["event"] == "fault"][-1]
+    assert fault["step_id"] == "T01.tilt.+30deg"
+    assert [e for e in events if e["event"] == "safe_state"][-1]["confirmed"]["table"] is True
+    assert main(["resume", str(out)]) == EXIT_OK
+    (entry,) = json.loads((out / "report" / "results.json").read_text())["tilt_linearity"]
+    assert entry["sensitivity"] == pytest.approx(1.002, abs=2e-5)
