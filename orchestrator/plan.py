@@ -427,6 +427,10 @@ def format_plan(plan: Plan) -> str:
             f"{step.rate_dps:+g} deg/s" if step.rate_dps else "0 deg/s")
         if step.kind == "dwell" and step.revolutions is not None:
             rate += f" ({step.revolutions:.3g} rev)"
+        if step.kind == StepKind.MAGNETIC and step.field_t is not None:
+            rate += f" (coil {step.field_t * 1e3:+g} mT)"
+        if step.kind == StepKind.TILT and step.angle_deg is not None:
+            rate = f"at {step.angle_deg:+g}° (position)"
         rows.append((str(number), step.step_id, step.kind, f"{step.setpoint_c:g} °C", rate, move,
                      logged, format_duration(step.expected_s), format_hms(step.start_s)))
     widths = [max(len(row[i]) for row in [header, *rows]) for i in range(len(header))]

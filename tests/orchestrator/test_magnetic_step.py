@@ -132,3 +132,14 @@ def test_a_supply_dropout_mid_field_is_a_fault_that_leaves_the_coil_off(tmp_path
     assert main(["resume", str(out)]) == EXIT_OK
     results = json.loads((out / "report" / "results.json").read_text())
     assert results["magnetic"][0]["steps"] == ["T01.mag.pos", "T01.mag.zero", "T01.mag.neg"]
+
+
+def test_the_plan_says_each_dwell_s_field_and_each_tilt_point_s_angle():
+    from gyrocal.orchestrator.plan import expand_plan, format_plan
+    from gyrocal.orchestrator.procedure import load_procedure
+
+    text = format_plan(expand_plan(load_procedure(REPO / "procedures" / "magnetic-sensitivity.yaml")))
+    assert "coil +0.5 mT" in text and "coil -0.5 mT" in text and "coil +0 mT" in text
+    tilt = format_plan(expand_plan(load_procedure(REPO / "procedures" / "tilt-linearity.yaml")))
+    assert "T01.tilt1.+30deg" in tilt and "at +30° (position)" in tilt
+    assert "T01.tilt2.zero" in tilt and "at +0° (position)" in tilt
