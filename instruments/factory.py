@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from gyrocal.instruments.driver_spec import OpenRequest, Role
 from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.interfaces import Chamber, GyroStream, PowerSupply, RateTable
 from gyrocal.instruments.registry import registry
+from gyrocal.instruments.supply.coil import CoilDrive
 from gyrocal.models.clock import Clock
 
 RetryHook = Callable[[str, int, InstrumentError], None]
@@ -31,9 +32,11 @@ class Instruments:
     sample_rate_hz: float
     #: the supply powering the unit under test, when the station has one
     supply: PowerSupply | None = None
+    #: the Helmholtz coil on two further channels of that supply (magnetic steps)
+    coil: CoilDrive | None = None
 
     def close(self) -> None:
-        for inst in (self.gyro, self.table, self.chamber, self.supply):
+        for inst in (self.gyro, self.table, self.chamber, self.supply, self.coil):
             if inst is None:
                 continue
             # Closing must never mask the run's real outcome.
@@ -73,6 +76,23 @@ def open_supply(config, address: str, on_retry=None) -> PowerSupply:
     return _as(open_role(Role.SUPPLY, config, address, on_retry), PowerSupply, config.driver)
 
 
+def open_coil(supply_config, coil_config, address: str, on_retry=None) -> CoilDrive:
+    """The coil's two channels: the station's supply driver at ``address``, one per polarity."""
+    def channel(number: int) -> PowerSupply:
+        config = replace(supply_config, settings={**supply_config.settings, "channel": number})
+        return open_supply(config, address, on_retry)
+
+    positive = channel(coil_config.positive_channel)
+    try:
+        negative = channel(coil_config.negative_channel)
+    except BaseException:
+        with contextlib.suppress(Exception):
+            positive.close()
+        raise
+    return CoilDrive(positive, negative, coil_config.constant_t_per_a, coil_config.compliance_v,
+                     coil_config.max_current_a)
+
+
 def open_instruments(station, clock: Clock, addresses=None,
                      on_retry: RetryHook | None = None,
                      sample_rate_hz: float | None = None) -> Instruments:
@@ -99,6 +119,9 @@ def open_instruments(station, clock: Clock, addresses=None,
         if s is not None:
             opened.append(open_supply(s, addresses.supply if addresses else s.address,
                                       hook("supply")))
+        if s is not None and station.coil is not None:
+            opened.append(open_coil(s, station.coil, addresses.supply if addresses else s.address,
+                                    hook("coil")))
     except BaseException:
         for inst in opened:
             with contextlib.suppress(Exception):
@@ -106,7 +129,8 @@ def open_instruments(station, clock: Clock, addresses=None,
         raise
     chamber, table, gyro = opened[:3]
     supply = opened[3] if s is not None else None
-    return Instruments(chamber, table, gyro, clock, fs_hz, supply)
+    coil = opened[4] if len(opened) > 4 else None
+    return Instruments(chamber, table, gyro, clock, fs_hz, supply, coil)
 
 
 def _as(instrument: object, interface: type, driver: str):

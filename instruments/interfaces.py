@@ -91,6 +91,14 @@ class PowerSupply(Protocol):
 
 
 @runtime_checkable
+class PositionTable(Protocol):
+    """A table that also serves position mode (the tilt test's indexing head); optional."""
+
+    def set_position_mode(self) -> None: ...
+    def set_position_deg(self, position_deg: float) -> None: ...
+
+
+@runtime_checkable
 class RateTable(Protocol):
     def identify(self) -> Identity: ...
     def interlock_closed(self) -> bool: ...

@@ -223,6 +223,14 @@ _CATALOGUE: tuple[EffectDef, ...] = (
         "turntable motor/drive interference (12.48 Hz line and harmonics reported)",
     ),
     EffectDef(
+        "magnetic_sensitivity",
+        (_any("dph_per_t", "deg/(h*T)", "linear", "bias per tesla of field along the sensitive "
+              "axis (vendor notes: ~1e4 unshielded, 1-10 navigation grade)"),),
+        "bias",
+        "bias += k * B, B = field along the sensitive axis in T (the field_t input; 0 without it)",
+        "Faraday effect in the FOG coil (magnetic bias sensitivity)",
+    ),
+    EffectDef(
         "markov_bias",
         (
             ParamDef("sigma_dph", "deg/h", "linear", 0.0, False, "steady-state standard deviation"),

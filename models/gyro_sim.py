@@ -116,13 +116,15 @@ class GyroSimulator:
         table_angle_deg=None,
         *,
         sensor_temp_c=None,
+        field_t=None,
         n: int | None = None,
     ) -> GyroSamples:
         """The next block of samples, one per input sample.
 
         Inputs are arrays of one length, or scalars held over ``n`` samples
         (``n`` is needed only when every input is a scalar). Measured
-        ``table_angle_deg`` / ``sensor_temp_c`` replace ∫ω_t dt / the thermal lag.
+        ``table_angle_deg`` / ``sensor_temp_c`` replace ∫ω_t dt / the thermal lag;
+        ``field_t`` is the field along the sensitive axis (magnetic_sensitivity).
         """
         if n is None:
             lengths = {np.size(x) for x in (table_rate_dps, chamber_temp_c, table_angle_deg, sensor_temp_c)
@@ -134,7 +136,8 @@ class GyroSimulator:
         if n == 0:
             empty = np.zeros(0)
             return GyroSamples(t_s, *([empty] * 8))
-        inputs = ModelInputs.of(t_s, table_rate_dps, chamber_temp_c, table_angle_deg, sensor_temp_c)
+        inputs = ModelInputs.of(t_s, table_rate_dps, chamber_temp_c, table_angle_deg, sensor_temp_c,
+                                field_t)
         result = _emit(self.model, inputs, self._state, 1.0 / self.fs_hz, self._noise, self._counter)
         self._state = result[1]
         self._index += n
@@ -233,13 +236,15 @@ def simulate(
     seed: int | None = None,
     table_angle_deg=None,
     sensor_temp_c=None,
+    field_t=None,
 ) -> GyroSamples:
     """Simulate a whole record at the given time stamps (strictly increasing).
 
     The noise is generated at fs = 1/median(Δt); the equation and the pulse
     counter use the actual intervals, so slightly irregular logs are fine.
     """
-    inputs = ModelInputs.of(t_s, table_rate_dps, chamber_temp_c, table_angle_deg, sensor_temp_c)
+    inputs = ModelInputs.of(t_s, table_rate_dps, chamber_temp_c, table_angle_deg, sensor_temp_c,
+                            field_t)
     n = len(inputs)
     if n < 2:
         raise ValueError("simulate needs at least 2 time stamps to know the sample rate")

@@ -34,7 +34,9 @@ class ModelInputs:
 
     ``table_angle_deg`` and ``sensor_temp_c`` are optional measured columns;
     when given they are used as they are instead of ∫ω_t dt and the
-    thermal-lag model.
+    thermal-lag model. ``field_t`` (magnetic field along the sensitive axis,
+    T) is optional too: without it the field is taken as zero, so
+    ``magnetic_sensitivity`` adds nothing.
     """
 
     t_s: np.ndarray
@@ -42,6 +44,7 @@ class ModelInputs:
     chamber_temp_c: np.ndarray
     table_angle_deg: np.ndarray | None = None
     sensor_temp_c: np.ndarray | None = None
+    field_t: np.ndarray | None = None
 
     @classmethod
     def of(
@@ -51,6 +54,7 @@ class ModelInputs:
         chamber_temp_c,
         table_angle_deg=None,
         sensor_temp_c=None,
+        field_t=None,
     ) -> ModelInputs:
         """Arrays from array-likes; scalars are broadcast to the length of ``t_s``."""
         t = np.asarray(t_s, dtype=float).reshape(-1)
@@ -79,6 +83,7 @@ class ModelInputs:
             column("chamber_temp_c", chamber_temp_c),
             column("table_angle_deg", table_angle_deg),
             column("sensor_temp_c", sensor_temp_c),
+            column("field_t", field_t),
         )
 
     def __len__(self) -> int:
@@ -301,6 +306,8 @@ def indicated_rate(
         bias = bias + k * np.cos(np.deg2rad(angle - fx["table_angle_harmonic"]["phase_deg"]))
     if (k := coefficient("periodic_interference", "amplitude_dph")) != 0.0:
         bias = bias + k * np.sin(2.0 * np.pi * fx["periodic_interference"]["freq_hz"] * t)
+    if (k := coefficient("magnetic_sensitivity", "dph_per_t")) != 0.0 and inputs.field_t is not None:
+        bias = bias + k * inputs.field_t
     bias = np.broadcast_to(bias, (n,))
 
     end = ModelState(

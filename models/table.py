@@ -27,6 +27,7 @@ from gyrocal.models.clock import Clock
 MODE_OFF = "off"
 MODE_RATE = "rate"
 MODE_SYNTHESIS = "synthesis"
+MODE_POSITION = "position"
 
 
 class TableLimitError(ValueError):
@@ -98,6 +99,28 @@ class _SineSegment:
     def angle_deg(self, dt_s: np.ndarray) -> np.ndarray:
         start = np.sin(np.radians(self.phase_deg))
         return self.angle0_deg + self.amplitude_deg * (np.sin(self._arg(dt_s)) - start)
+
+
+def position_move(t0_s: float, angle0_deg: float, target_deg: float, max_rate_dps: float,
+                  accel_dps2: float) -> list[_Segment]:
+    """A move from rest at ``angle0_deg`` to rest at ``target_deg``: the fastest profile the
+    limits allow (accelerate, cruise at ``max_rate_dps``, decelerate; a triangle when the
+    move is too short to reach it), as two segments, the second starting in the future.
+
+    Kept apart from the rate servo (position mode is the indexing head of the tilt test).
+    """
+    distance = float(target_deg) - float(angle0_deg)
+    if distance == 0.0:
+        return [_Segment(t0_s, 0.0, angle0_deg, 0.0, accel_dps2)]
+    sign = 1.0 if distance > 0 else -1.0
+    span = abs(distance)
+    peak_dps = min(max_rate_dps, float(np.sqrt(span * accel_dps2)))
+    # time from the start to the beginning of the deceleration: the ramp up, then the cruise
+    cruise_s = (span - peak_dps**2 / accel_dps2) / peak_dps
+    start_decel_s = peak_dps / accel_dps2 + max(cruise_s, 0.0)
+    up = _Segment(t0_s, 0.0, angle0_deg, sign * peak_dps, accel_dps2)
+    down_angle = float(up.angle_deg(np.asarray(start_decel_s)))
+    return [up, _Segment(t0_s + start_decel_s, sign * peak_dps, down_angle, 0.0, accel_dps2)]
 
 
 class TablePhysics:
@@ -194,6 +217,36 @@ class TablePhysics:
                 self._demand_dps = 0.0
                 self._retarget(0.0)
 
+    def set_mode_position(self) -> None:
+        """Position mode (the indexing head): the table holds its angle until a position demand."""
+        with self._lock:
+            if not self._interlock_closed:
+                raise TableInterlockError("position mode refused: interlock open")
+            if self._mode != MODE_POSITION:
+                self._mode = MODE_POSITION
+                self._demand_dps = 0.0
+                self._retarget(0.0)
+
+    def set_position_demand_deg(self, position_deg: float) -> None:
+        """Move to ``position_deg`` (the readout's 0-360 frame, the shorter way round) at the
+        rate and acceleration limits. Accepted at rest only (the run waits for each move)."""
+        position_deg = float(position_deg)
+        with self._lock:
+            if not np.isfinite(position_deg):
+                raise TableLimitError(f"position demand {position_deg!r} deg is not a number")
+            if not self._interlock_closed:
+                raise TableInterlockError("position demand refused: interlock open")
+            if self._mode != MODE_POSITION:
+                raise TableModeError(f"position demand refused: table in mode {self._mode!r}")
+            now_s = max(self.clock.now_s(), self._segments[-1].t0_s)
+            if now_s < self.settle_time_s() or float(self.rate_dps(now_s)) != 0.0:
+                raise TableModeError("position demand refused: the table is still moving")
+            angle0 = float(self.angle_deg(now_s))
+            step = (position_deg - angle0 + 180.0) % 360.0 - 180.0
+            for segment in position_move(now_s, angle0, angle0 + step, self.max_rate_dps,
+                                         self._accel_limit_dps2):
+                self._push(segment)
+
     def set_mode_off(self) -> None:
         """Servo to rest at the acceleration limit (always allowed: it is the safe state)."""
         with self._lock:
@@ -289,8 +342,16 @@ class TablePhysics:
     # ----- internals ----------------------------------------------------------------------
 
     def _retarget(self, target_dps: float) -> None:
-        """Start a new segment now, from the current motion, toward ``target_dps``."""
-        now_s = max(self.clock.now_s(), self._segments[-1].t0_s)
+        """Start a new segment now, from the current motion, toward ``target_dps``.
+
+        A position move's planned future segment is dropped first: a new command (an
+        interlock opening mid-move) takes over from the motion as it is now.
+        """
+        now_s = self.clock.now_s()
+        while len(self._segments) > 1 and self._segments[-1].t0_s > now_s:
+            self._segments.pop()
+            self._starts_s.pop()
+        now_s = max(now_s, self._segments[-1].t0_s)
         last = self._segments[-1]
         dt_s = np.asarray(now_s - last.t0_s)
         segment = _Segment(
@@ -343,10 +404,12 @@ class TablePhysics:
 
 __all__ = [
     "MODE_OFF",
+    "MODE_POSITION",
     "MODE_RATE",
     "MODE_SYNTHESIS",
     "TableInterlockError",
     "TableLimitError",
     "TableModeError",
     "TablePhysics",
+    "position_move",
 ]

@@ -47,6 +47,10 @@ from gyrocal.orchestrator.unit_power import check as check_power
 
 #: An operator creates this file in the run folder to pause before the next step.
 PAUSE_FILE = "PAUSE"
+#: a tilt step's angle counts as reached within this (the position readout has 1e-6 deg)
+POSITION_BAND_DEG = 0.001
+#: the longest a position move may take before it is a fault (±90 deg at any sane limit)
+MOVE_TIMEOUT_S = 120.0
 
 
 @dataclass(frozen=True)
@@ -119,6 +123,7 @@ class RunEngine:
         self._attempts_before: dict[str, int] = {}  # step_id → last attempt journaled by earlier sessions
         self._closing_from: int | None = None  # len(gate.deferred) when the close began
         self._t_run_start = self.clock.now_s()
+        self._position_mode = False         # the table serves position mode (tilt steps)
         self.conditions = Conditions(instruments, self.clock, self.machine, self.journal,
                                      self.progress, policy, elapsed_s=self._elapsed)
         self.acquisition = Acquisition(
@@ -137,6 +142,8 @@ class RunEngine:
             StepKind.THRESHOLD: self._log_step,
             StepKind.RATE_LIMIT: self._log_step,
             StepKind.FREQUENCY_RESPONSE: self._frequency_step,
+            StepKind.MAGNETIC: self._magnetic_step,
+            StepKind.TILT: self._tilt_step,
         }
         if operator is not None:
             self._executors[StepKind.REMOUNT] = self._remount_executor().execute
@@ -372,6 +379,70 @@ class RunEngine:
         self.conditions.forget_demand()
         self.conditions.set_table_rate(0.0, step.accel_dps2)
 
+    def _tilt_step(self, step: PlanStep) -> None:
+        """The table (axis horizontal) as the indexing head: position mode, move to the step's
+        angle, wait until the position reads it back, settle, log. After the last tilt step
+        of a run of them the table goes back to 0 and to rate mode at rest."""
+        table = self.inst.table
+        if not table.serves_position or step.angle_deg is None:
+            raise RunFaultError(f"table: {step.step_id}: the table driver has no position mode")
+        if not self._position_mode:
+            self.conditions.set_table_rate(0.0)
+            table.set_position_mode()
+            self._position_mode = True
+        read_deg = self._move_to_angle(step, step.angle_deg)
+        self.journal.append(JournalEvent.TABLE_POSITION, step_id=step.step_id,
+                            angle_deg=step.angle_deg, read_deg=read_deg)
+        self.clock.sleep(step.settle_s)
+        self._log_step(step)
+        following = self.steps[self.steps.index(step) + 1:]
+        if not following or following[0].kind != StepKind.TILT:
+            self._move_to_angle(step, 0.0)
+            table.set_rate_mode()
+            table.set_rate_dps(0.0)
+            self._position_mode = False
+
+    def _move_to_angle(self, step: PlanStep, angle_deg: float) -> float:
+        """Demand ``angle_deg``, poll the position until it reads it (within POSITION_BAND_DEG)."""
+        table = self.inst.table
+        table.set_position_deg(angle_deg)
+        deadline = self.clock.now_s() + MOVE_TIMEOUT_S
+        while True:
+            read = table.read_position_deg()
+            if abs((read - angle_deg + 180.0) % 360.0 - 180.0) <= POSITION_BAND_DEG:
+                return read
+            if self.clock.now_s() > deadline:
+                raise RunFaultError(f"table: {step.step_id}: position reads {read:.4f} deg, "
+                                    f"demanded {angle_deg:g} deg, after {MOVE_TIMEOUT_S:g} s")
+            self.clock.sleep(self.policy.poll_s)
+
+    def _magnetic_step(self, step: PlanStep) -> None:
+        """A static with the station's coil at the step's field: set, read back, log, read back,
+        switch off (read back off). The table is at rest; a fault leaves the coil off (safe state)."""
+        coil = self.inst.coil
+        if coil is None or step.field_t is None:
+            raise RunFaultError(f"{step.step_id}: a magnetic step needs the station's coil")
+        self.conditions.set_table_rate(0.0)
+        for when in ("set", "after"):
+            reading = coil.set_field(step.field_t) if when == "set" else coil.read()
+            problem = coil.mismatch(reading, step.field_t)
+            self.journal.append(JournalEvent.COIL_FIELD, step_id=step.step_id, when=when,
+                                set_field_t=step.field_t, field_t=reading.field_t,
+                                positive_current_a=reading.positive_current_a,
+                                negative_current_a=reading.negative_current_a,
+                                ok=problem is None)
+            if problem is not None:
+                raise RunFaultError(f"coil: {step.step_id}: {problem}")
+            if when == "set":
+                self._log_step(step)
+        reading = coil.off()
+        if reading.positive_on or reading.negative_on:
+            raise RunFaultError(f"coil: after {step.step_id}: a channel still reads on")
+        self.journal.append(JournalEvent.COIL_FIELD, step_id=step.step_id, when="off",
+                            set_field_t=0.0, field_t=reading.field_t,
+                            positive_current_a=reading.positive_current_a,
+                            negative_current_a=reading.negative_current_a, ok=True)
+
     def _log_step(self, step: PlanStep, reference: Sinusoid | None = None) -> None:
         """Log a step; a bad attempt (frame loss, a gyro read that failed) is repeated.
 
@@ -469,7 +540,8 @@ class RunEngine:
         station's safe setpoint, each confirmed by read-back and journaled (``returned_safe``)."""
         policy = SafePolicy(self.policy.safe_setpoint_c, self.policy.chamber_retries,
                             self.policy.table_retries)
-        outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock)
+        outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock,
+                            coil=self.inst.coil)
         for action in outcome.actions:
             print(f"gyrocal: returned to the safe state: {action.text}", file=sys.stderr)
         self.journal.append(JournalEvent.RETURNED_SAFE, **outcome.journal_fields())
@@ -496,7 +568,7 @@ class RunEngine:
                             power.attempts if power else 3)
         with self._gate.shielded():
             outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock,
-                                self.inst.supply)
+                                self.inst.supply, self.inst.coil)
             outcome.print()
             if self.machine.state == "safing":
                 self.machine.safed()

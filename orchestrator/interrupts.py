@@ -30,6 +30,7 @@ from gyrocal.instruments.interfaces import (
     Chamber,
     ChamberStatus,
     Identity,
+    PositionTable,
     RateTable,
     SynthesisTable,
     TableStatus,
@@ -224,6 +225,24 @@ class GatedTable(_Gated[RateTable]):
     def read_position_deg(self) -> float:
         with self._gate.held():
             return self.inner.read_position_deg()
+
+    @property
+    def serves_position(self) -> bool:
+        return isinstance(self.inner, PositionTable)
+
+    def set_position_mode(self) -> None:
+        inner = self.inner
+        if not isinstance(inner, PositionTable):
+            raise TypeError(f"table driver {type(inner).__name__} has no position mode")
+        with self._gate.held():
+            inner.set_position_mode()
+
+    def set_position_deg(self, position_deg: float) -> None:
+        inner = self.inner
+        if not isinstance(inner, PositionTable):
+            raise TypeError(f"table driver {type(inner).__name__} has no position mode")
+        with self._gate.held():
+            inner.set_position_deg(position_deg)
 
     def read_status(self) -> TableStatus:
         with self._gate.held():

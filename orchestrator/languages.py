@@ -251,6 +251,10 @@ STATION_TABLE = Section(
             Key("max_rate_dps", _q(RATE, above=0.0), "largest rate magnitude"),
             Key("max_accel_dps2", _q(ACCELERATION, above=0.0), "largest acceleration"),
         )), "hard limits"),
+        Key("orientation", _choice(sta.TABLE_ORIENTATIONS), "`vertical` (a rate table) or "
+            "`horizontal` (turned on its side: in position mode the indexing head that tips the "
+            "unit's x axis through gravity, a_x = g·sin θ; the `tilt_linearity` test needs it)",
+            False, "vertical"),
         *_LINK_KEYS,
     ))
 
@@ -289,6 +293,33 @@ STATION_SUPPLY = Section(
         *_LINK_KEYS,
     ))
 
+STATION_COIL = Section(
+    "coil", "coil",
+    "A Helmholtz coil for the `magnetic` test kind (optional; needs the `supply` section). A "
+    "supply channel is unipolar, so the coil's two polarities are two further channels of "
+    "that supply wired in opposition: `positive_channel` gives +B along `axis`, "
+    "`negative_channel` -B. Each runs in constant current (its voltage set to "
+    "`compliance_v`, its current limit to |B| / `constant_t_per_a`); both are read back and "
+    "the field they make must be within 1 % (+0.1 % of the coil's reach) of the set one, "
+    "else a fault. Between magnetic steps, at the end of a run and in the safe state both "
+    "channels are switched off (read back). On `--sim` the simulated gyro sees the coil "
+    "constant × the simulated supply's channel currents along its input axis (`axis: "
+    "input`) or nothing (`transverse`).",
+    (
+        Key("constant_t_per_a", _num(maximum=1.0, above=0.0), "field at the coil's centre per "
+            "ampere, T/A (its calibration)"),
+        Key("u_constant_rel", _num(0.0, 0.5), "relative standard uncertainty of the coil "
+            "constant (a type B line of the sensitivity's budget)", False, "0"),
+        Key("axis", _choice(sta.COIL_AXES), "the coil's axis: along the gyro's input axis, or "
+            "across it"),
+        Key("positive_channel", _int(1, 3), "supply channel driving +B (not `supply.channel`)"),
+        Key("negative_channel", _int(1, 3), "supply channel driving -B (another channel)"),
+        Key("compliance_v", _num(maximum=100.0, above=0.0), "voltage set on the working "
+            "channel, V: above what the coil needs at its maximum current"),
+        Key("max_current_a", _num(maximum=100.0, above=0.0), "the coil's rated current, A; a "
+            "test's field_t must be within constant_t_per_a × this"),
+    ))
+
 SIMULATION = Section(
     "simulation", "simulation",
     "What `--sim` and `gyrocal sim serve` start; ignored on real hardware. Needed when any "
@@ -318,6 +349,17 @@ SIMULATION = Section(
             Key("drive_noise_dph", _num(0.0), "extra white noise per sample while the drive is "
                 "powered, deg/h (1 σ)", False, "0"),
         )), "table physics"),
+        Key("inclinometer", Section("simulation-inclinometer", "simulation.inclinometer",
+            "The simulated unit's inclinometer errors (instruments/sim/tilt_force.py): on a "
+            "horizontal table the x channel reads scale·a_x + quadratic_per_g·a_x² + bias_g, "
+            "the y channel cross_axis·a_x, each plus white noise (the z channel reads a_z).", (
+                Key("scale", _num(0.5, 2.0), "x channel output per input, g/g", False, "1"),
+                Key("bias_g", _num(-0.1, 0.1), "x channel zero output, g", False, "0"),
+                Key("quadratic_per_g", _num(-0.1, 0.1), "x channel curvature, 1/g", False, "0"),
+                Key("cross_axis", _num(-0.5, 0.5), "y channel output per g of a_x (the leak "
+                    "the lateral sensitivity measures)", False, "0"),
+                Key("noise_g", _num(0.0, 0.1), "white noise per sample, g (1 σ)", False, "0"),
+            )), "inclinometer errors", False),
     ))
 
 NOTIFY = Section(
@@ -354,6 +396,7 @@ STATION_ROOT = Section(
         Key("table", STATION_TABLE, "rate table"),
         Key("gyro", STATION_GYRO, "gyro interface"),
         Key("supply", STATION_SUPPLY, "the unit's programmable supply", False),
+        Key("coil", STATION_COIL, "Helmholtz coil on two channels of that supply", False),
         Key("simulation", SIMULATION, "simulated instruments", False),
         Key("signing_key", Scalar("path"), "the station's Ed25519 private key (`gyrocal keys`); "
             "runs are signed with it", False),
@@ -424,6 +467,44 @@ TEST_INTERFERENCE = Section(
     "and closed again afterwards). The report's `table_interference` compares them: the "
     "drift (std of 1-s means) and its ratio, and the spectral lines the drive adds "
     "(frequency, 0-to-peak amplitude in both records).", _HOLD_KEYS)
+
+TEST_MAGNETIC = Section(
+    "test-magnetic", "test kind: magnetic",
+    "Magnetic (Faraday) bias sensitivity (the vendor notes' coil test): three statics of "
+    "`duration` at rest with the station's coil (the `coil` section) at +`field_t` "
+    "(`.pos`), 0 (`.zero`, both channels off) and -`field_t` (`.neg`); the field is set, "
+    "read back (journal `coil_field`) and switched off after each. The report's `magnetic` "
+    "regresses the bias on the read-back field by weighted least squares: the sensitivity "
+    "in deg/(h·T) with its GUM budget (each dwell's batch-means type A, the coil constant's "
+    "type B) and where it falls against the notes' figures (1-10 navigation grade, ~1e4 "
+    "unshielded).",
+    (
+        *_HOLD_KEYS,
+        Key("field_t", _num(maximum=1.0, above=0.0), "|B| of the +B and -B dwells, T; within "
+            "what the station's coil reaches (coil.constant_t_per_a × coil.max_current_a)"),
+    ))
+
+TEST_TILT = Section(
+    "test-tilt_linearity", "test kind: tilt_linearity",
+    "An inclinometer's static test (the vendor notes' tilt-sensor test; the STIM300's "
+    "inclinometers, datagram 0x93 or 0xA7): the table, its axis horizontal "
+    "(`table.orientation: horizontal`), in position mode as the indexing head. At each "
+    "angle point (`.+15deg`, …) the table moves there at its limits, the position is read "
+    "back (journal `table_position`), then `settle`, then `dwell` of logging; last a "
+    "`zero_stability` hold at 0 (`.zero`); then back to 0 and rate mode. The report's "
+    "`tilt_linearity`: the sensitivity and linearity (largest LS residual over the "
+    "full-scale span, %) of `incl_x_g` against g·sin θ (the station's local gravity), the "
+    "lateral sensitivity (the slope of `incl_y_g` against g·sin θ over the sensitivity, %) "
+    "and the zero stability (std of the zero hold's 1-s means over the sensitivity, g).",
+    (
+        *_COMMON_TEST_KEYS,
+        Key("points", _choice(tuple(proc.TILT_POINTS)), "the angle points: `vendor_90` "
+            "(-90…90° in 15° steps) or `vendor_30` (-30…30° in 5° steps)"),
+        Key("dwell", _duration(), "logged time at each angle point"),
+        Key("zero_stability", _duration(), "logged time of the zero hold at 0°"),
+        Key("settle", _duration(positive=False), "time at each angle before logging starts",
+            False, "defaults.settle, else 0 s"),
+    ))
 
 SCHEDULE = Section(
     "test-sf_sweep-schedule", "sf_sweep schedule",
@@ -560,7 +641,9 @@ TEMPERATURE_STEP = Section(
                                               ("table_interference", TEST_INTERFERENCE),
                                               ("threshold", TEST_THRESHOLD),
                                               ("rate_limit", TEST_RATE_LIMIT),
-                                              ("frequency_response", TEST_FREQUENCY_RESPONSE))),
+                                              ("frequency_response", TEST_FREQUENCY_RESPONSE),
+                                              ("magnetic", TEST_MAGNETIC),
+                                              ("tilt_linearity", TEST_TILT))),
                             min_items=0),
             "what is measured at this temperature, in order (an empty list just soaks)", False),
     ))

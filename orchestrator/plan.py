@@ -21,6 +21,7 @@ from gyrocal.instruments.table.acutrol_protocol import commanded_rate_dps
 from gyrocal.orchestrator.procedure import (
     AllanTest,
     FrequencyResponseTest,
+    MagneticTest,
     MountingSpec,
     Procedure,
     RateLimitTest,
@@ -29,6 +30,7 @@ from gyrocal.orchestrator.procedure import (
     TableInterferenceTest,
     TemperatureStep,
     ThresholdTest,
+    TiltLinearityTest,
 )
 from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.table_synthesis import REST_BEFORE_SYNTHESIS_S
@@ -80,6 +82,10 @@ class PlanStep:
     freq_hz: float | None = None
     amplitude_dps: float | None = None
     phase_at_hz: float | None = None
+    # magnetic steps: the coil's field along its axis during the step, tesla (signed)
+    field_t: float | None = None
+    # tilt steps: the table angle (position mode, axis horizontal), deg
+    angle_deg: float | None = None
 
 
 @dataclass(frozen=True)
@@ -116,7 +122,7 @@ def _test_tags(step: TemperatureStep) -> list[str]:
     """``sf``, ``static``, ``allan``; numbered (``sf1``, ``sf2``) when a kind repeats in a step."""
     base = {"sf_sweep": "sf", "static": "static", "allan": "allan",
             "table_interference": "interference", "threshold": "thr", "rate_limit": "lim",
-            "frequency_response": "freq"}
+            "frequency_response": "freq", "magnetic": "mag", "tilt_linearity": "tilt"}
     kinds = [base[test.kind] for test in step.tests]
     seen: dict[str, int] = {}
     tags = []
@@ -226,6 +232,24 @@ class _Expander:
                     for half, kind in (("powered", StepKind.STATIC), ("off", StepKind.DRIVE_OFF)):
                         self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=kind, direction="",
                                  duration_s=test.duration_s, settle_s=test.settle_s, **base)
+                    continue
+                if isinstance(test, MagneticTest):
+                    # +B, 0, -B: reports/magnetic_section.py regresses the bias on the field
+                    for half, field_t in (("pos", test.field_t), ("zero", 0.0), ("neg", -test.field_t)):
+                        self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=StepKind.MAGNETIC,
+                                 direction="", duration_s=test.duration_s, settle_s=test.settle_s,
+                                 field_t=field_t, **base)
+                    continue
+                if isinstance(test, TiltLinearityTest):
+                    # each angle point, then the zero-stability hold at 0 (the table as the
+                    # indexing head; reports/tilt_section.py fits them)
+                    for angle in test.angles_deg:
+                        self.add(step_id=f"{prefix}.{tag}{suffix}.{angle:+g}deg",
+                                 kind=StepKind.TILT, direction="", duration_s=test.dwell_s,
+                                 settle_s=test.settle_s, angle_deg=angle, **base)
+                    self.add(step_id=f"{prefix}.{tag}{suffix}.zero", kind=StepKind.TILT,
+                             direction="", duration_s=test.zero_stability_s,
+                             settle_s=test.settle_s, angle_deg=0.0, **base)
                     continue
                 if isinstance(test, ThresholdTest):
                     self.threshold(prefix, tag, suffix, test, base)
@@ -403,6 +427,10 @@ def format_plan(plan: Plan) -> str:
             f"{step.rate_dps:+g} deg/s" if step.rate_dps else "0 deg/s")
         if step.kind == "dwell" and step.revolutions is not None:
             rate += f" ({step.revolutions:.3g} rev)"
+        if step.kind == StepKind.MAGNETIC and step.field_t is not None:
+            rate += f" (coil {step.field_t * 1e3:+g} mT)"
+        if step.kind == StepKind.TILT and step.angle_deg is not None:
+            rate = f"at {step.angle_deg:+g}° (position)"
         rows.append((str(number), step.step_id, step.kind, f"{step.setpoint_c:g} °C", rate, move,
                      logged, format_duration(step.expected_s), format_hms(step.start_s)))
     widths = [max(len(row[i]) for row in [header, *rows]) for i in range(len(header))]

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from gyrocal.inputs import YamlDocument, load_yaml, outside_reference
+from gyrocal.instruments.gyro.datagram_types import layout_of
 from gyrocal.instruments.table.acutrol_protocol import RATE_DECIMALS, commanded_rate_dps
 from gyrocal.models.imu_model import Mounting
 from gyrocal.orchestrator.metrics import METRICS, NEEDS_TEXT, units_match
@@ -55,7 +56,7 @@ OUTPUT_UNITS = ("deg/s", "deg/h", "rad/s", "V", "LSB")
 DIRECTIONS = ("both", "positive", "negative")
 SPACINGS = ("linear", "log")
 TEST_KINDS = ("static", "sf_sweep", "allan", "table_interference", "threshold", "rate_limit",
-              "frequency_response")
+              "frequency_response", "magnetic", "tilt_linearity")
 #: Frequency-response defaults: whole sinusoid periods logged per frequency (at least
 #: ``min_duration``), and periods turned before logging so the unit's transient has gone.
 DEFAULT_FR_CYCLES = 10
@@ -63,6 +64,9 @@ DEFAULT_FR_SETTLE_CYCLES = 3
 #: A sinusoid needs this many samples per period for its amplitude and phase (and the
 #: simulator's first-order hold of the table rate) to be meaningful.
 MIN_SAMPLES_PER_PERIOD = 10
+#: the vendor notes' angle points of the tilt test (indexing head), by name
+TILT_POINTS = {"vendor_90": tuple(float(a) for a in range(-90, 91, 15)),
+               "vendor_30": tuple(float(a) for a in range(-30, 31, 5))}
 #: Input-rate limit defaults: a rate leaves the linear fit when its output is more than this
 #: many % of the fitted output away from it; the fit uses this many of the lowest rates.
 DEFAULT_LINEARITY_TOLERANCE_PCT = 1.0
@@ -176,6 +180,34 @@ class TableInterferenceTest:
 
 
 @dataclass(frozen=True)
+class MagneticTest:
+    """Static dwells at +B, 0 and -B along the station's coil axis (Helmholtz coil driven by
+    the station's supply): the bias sensitivity in deg/(h·T) (reports/magnetic.py)."""
+
+    field_t: float            # |B| of the +B and -B dwells, tesla
+    duration_s: float
+    settle_s: float
+    repeats: int
+    label: str | None
+    kind: str = "magnetic"
+
+
+@dataclass(frozen=True)
+class TiltLinearityTest:
+    """An inclinometer's static test with the table (axis horizontal) as the indexing head:
+    a dwell at each angle point, then a zero-stability hold at 0 (reports/tilt_linearity.py)."""
+
+    angles_deg: tuple[float, ...]
+    points: str               # the name of the angle set (TILT_POINTS) or "listed"
+    dwell_s: float
+    settle_s: float
+    zero_stability_s: float
+    repeats: int
+    label: str | None
+    kind: str = "tilt_linearity"
+
+
+@dataclass(frozen=True)
 class AllanTest:
     """A long static hold for the Allan variance (noise terms Q, N, B, K, R)."""
 
@@ -276,7 +308,7 @@ class FrequencyResponseTest:
 
 
 Test = (StaticTest | AllanTest | SweepTest | TableInterferenceTest | ThresholdTest
-        | RateLimitTest | FrequencyResponseTest)
+        | RateLimitTest | FrequencyResponseTest | MagneticTest | TiltLinearityTest)
 
 
 @dataclass(frozen=True)
@@ -793,6 +825,10 @@ class _Parser:
             return self.rate_limit_test(fields, defaults, repeats, label)
         if kind == "frequency_response":
             return self.frequency_response_test(fields, defaults, repeats, label)
+        if kind == "magnetic":
+            return self.magnetic_test(fields, defaults, repeats, label)
+        if kind == "tilt_linearity":
+            return self.tilt_test(fields, defaults, repeats, label)
         if kind != "sf_sweep":
             # after a sweep the table needs settling before a static hold too, but a
             # procedure that never spins may leave settle out altogether
@@ -816,6 +852,52 @@ class _Parser:
         fields.finish()
         return SweepTest(rates, schedule, directions, dwell, settle, accel, revolutions,
                          repeats, label)
+
+    def magnetic_test(self, fields: Fields, defaults: Defaults, repeats: int,
+                      label: str | None) -> MagneticTest | None:
+        """|B| must be one the station's coil reaches (coil constant × its max current)."""
+        settle = fields.take("settle", _duration(positive=False), required=False,
+                             default=defaults.settle_s if defaults.settle_s is not None else 0.0)
+        duration_s = fields.take("duration", _duration())
+        field_t = fields.take("field_t", number(above=0.0, maximum=1.0, unit="T"))
+        station = self.station
+        if station is not None and station.coil is None:
+            self.ctx.report(fields.child("kind"), f"a magnetic test needs a coil; the station "
+                            f"{station.file} has no coil: section")
+        elif station is not None and station.coil is not None and field_t is not None \
+                and field_t > station.coil.max_field_t:
+            coil = station.coil
+            self.ctx.report(fields.child("field_t"), f"{format_number(field_t)} T is above what the "
+                            f"coil reaches: {format_number(coil.max_field_t)} T ({station.file}: "
+                            f"coil.constant_t_per_a {format_number(coil.constant_t_per_a)} × "
+                            f"coil.max_current_a {format_number(coil.max_current_a)})")
+        fields.finish()
+        if None in (settle, duration_s, field_t):
+            return None
+        return MagneticTest(field_t, duration_s, settle, repeats, label)
+
+    def tilt_test(self, fields: Fields, defaults: Defaults, repeats: int,
+                  label: str | None) -> TiltLinearityTest | None:
+        """Needs a horizontal table axis and a datagram with the inclinometers (0x93, 0xA7)."""
+        settle = fields.take("settle", _duration(positive=False), required=False,
+                             default=defaults.settle_s if defaults.settle_s is not None else 0.0)
+        dwell = fields.take("dwell", _duration())
+        zero_s = fields.take("zero_stability", _duration())
+        points = fields.take("points", choice(tuple(TILT_POINTS)))
+        station = self.station
+        if station is not None and station.table.orientation != "horizontal":
+            self.ctx.report(fields.child("kind"), "a tilt_linearity test turns the table as an "
+                            f"indexing head through gravity: the station {station.file} must "
+                            "declare table.orientation: horizontal")
+        if station is not None and not layout_of(station.gyro.datagram).kind.inclination:
+            self.ctx.report(fields.child("kind"), f"the station's gyro.datagram "
+                            f"0x{station.gyro.datagram:02X} carries no inclinometers; a "
+                            "tilt_linearity test needs 0x93 or 0xA7 (TS1524 Table 5-21)")
+        fields.finish()
+        if None in (settle, dwell, zero_s, points):
+            return None
+        return TiltLinearityTest(TILT_POINTS[points], points, dwell, settle, zero_s, repeats,
+                                 label)
 
     def threshold_test(self, fields: Fields, defaults: Defaults, repeats: int,
                        label: str | None) -> ThresholdTest:

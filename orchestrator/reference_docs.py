@@ -528,7 +528,7 @@ before any analysis runs (`reports/log_contract.py`).
 def _column_unit(column: str) -> str:
     return {"t_s": "s", "table_rate_dps": "deg/s", "chamber_temp_c": "°C",
             "gyro": "the gyro's output units", "sensor_temp_c": "°C",
-            "table_angle_deg": "deg"}.get(column, "")
+            "table_angle_deg": "deg", "field_t": "T (along the sensitive axis)"}.get(column, "")
 
 
 def exit_codes_doc() -> str:

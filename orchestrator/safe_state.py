@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import Any, TextIO
 
 from gyrocal.instruments.interfaces import Chamber, PowerSupply, RateTable
+from gyrocal.instruments.supply.coil import CoilDrive
 from gyrocal.models.clock import Clock
 
 #: A stopped table reads back |rate| at most this (the simulated encoder noise is ~1e-3 deg/s).
@@ -173,19 +174,39 @@ def unit_power_to_safe(supply: PowerSupply, action: str, attempts: int) -> SafeA
     return _not_confirmed("supply", last, attempts)
 
 
-def _reset(link: Chamber | RateTable | PowerSupply) -> None:
+def coil_to_safe(coil: CoilDrive, attempts: int) -> SafeAction:
+    """Both coil channels off, read back off (a field left on would bias the next static)."""
+    last = "no answer"
+    attempts = max(1, attempts)
+    for attempt in range(1, attempts + 1):
+        try:
+            reading = coil.off()
+            if not (reading.positive_on or reading.negative_on):
+                return SafeAction("coil", True, "coil switched off (read back: both channels off)",
+                                  attempt)
+            last = "a coil channel still reads on after OUTP off"
+        except Exception as exc:  # noqa: BLE001 - every failure is attempted again, then reported
+            last = _failure(exc)
+    return _not_confirmed("coil", last, attempts)
+
+
+def _reset(link: Chamber | RateTable | PowerSupply | CoilDrive) -> None:
     # A link that cannot even close is reported by the action that follows.
     with contextlib.suppress(Exception):
         link.reset_link()
 
 
 def make_safe(table: RateTable, chamber: Chamber, policy: SafePolicy, clock: Clock,
-              supply: PowerSupply | None = None) -> SafeOutcome:
-    """Fresh links, then the table (it moves the unit), the chamber, the unit's power; each whatever the others did."""
+              supply: PowerSupply | None = None, coil: CoilDrive | None = None) -> SafeOutcome:
+    """Fresh links, then the table (it moves the unit), the chamber, the coil, the unit's power;
+    each whatever the others did."""
     _reset(table)
     _reset(chamber)
     actions = [stop_table(table, clock, policy.table_attempts),
                chamber_to_safe(chamber, policy.setpoint_c, clock, policy.chamber_attempts)]
+    if coil is not None:
+        _reset(coil)
+        actions.append(coil_to_safe(coil, policy.supply_attempts))
     if supply is not None and policy.unit_power is not None:
         _reset(supply)
         actions.append(unit_power_to_safe(supply, policy.unit_power, policy.supply_attempts))

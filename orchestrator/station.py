@@ -154,6 +154,9 @@ class TableConfig:
     #: how the controller answers (instruments/table/acutrol_protocol.py DIALECTS: the manual's only)
     dialect: str = DEFAULT_DIALECT
     settings: Mapping[str, SettingValue] = field(default_factory=dict)
+    #: "vertical" (a rate table) or "horizontal" (turned on its side: an indexing head that
+    #: tilts the unit through gravity, for the tilt_linearity test)
+    orientation: str = "vertical"
 
 
 @dataclass(frozen=True)
@@ -195,6 +198,51 @@ class SupplyConfig:
     settings: Mapping[str, SettingValue] = field(default_factory=dict)
 
 
+#: the table axis: vertical (a rate table) or horizontal (an indexing head through gravity)
+TABLE_ORIENTATIONS = ("vertical", "horizontal")
+
+
+@dataclass(frozen=True)
+class InclinometerSim:
+    """The simulated unit's inclinometers (station simulation.inclinometer): the x channel
+    reads scale·a_x + quadratic·a_x² + bias, the y channel cross_axis·a_x, each + noise (g)."""
+
+    scale: float = 1.0
+    bias_g: float = 0.0
+    quadratic_per_g: float = 0.0
+    cross_axis: float = 0.0
+    noise_g: float = 0.0
+
+
+#: the coil's axis relative to the gyro: along its input (sensitive) axis, or across it
+COIL_AXES = ("input", "transverse")
+
+
+@dataclass(frozen=True)
+class CoilConfig:
+    """A Helmholtz coil driven by two channels of the station's supply (magnetic step kind).
+
+    A programmable supply is unipolar, so the coil has its two polarities on two
+    channels wired in opposition: ``positive_channel`` drives +B along ``axis``,
+    ``negative_channel`` -B. Each channel runs in constant current (its voltage
+    ``compliance_v`` above what the coil needs), so the field is the coil constant ×
+    the channel's current, read back on both channels.
+    """
+
+    constant_t_per_a: float
+    #: relative standard uncertainty of the coil constant (its calibration)
+    u_constant_rel: float
+    axis: str                 # COIL_AXES
+    positive_channel: int
+    negative_channel: int
+    compliance_v: float
+    max_current_a: float
+
+    @property
+    def max_field_t(self) -> float:
+        return self.constant_t_per_a * self.max_current_a
+
+
 @dataclass(frozen=True)
 class ChamberPhysics:
     ambient_c: float
@@ -220,6 +268,7 @@ class SimulationConfig:
     seed: int
     chamber: ChamberPhysics
     table: TablePhysics
+    inclinometer: InclinometerSim = InclinometerSim()
 
 
 @dataclass(frozen=True)
@@ -243,6 +292,8 @@ class Station:
     uncertainty: dict[str, float] | None = None
     #: the supply powering the unit under test; None: the unit is powered by other means
     supply: SupplyConfig | None = None
+    #: the Helmholtz coil on two further channels of that supply; None: no magnetic tests
+    coil: CoilConfig | None = None
 
     def addresses(self) -> dict[str, str]:
         """``{"chamber.address": …, "gyro.port": …}``: every instrument's address, by station key."""
@@ -298,6 +349,7 @@ def parse_station(
     present, raw = fields.raw("notify")
     notify = parse_notify(ctx.report, fields.child("notify"), raw) if present else ()
     uncertainty = _uncertainty(ctx, fields)
+    coil = _coil(ctx, fields, supply) if fields.raw("coil")[0] else None
     fields.finish()
     if simulation is None and SIM_ADDRESS in (
         getattr(chamber, "address", None), getattr(table, "address", None),
@@ -305,7 +357,34 @@ def parse_station(
     ):
         ctx.report(where, "an instrument address is 'sim' but there is no simulation section")
     return Station(version, name, site, chamber, table, gyro, simulation, file, path, signing_key,
-                   notify, uncertainty, supply)
+                   notify, uncertainty, supply, coil)
+
+
+def _coil(ctx: Context, parent: Fields, supply: SupplyConfig | None) -> CoilConfig | None:
+    """The coil section; its channels must be free channels of the station's supply."""
+    fields = _section(ctx, parent, "coil")
+    constant = fields.take("constant_t_per_a", number(above=0.0, maximum=1.0, unit="T/A"))
+    u_rel = fields.take("u_constant_rel", number(0.0, 0.5), required=False, default=0.0)
+    axis = fields.take("axis", choice(COIL_AXES))
+    channels = [fields.take(key, integer(1, 3)) for key in ("positive_channel", "negative_channel")]
+    compliance_v = fields.take("compliance_v", number(above=0.0, maximum=100.0, unit="V"))
+    max_current_a = fields.take("max_current_a", number(above=0.0, maximum=100.0, unit="A"))
+    if supply is None:
+        ctx.report(fields.child("positive_channel"), "the coil is driven by the station's supply, "
+                   "but the station has no supply section")
+    else:
+        unit_channel = supply.settings.get("channel", 1)
+        for key, channel in zip(("positive_channel", "negative_channel"), channels, strict=True):
+            if channel is not None and channel == unit_channel:
+                ctx.report(fields.child(key), f"channel {channel} powers the unit under test "
+                           "(supply.channel); the coil needs channels of its own")
+    if None not in channels and channels[0] == channels[1]:
+        ctx.report(fields.child("negative_channel"), "must differ from positive_channel (the two "
+                   "polarities are two channels wired in opposition)")
+    fields.finish()
+    if None in (constant, axis, compliance_v, max_current_a, *channels):
+        return None
+    return CoilConfig(constant, u_rel, axis, channels[0], channels[1], compliance_v, max_current_a)
 
 
 def _uncertainty(ctx: Context, parent: Fields) -> dict[str, float] | None:
@@ -519,11 +598,14 @@ def _table(ctx: Context, parent: Fields) -> TableConfig:
         lim.take("max_accel_dps2", quantity(ACCELERATION, above=0.0)),
     )
     lim.finish()
+    orientation = fields.take("orientation", choice(TABLE_ORIENTATIONS), required=False,
+                              default="vertical")
     timeout_s, retries = _common_link(fields)
     fields.finish()
     typed = _Typed(settings)
     return TableConfig(spec.name if spec else None, address, typed.get("axis", 1), identity,
-                       limits, timeout_s, retries, typed.get("dialect", DEFAULT_DIALECT), settings)
+                       limits, timeout_s, retries, typed.get("dialect", DEFAULT_DIALECT), settings,
+                       orientation)
 
 
 def _gyro(ctx: Context, parent: Fields) -> GyroConfig:
@@ -597,5 +679,20 @@ def _simulation(ctx: Context, where: KeyPath, value: object, base_dir: Path) -> 
                          _drive_lines(ctx, tb),
                          tb.take("drive_noise_dph", number(0.0), required=False, default=0.0))
     tb.finish()
+    inclinometer = _inclinometer_sim(ctx, fields) if fields.raw("inclinometer")[0] \
+        else InclinometerSim()
     fields.finish()
-    return SimulationConfig(gyro_model, seed, chamber, table)
+    return SimulationConfig(gyro_model, seed, chamber, table, inclinometer)
+
+
+def _inclinometer_sim(ctx: Context, parent: Fields) -> InclinometerSim:
+    fields = _section(ctx, parent, "inclinometer")
+    values = InclinometerSim(
+        fields.take("scale", number(0.5, 2.0), required=False, default=1.0),
+        fields.take("bias_g", number(-0.1, 0.1, unit="g"), required=False, default=0.0),
+        fields.take("quadratic_per_g", number(-0.1, 0.1), required=False, default=0.0),
+        fields.take("cross_axis", number(-0.5, 0.5), required=False, default=0.0),
+        fields.take("noise_g", number(0.0, 0.1, unit="g"), required=False, default=0.0),
+    )
+    fields.finish()
+    return values

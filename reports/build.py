@@ -66,10 +66,12 @@ from gyrocal.reports.dwell import Dwell, SegmentDrift, dwell_mean, segment_drift
 from gyrocal.reports.gum import batch_mean_sem
 from gyrocal.reports.imu.section import imu_section
 from gyrocal.reports.interference_section import interference_section
+from gyrocal.reports.magnetic_section import magnetic_section
 from gyrocal.reports.results import evaluate_acceptance, finite_or_none, results_bytes
 from gyrocal.reports.sanity import check_physics
 from gyrocal.reports.scale_factor import ScaleFactorResult, analyze_scale_factor
 from gyrocal.reports.threshold import ThresholdDwell, headline_uncertainty, threshold_section
+from gyrocal.reports.tilt_section import tilt_section
 from gyrocal.reports.uncertainty import MeanU
 from gyrocal.reports.uncertainty_section import StepMean, add_uncertainties
 
@@ -454,6 +456,9 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
         "imu": _imu(data, notes),
         "table_interference": interference_section(data.folder.path, data.plan, data.events,
                                                    nominal_sf, notes),
+        "magnetic": magnetic_section(data.steps, data.plan, data.events, nominal_sf, notes),
+        "tilt_linearity": tilt_section(data.folder.path, data.plan, data.events,
+                                       data.record.gravity_g, notes),
         "threshold": _threshold(data, nominal_sf, notes),
         "rate_limits": _rate_limits(data, notes),
         "frequency_response": _frequency_response(data, nominal_sf, notes),
@@ -464,7 +469,8 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
     }
     add_uncertainties(results, [_mean_u(s) for s in data.steps
                                 if s.step.kind not in (StepKind.THRESHOLD, StepKind.RATE_LIMIT,
-                                                       StepKind.FREQUENCY_RESPONSE)],
+                                                       StepKind.FREQUENCY_RESPONSE,
+                                                       StepKind.MAGNETIC, StepKind.TILT)],
                       data.plan,
                       REFERENCE_TEMP_C, notes)
     results.setdefault("uncertainty", {}).update(headline_uncertainty(results["threshold"]))

@@ -52,6 +52,7 @@ CONTRACT_RANGES: dict[str, ColumnRange] = {
     "sensor_temp_c": ColumnRange(-273.15, 1000.0, "°C", "absolute zero to 1000 °C"),
     "gyro": ColumnRange(-1e12, 1e12, "output units", "no gyro output (LSB, V, deg/h) is larger"),
     "table_angle_deg": ColumnRange(-1e12, 1e12, "deg", "a turn per microsecond for years"),
+    "field_t": ColumnRange(-100.0, 100.0, "T", "no laboratory coil or magnet reaches 100 T"),
 }
 #: Any other numeric column read as a rate (``analyze allan --column``) is held to this.
 OTHER_RANGE = ColumnRange(-1e12, 1e12, "", "no measured rate is larger")

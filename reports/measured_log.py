@@ -25,7 +25,7 @@ from gyrocal.reports.log_contract import (
 __all__ = ["LogFormatError", "MeasuredLog", "read_measured_log", "validate_columns"]
 
 REQUIRED_COLUMNS = ("t_s", "table_rate_dps", "chamber_temp_c", "gyro")
-OPTIONAL_COLUMNS = ("sensor_temp_c", "table_angle_deg")
+OPTIONAL_COLUMNS = ("sensor_temp_c", "table_angle_deg", "field_t")
 
 
 @dataclass
@@ -37,6 +37,8 @@ class MeasuredLog:
     gyro: np.ndarray
     sensor_temp_c: np.ndarray | None = None
     table_angle_deg: np.ndarray | None = None
+    #: magnetic field along the sensitive axis, T (read by the magnetic_sensitivity effect)
+    field_t: np.ndarray | None = None
     #: per-sample segment label (a run folder's step id), or None for a plain log
     segment: np.ndarray | None = None
     extra: dict = field(default_factory=dict)

@@ -11,7 +11,9 @@ each frame time, through the measurement model in ``models/``.
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -20,6 +22,7 @@ from gyrocal.instruments.registry import registry
 from gyrocal.instruments.sim.faults import FaultInjector
 from gyrocal.instruments.sim.imu_source import FIXTURE_FAULTS, ImuPhysicsSource, SimulatedFixture
 from gyrocal.instruments.sim.replay_pty import ReplayGyroPort
+from gyrocal.instruments.sim.tilt_force import TiltForce
 from gyrocal.models.chamber import ChamberPhysics
 from gyrocal.models.clock import RealClock, SimClock
 from gyrocal.models.drive_interference import DriveInterference
@@ -29,8 +32,17 @@ from gyrocal.models.imu_model import ImuModel, load_any_model
 from gyrocal.models.seeding import attempt_seed
 from gyrocal.models.table import TablePhysics
 
+
+@runtime_checkable
+class CoilCurrents(Protocol):
+    """A simulated supply that says what current each channel drives (a coil on it)."""
+
+    def output_current_a(self, channel: int) -> float: ...
+
+
 #: Seed offsets so the chamber, table and gyro noise streams are independent.
 _SEED_CHAMBER, _SEED_TABLE, _SEED_GYRO, _SEED_PTY, _SEED_DRIVE = 101, 202, 303, 404, 505
+_SEED_TILT = 606
 
 
 class GyroPhysicsSource:
@@ -38,8 +50,11 @@ class GyroPhysicsSource:
 
     def __init__(self, simulator: GyroSimulator, table: TablePhysics, chamber: ChamberPhysics,
                  start_s: float, skip_step_s: float = 1.0,
-                 interference: DriveInterference | None = None) -> None:
+                 interference: DriveInterference | None = None,
+                 field: Callable[[], float] | None = None) -> None:
         self.simulator = simulator
+        #: the magnetic field along the gyro's sensitive axis now (T); None: no coil
+        self.field = field
         #: what the table's drive adds while powered (interlock closed); None: nothing
         self.interference = interference
         self.table = table
@@ -72,7 +87,8 @@ class GyroPhysicsSource:
         if gap_s > 0.5 / sim.fs_hz:
             sim.skip_to(float(t_s[0]), self._inputs, self.skip_step_s)
             self.skipped_s += gap_s
-        samples = sim.generate(*inputs)
+        field_t = None if self.field is None else self.field()
+        samples = sim.generate(*inputs, field_t=field_t)
         gyro = samples.gyro
         if self.interference is not None and self.table.interlock_closed:
             gyro = gyro + self.interference(t_s) / 3600.0 * sim.model.scale_factor
@@ -158,6 +174,11 @@ class SimulatedStation:
             self.source = GyroPhysicsSource(self.gyro_simulator, self.table_physics,
                                             self.chamber_physics, start_s=clock.now_s(),
                                             interference=drive if drive.active else None)
+        #: the table turned on its side tilts the unit through gravity (tilt_linearity)
+        self.tilt: TiltForce | None = None
+        if station.table.orientation == "horizontal" and isinstance(self.source, GyroPhysicsSource):
+            self.tilt = TiltForce(self.table_physics, station.site.gravity_g, sim.inclinometer,
+                                  self.seed + _SEED_TILT)
         if gyro_block_frames is None:
             # Per block the model is evaluated once (its fixed cost is ~0.2 ms), so blocks must
             # be large; 512 frames (0.26 s at 2 kHz, 2 s at 250 Hz) keeps that cost under 1 µs a
@@ -171,6 +192,8 @@ class SimulatedStation:
         if supply_spec is not None:
             self.supply_server = _simulator(supply_spec, self._request(
                 station.supply.settings, self.supply_faults))
+        if station.coil is not None and isinstance(self.source, GyroPhysicsSource):
+            self.source.field = self._coil_field(station.coil)
         self.gyro_port: SimServer
         if gyro_port is not None:
             self.gyro_port = gyro_port
@@ -179,6 +202,20 @@ class SimulatedStation:
                                     self.gyro_faults, seed_offset=_SEED_PTY)
             self.gyro_port = _simulator(specs[Role.GYRO], request)
         self._started = False
+
+    def _coil_field(self, coil) -> Callable[[], float]:
+        """B along the gyro's sensitive axis: the coil constant × (I(+) - I(-)) of the simulated
+        supply's coil channels when the coil's axis is the input axis, else 0."""
+        supply = self.supply_server
+        if not isinstance(supply, CoilCurrents):
+            raise ValueError(f"{self.station.file}: the coil needs a simulated supply that "
+                             "reports its channels' currents; this one does not")
+        along = 1.0 if coil.axis == "input" else 0.0
+
+        def field_t() -> float:
+            return along * coil.constant_t_per_a * (supply.output_current_a(coil.positive_channel)
+                                                    - supply.output_current_a(coil.negative_channel))
+        return field_t
 
     def begin_attempt(self, step_id: str, attempt: int) -> None:
         """Every simulator draws from (seed, step id, attempt) from here (``models/seeding.py``).
@@ -206,7 +243,8 @@ class SimulatedStation:
                           table=self.table_physics, gyro_source=self.source,
                           sample_rate_hz=self.sample_rate_hz,
                           specific_force=(self.source.specific_force
-                                          if isinstance(self.source, ImuPhysicsSource) else None))
+                                          if isinstance(self.source, ImuPhysicsSource)
+                                          else self.tilt))
 
     @property
     def addresses(self) -> SimAddresses:

@@ -56,6 +56,13 @@ class SimulatedE36300(SimulatedScpiInstrument):
         amps = volts / ohm + float(self._rng.normal(0.0, self.noise_a))
         return volts, max(0.0, amps)
 
+    def output_current_a(self, channel: int) -> float:
+        """The current the channel drives now, without the meter's noise (what a coil on it
+        turns into field): constant current at the limit, else V/R, 0 when off."""
+        if not self.output[channel] or self.faults.is_armed("dropout"):
+            return 0.0
+        return min(self.voltage_v[channel] / self.load_ohm, self.current_a[channel])
+
     def answer(self, line: str) -> str | None:
         match = _CHANNEL.search(line)
         channel = int(match.group(1)) if match else 1

@@ -9,14 +9,16 @@ case-insensitively in the manual's long form, its short form and the
 single-letter form of its examples (``:Demand:Rate``, ``:DEM:RATE``, ``:D:R``)::
 
     *IDN?  *CLS  *ESR?  *STB?          identity, clear status, event status, status byte
-    :Mode? <axis>                      the mode letter: R rate, S synthesis, O off
+    :Mode? <axis>                      the mode letter: R rate, P position, S synthesis, O off
     :Mode:Rate <axis>                  rate mode (refused while the interlock is open)
     :Mode:Off <axis>                   servo to rest (always accepted)
     :Mode:Synthesis <axis>             the loaded oscillator's sinusoid (§4.7.6), from rest
-    :Mode:Position                     refused: "Not simulated"
+    :Mode:Position <axis>              position mode: the indexing head (refused while the
+                                       interlock is open)
     :Demand:Rate <axis>,<deg/s>        rate demand (rate mode only, within the rate limit)
     :Demand:Rate? <axis>               current demand
-    :Demand:Position <axis>,<deg>      stored (position mode is not simulated)
+    :Demand:Position <axis>,<deg>      stored; in position mode the table moves there at its
+                                       rate and acceleration limits (from rest)
     :Demand:Oscillator <axis>,<mag>,<Hz>,<deg>   peak position (deg), frequency, initial phase
     :Demand:Oscillator? <axis>         the loaded oscillator, ``;``-separated (§4.3.4)
     :Read:Rate[?] <axis>               rate readback, deg/s ("?" optional, §4.10.5); follows
@@ -51,6 +53,7 @@ from dataclasses import dataclass
 
 from gyrocal.instruments.table import acutrol_protocol as proto
 from gyrocal.models.table import (
+    MODE_POSITION,
     MODE_RATE,
     MODE_SYNTHESIS,
     TableInterlockError,
@@ -164,7 +167,7 @@ class AcutrolInterpreter:
             (("MODE",), True): self._mode_query,
             (("MODE", "RATE"), False): self._mode_rate,
             (("MODE", "OFF"), False): self._mode_off,
-            (("MODE", "POSITION"), False): self._not_simulated,
+            (("MODE", "POSITION"), False): self._mode_position,
             (("MODE", "SYNTHESIS"), False): self._mode_synthesis,
             (("DEMAND", "RATE"), False): self._demand_rate,
             (("DEMAND", "RATE"), True): self._demand_rate_query,
@@ -290,13 +293,18 @@ class AcutrolInterpreter:
         self._axis(*self._arity(command, 1), command)
         self._refusing(self.physics.set_mode_rate)
 
+    def _mode_position(self, command: AclCommand) -> None:
+        self._axis(*self._arity(command, 1), command)
+        self._refusing(self.physics.set_mode_position)
+
     def _mode_off(self, command: AclCommand) -> None:
         self._axis(*self._arity(command, 1), command)
         self.physics.set_mode_off()
 
     def _mode_query(self, command: AclCommand) -> str:
         self._axis(*self._arity(command, 1), command)
-        modes = {MODE_RATE: proto.TableMode.RATE, MODE_SYNTHESIS: proto.TableMode.SYNTHESIS}
+        modes = {MODE_RATE: proto.TableMode.RATE, MODE_SYNTHESIS: proto.TableMode.SYNTHESIS,
+                 MODE_POSITION: proto.TableMode.POSITION}
         return modes.get(self.physics.mode, proto.TableMode.OFF).value
 
     def _mode_synthesis(self, command: AclCommand) -> None:
@@ -321,6 +329,9 @@ class AcutrolInterpreter:
         axis_text, position_text = self._arity(command, 2)
         self._axis(axis_text, command)
         self.position_demand_deg = self._number(position_text, command)
+        if self.physics.mode == MODE_POSITION:
+            demand = self.position_demand_deg
+            self._refusing(lambda: self.physics.set_position_demand_deg(demand))
 
     def _demand_oscillator(self, command: AclCommand) -> None:
         axis_text, *values = self._arity(command, 4)

@@ -67,6 +67,8 @@ class JournalEvent(str, Enum):
     INTERRUPTED = "interrupted"
     SAFE_STATE = "safe_state"
     SUPPLY_READ = "supply_read"          # the unit's supply read back (orchestrator/unit_power.py)
+    COIL_FIELD = "coil_field"            # the coil's field set/read back/off (magnetic steps)
+    TABLE_POSITION = "table_position"    # the table reached a tilt step's angle (position mode)
     SIMULATOR_ERROR = "simulator_error"
     STEPS_DONE = "steps_done"
     REPORT_WRITTEN = "report_written"

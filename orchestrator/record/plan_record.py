@@ -17,6 +17,7 @@ from enum import Enum
 from pathlib import Path
 from typing import Any
 
+from gyrocal.models.gravity import STANDARD_GRAVITY_MPS2, local_gravity_g
 from gyrocal.orchestrator.metrics import METRICS, NEEDS_TEXT
 from gyrocal.orchestrator.record.atomic import write_bytes_atomic
 from gyrocal.orchestrator.record.step_kind import StepKind
@@ -53,6 +54,8 @@ def plan_record(procedure, plan) -> dict[str, Any]:
             "file": station.file,
             "site": _plain(station.site),
             "uncertainty": station.uncertainty,
+            # the magnetic steps' coil (constant and its uncertainty enter the sensitivity)
+            "coil": _plain(station.coil) if station.coil is not None else None,
             "instruments": {
                 "chamber": {"driver": station.chamber.driver, "address": station.chamber.address,
                             "identity": _plain(station.chamber.identity)},
@@ -107,6 +110,8 @@ class RecordedStep:
     freq_hz: float | None = None                   # frequency-response steps
     amplitude_dps: float | None = None
     phase_at_hz: float | None = None
+    field_t: float | None = None              # magnetic steps: the coil's set field, T
+    angle_deg: float | None = None            # tilt steps: the table angle, deg
 
     @classmethod
     def of(cls, raw: dict[str, Any]) -> RecordedStep:
@@ -116,7 +121,8 @@ class RecordedStep:
                    raw.get("mounting"), raw.get("label"), raw.get("base_rate_dps"),
                    raw.get("confidence"), raw.get("max_error_fraction"),
                    raw.get("linearity_tolerance_pct"), raw.get("fit_rates"),
-                   raw.get("freq_hz"), raw.get("amplitude_dps"), raw.get("phase_at_hz"))
+                   raw.get("freq_hz"), raw.get("amplitude_dps"), raw.get("phase_at_hz"),
+                   raw.get("field_t"), raw.get("angle_deg"))
 
 
 @dataclass(frozen=True)
@@ -157,6 +163,13 @@ class PlanRecord:
 
     def step(self, step_id: str) -> RecordedStep | None:
         return next((s for s in self.steps if s.step_id == step_id), None)
+
+    @property
+    def gravity_g(self) -> float:
+        """The station's local gravity in standard g (as the station computes it)."""
+        if self.gravity_mps2 is not None:
+            return self.gravity_mps2 / STANDARD_GRAVITY_MPS2
+        return local_gravity_g(self.latitude_deg or 0.0, self.height_m)
 
 
 def load_plan_record(run_dir: Path) -> PlanRecord:

@@ -18,6 +18,8 @@ class StepKind(str, Enum):
     THRESHOLD = "threshold"  # log at a base rate or a small increment above it (threshold test)
     RATE_LIMIT = "rate_limit"  # log at a rate of the walk up to the declared maximum
     FREQUENCY_RESPONSE = "frequency_response"  # log while the table turns a sinusoid
+    MAGNETIC = "magnetic"  # log at rest with the station's coil at a set field
+    TILT = "tilt"          # log with the table (axis horizontal) held at an angle point
 
     def __str__(self) -> str:     # as written in plan.json and the journal
         return self.value
@@ -25,4 +27,5 @@ class StepKind(str, Enum):
     @property
     def logs_data(self) -> bool:
         return self in (StepKind.STATIC, StepKind.ALLAN, StepKind.DWELL, StepKind.DRIVE_OFF,
-                        StepKind.THRESHOLD, StepKind.RATE_LIMIT, StepKind.FREQUENCY_RESPONSE)
+                        StepKind.THRESHOLD, StepKind.RATE_LIMIT, StepKind.FREQUENCY_RESPONSE,
+                        StepKind.MAGNETIC, StepKind.TILT)

@@ -240,7 +240,7 @@ def score_library(builder: DesignBuilder, base: Fit, whitener: Whitener, y_bins:
                   space: SearchSpace) -> dict[str, EffectScores]:
     """Score every catalogue effect the bin-level search covers and the model lacks."""
     out: dict[str, EffectScores] = {}
-    for name in searched_effects(base.model):
+    for name in searched_effects(base.model, builder.inputs):
         grid = shape_grid(name, space)
         if not grid:
             continue

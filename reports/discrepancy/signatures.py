@@ -309,6 +309,16 @@ def shape_grid(name: str, space: SearchSpace) -> list[dict[str, float]]:
     return [{}]
 
 
-def searched_effects(model: GyroModel) -> list[str]:
-    """Catalogue effects the bin-level search scores: not in the model, not judged elsewhere."""
-    return [name for name in EFFECTS if not model.has_effect(name) and name not in NOT_IN_BIN_SEARCH]
+def _has_its_input(name: str, inputs: ModelInputs | None) -> bool:
+    """An effect that reads an optional input column (``magnetic_sensitivity``: ``field_t``)
+    is searched only when the log carries it: without it its signature is zero."""
+    if name == "magnetic_sensitivity":
+        return inputs is not None and inputs.field_t is not None
+    return True
+
+
+def searched_effects(model: GyroModel, inputs: ModelInputs | None = None) -> list[str]:
+    """Catalogue effects the bin-level search scores: not in the model, not judged elsewhere,
+    and (given ``inputs``) with the input column they read present."""
+    return [name for name in EFFECTS if not model.has_effect(name)
+            and name not in NOT_IN_BIN_SEARCH and _has_its_input(name, inputs)]

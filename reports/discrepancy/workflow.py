@@ -240,7 +240,8 @@ class _Analysis:
         self.log = log
         try:
             self.inputs = ModelInputs.of(log.t_s, log.table_rate_dps, log.chamber_temp_c,
-                                         log.table_angle_deg, log.sensor_temp_c)
+                                         log.table_angle_deg, log.sensor_temp_c,
+                                         log.field_t)
         except ValueError as exc:
             raise LogFormatError(f"{log.source}: {exc}") from None
         self.fs_hz = log.sample_rate_hz

@@ -62,6 +62,7 @@ def test_catalogue_matches_the_contract():
         "bias_ramp": ["dph_per_h"],
         "table_angle_harmonic": ["amplitude_dph", "phase_deg"],
         "periodic_interference": ["freq_hz", "amplitude_dph"],
+        "magnetic_sensitivity": ["dph_per_t"],
         "markov_bias": ["sigma_dph", "tau_s"],
         "quantization": ["pulse_arcsec"],
     }

@@ -274,3 +274,35 @@ def test_synthesis_is_refused_beyond_the_limits_away_from_rest_or_with_the_inter
     with pytest.raises(TableInterlockError):
         table.set_mode_synthesis(0.1, 1.0, 0.0)
     assert table.mode == MODE_OFF
+
+
+def test_position_move_cruises_at_the_rate_limit_and_stops_on_the_demand():
+    """0 -> 90 deg at 10 deg/s and 20 deg/s²: 0.5 s up (2.5 deg), 8.5 s at 10 deg/s (85 deg),
+    0.5 s down (2.5 deg): at rest on 90 deg at 9.5 s (hand-worked trapezoid)."""
+    clock = SimClock()
+    table = TablePhysics(clock, max_rate_dps=10.0, max_accel_dps2=20.0)
+    table.close_interlock()
+    table.set_mode_position()
+    table.set_position_demand_deg(90.0)
+    assert table.rate_dps(0.5) == pytest.approx(10.0)
+    assert table.angle_deg(0.5) == pytest.approx(2.5)
+    assert table.angle_deg(9.0) == pytest.approx(87.5)
+    assert table.rate_dps(9.25) == pytest.approx(5.0)
+    assert table.angle_deg(9.5) == pytest.approx(90.0) and table.rate_dps(9.5) == 0.0
+    assert table.settle_time_s() == pytest.approx(9.5)
+    with pytest.raises(TableModeError):
+        table.set_rate_demand_dps(1.0)                # position mode takes no rate demand
+
+
+def test_an_interlock_opening_mid_move_stops_the_table_from_where_it_is():
+    """At 2 s of the move above (10 deg/s, 17.5 deg) the interlock opens: 0.5 s down, +2.5 deg."""
+    clock = SimClock()
+    table = TablePhysics(clock, max_rate_dps=10.0, max_accel_dps2=20.0)
+    table.close_interlock()
+    table.set_mode_position()
+    table.set_position_demand_deg(90.0)
+    clock.advance_to(2.0)
+    table.open_interlock()
+    clock.advance_to(60.0)
+    assert table.angle_deg() == pytest.approx(20.0) and table.rate_dps() == 0.0
+    assert table.mode == "off"

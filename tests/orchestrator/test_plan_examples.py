@@ -15,6 +15,9 @@ pytestmark = pytest.mark.timeout(30)
 REPO = Path(__file__).resolve().parents[2]
 PROCEDURES = sorted((REPO / "procedures").glob("*.yaml"))
 SIM = REPO / "stations" / "sim.yaml"
+#: procedures whose tests need what sim.yaml lacks (a coil on a supply, a horizontal table):
+#: their own station
+OWN_STATION = {"magnetic-sensitivity.yaml", "tilt-linearity.yaml"}
 
 
 def plan_of(name):
@@ -29,7 +32,7 @@ def test_the_four_example_procedures_are_shipped():
 
 @pytest.mark.parametrize("path", PROCEDURES, ids=lambda p: p.name)
 def test_every_example_validates_and_expands_with_unique_stable_ids(path):
-    procedure = load_procedure(path, SIM)
+    procedure = load_procedure(path, None if path.name in OWN_STATION else SIM)
     plan = expand_plan(procedure)
     ids = [s.step_id for s in plan.steps]
     assert len(ids) == len(set(ids))

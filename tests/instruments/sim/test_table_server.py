@@ -151,12 +151,6 @@ def test_an_unknown_header_is_answered_never_silent(client):
     assert client.ok(f":Query:Error? {code}") == "Undefined header"
 
 
-def test_position_mode_is_refused_as_not_simulated(client):
-    client.ok(":Demand:Position 1,135.223")                      # §4.3.5 p. 112 (stored)
-    code, _ = client.ask(":Mode:Position 1")                     # §4.7.4 p. 151
-    assert client.ok(f":Query:Error? {code}") == "Not simulated"
-
-
 def test_synthesis_turns_the_loaded_sinusoid_and_the_readback_follows_it(client, clock):
     """§4.3.4 p. 111 (peak position, Hz, initial phase; query ;-separated as its example),
     §4.7.6 p. 153 (:MODE:SYNT), §4.7 p. 147 (mode letter S). 2 deg at 0.5 Hz, phase 0:
@@ -184,6 +178,33 @@ def test_synthesis_without_an_oscillator_or_beyond_the_limits_is_refused(client)
     client.ok(":DEM:OSC 1,1.0,2.0,0")                            # 1·(4π)² = 158 deg/s² > 50
     code, _ = client.ask(":Mode:Synthesis 1")
     assert client.ok(f":Query:Error? {code}") == "Parameter out of range"
+
+
+def test_position_mode_moves_to_the_demand_at_the_limits_and_reads_back(client, clock):
+    """§4.7.4 (position mode), §4.3.5 (position demand), §4.10.4 (position readback).
+
+    From rest at 0 deg to 90 deg with 50 deg/s² and 600 deg/s: too short to reach the
+    rate limit, a triangle: peak at √(90/50) = 1.3416 s (45 deg, 67.08 deg/s), at rest
+    on 90 deg at 2.6833 s. Then -30 deg (330 on the dial) the shorter way: 120 deg back.
+    """
+    code, _ = client.ask(":Mode:Position 1")                     # interlock open: refused
+    assert client.ok(f":Query:Error? {code}") == "Interlock open"
+    client.ok(":Interlock:Close 1")
+    client.ok(":Mode:Position 1")
+    assert client.ok(":Mode? 1") == "P"
+    client.ok(":Demand:Position 1,90")
+    clock.advance_to(1.3416408)
+    assert float(client.ok(":Read:Position 1")) == pytest.approx(45.0, abs=1e-4)
+    clock.advance_to(2.0)       # 90 - 0.5·50·(2.68328 - 2)² = 90 - 25·0.466874 = 78.3282 deg
+    assert float(client.ok(":Read:Position 1")) == pytest.approx(78.3282, abs=1e-3)
+    code, _ = client.ask(":Demand:Position 1,0")                 # still moving: refused
+    assert code != 0
+    clock.advance_to(3.0)
+    assert float(client.ok(":Read:Position 1")) == pytest.approx(90.0, abs=1e-9)
+    client.ok(":Demand:Position 1,-30")
+    clock.advance_to(30.0)
+    assert float(client.ok(":Read:Position 1")) == pytest.approx(330.0, abs=1e-9)
+    client.ok(":Interlock:Open 1")                               # drops to off, at rest
     assert client.ok(":Mode? 1") == "O"
 
 
