@@ -143,8 +143,8 @@ class SimulatedTruevolt(SimulatedScpiInstrument):
         if key in _WORDS and key != "DISP:TEXT":
             arg = _SHORT.get(arg.upper(), arg.upper())
         elif key not in _WORDS:
-            arg = {"ON": "1", "OFF": "0", "MIN": _DEFAULTS[key], "DEF": _DEFAULTS[key]}.get(
-                arg.upper(), arg)
+            # DEF is the power-on value; MIN and MAX are not modelled (refused, never guessed)
+            arg = {"ON": "1", "OFF": "0", "DEF": _DEFAULTS[key]}.get(arg.upper(), arg)
             try:
                 float(arg)
             except ValueError:
