@@ -2,9 +2,8 @@
 
 PyMeasure's Agilent34410A (the Truevolt's predecessor; ``MEAS:VOLT:DC? DEF,DEF``)
 reads the simulated meter over a raw socket, so the simulator is not only ever
-checked against our own driver. QCoDeS's 34465A driver was not used: qcodes 0.58
-pulls in about 25 further distributions (xarray, h5py, ipykernel, matplotlib,
-opentelemetry, …), too heavy for the test extras.
+checked against our own driver. QCoDeS's Keysight 34465A driver, written for
+the Truevolt itself, reads it too (test_truevolt_qcodes_peer.py).
 """
 
 from __future__ import annotations
