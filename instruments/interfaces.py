@@ -99,6 +99,15 @@ class PositionTable(Protocol):
 
 
 @runtime_checkable
+class HoldingTable(Protocol):
+    """A table that can stop and keep its axis under servo (a horizontal axis with an
+    unbalanced load swings down if the servo is switched off); optional."""
+
+    def hold(self) -> None: ...
+    def read_servo_mode(self) -> str: ...
+
+
+@runtime_checkable
 class RateTable(Protocol):
     def identify(self) -> Identity: ...
     def interlock_closed(self) -> bool: ...

@@ -68,6 +68,7 @@ class EnginePolicy:
     safe_setpoint_c: float | None = 25.0  # None = chamber standby is not supported: hold setpoint
     chamber_retries: int = 3            # attempts of each safe-state action (station chamber.retries)
     table_retries: int = 3              # (station table.retries)
+    table_hold: bool = False            # safe state holds the axis under servo (horizontal table)
     pause_poll_s: float = 0.5           # wall seconds between looks at RUN_DIR/PAUSE while paused
     unit_power: UnitPowerPolicy | None = None   # the station's supply for the unit, if any
 
@@ -539,7 +540,7 @@ class RunEngine:
         """A completed run leaves the rig as ``plan`` promises: table stopped, chamber at the
         station's safe setpoint, each confirmed by read-back and journaled (``returned_safe``)."""
         policy = SafePolicy(self.policy.safe_setpoint_c, self.policy.chamber_retries,
-                            self.policy.table_retries)
+                            self.policy.table_retries, table_hold=self.policy.table_hold)
         outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock,
                             coil=self.inst.coil)
         for action in outcome.actions:
@@ -565,7 +566,7 @@ class RunEngine:
         power = self.policy.unit_power
         policy = SafePolicy(self.policy.safe_setpoint_c, self.policy.chamber_retries,
                             self.policy.table_retries, power.safe_action if power else None,
-                            power.attempts if power else 3)
+                            power.attempts if power else 3, table_hold=self.policy.table_hold)
         with self._gate.shielded():
             outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock,
                                 self.inst.supply, self.inst.coil)

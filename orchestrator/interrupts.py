@@ -30,6 +30,7 @@ from gyrocal.instruments.interfaces import (
     Chamber,
     ChamberStatus,
     Identity,
+    HoldingTable,
     PositionTable,
     RateTable,
     SynthesisTable,
@@ -247,6 +248,20 @@ class GatedTable(_Gated[RateTable]):
     def read_status(self) -> TableStatus:
         with self._gate.held():
             return self.inner.read_status()
+
+    def hold(self) -> None:
+        with self._gate.held():
+            self._holding_table().hold()
+
+    def read_servo_mode(self) -> str:
+        with self._gate.held():
+            return self._holding_table().read_servo_mode()
+
+    def _holding_table(self) -> HoldingTable:
+        inner = self.inner
+        if not isinstance(inner, HoldingTable):
+            raise TypeError(f"table driver {type(inner).__name__} cannot hold its axis under servo")
+        return inner
 
     def stop(self) -> None:
         with self._gate.held():

@@ -23,7 +23,7 @@ import sys
 from dataclasses import dataclass
 from typing import Any, TextIO
 
-from gyrocal.instruments.interfaces import Chamber, PowerSupply, RateTable
+from gyrocal.instruments.interfaces import Chamber, HoldingTable, PowerSupply, RateTable
 from gyrocal.instruments.supply.coil import CoilDrive
 from gyrocal.models.clock import Clock
 
@@ -53,6 +53,9 @@ class SafePolicy:
     #: the unit's supply: "keep_on" or "switch_off" (station supply.safe_state); None: no supply
     unit_power: str | None = None
     supply_attempts: int = 3
+    #: hold the table's axis under servo instead of switching it off (station
+    #: ``table.orientation: horizontal``: a servo-off axis lets an unbalanced load swing down)
+    table_hold: bool = False
 
 
 @dataclass(frozen=True)
@@ -101,28 +104,59 @@ def _failure(exc: Exception) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
-def stop_table(table: RateTable, clock: Clock, attempts: int) -> SafeAction:
-    """``stop``, then read the rate back until it is at rest (the axis decelerates at its limit)."""
+def _at_rest_dps(table: RateTable, clock: Clock) -> tuple[float | None, str]:
+    """Read the rate back until it is at rest (the axis decelerates at its limit): the
+    rate at rest, or None and what was last read when it kept moving."""
+    started_s = clock.now_s()
+    best_dps = float("inf")
+    best_s = started_s
+    while True:
+        rate_dps = float(table.read_rate_dps())
+        if abs(rate_dps) <= TABLE_STOPPED_DPS:
+            return abs(rate_dps), ""
+        now_s = clock.now_s()
+        if abs(rate_dps) < best_dps:
+            best_dps, best_s = abs(rate_dps), now_s
+        if now_s - best_s >= STOP_STALL_S or now_s - started_s >= STOP_MAX_S:
+            return None, f"rate reads back {rate_dps:.3f} deg/s after stop"
+        clock.sleep(POLL_S)
+
+
+def _hold_once(table: RateTable, clock: Clock) -> tuple[str | None, str]:
+    """One attempt at holding: (the confirmation, "") or (None, why not)."""
+    if not isinstance(table, HoldingTable):
+        return None, f"table driver {type(table).__name__} cannot hold its axis under servo"
+    table.hold()
+    rest_dps, why = _at_rest_dps(table, clock)
+    if rest_dps is None:
+        return None, why
+    mode = table.read_servo_mode()
+    if mode in ("off", "synthesis"):
+        return None, f"at rest ({rest_dps:.3f} deg/s) but the servo mode reads back {mode}"
+    return (f"table held at rest under servo (horizontal axis; read back {rest_dps:.3f} deg/s, "
+            f"mode {mode})"), ""
+
+
+def stop_table(table: RateTable, clock: Clock, attempts: int, hold: bool = False) -> SafeAction:
+    """``stop``, then read the rate back until it is at rest (the axis decelerates at its limit).
+
+    ``hold`` (a horizontal axis): ``hold`` instead of ``stop``, and confirmed only when
+    the rate is at rest *and* the servo mode reads back still servoing, never off.
+    """
     last = "no answer"
     attempts = max(1, attempts)
     for attempt in range(1, attempts + 1):
         try:
+            if hold:
+                text, last = _hold_once(table, clock)
+                if text is not None:
+                    return SafeAction("table", True, text, attempt)
+                continue
             table.stop()
-            started_s = clock.now_s()
-            best_dps = float("inf")
-            best_s = started_s
-            while True:
-                rate_dps = float(table.read_rate_dps())
-                if abs(rate_dps) <= TABLE_STOPPED_DPS:
-                    return SafeAction("table", True,
-                                      f"table stopped (read back {abs(rate_dps):.3f} deg/s)", attempt)
-                last = f"rate reads back {rate_dps:.3f} deg/s after stop"
-                now_s = clock.now_s()
-                if abs(rate_dps) < best_dps:
-                    best_dps, best_s = abs(rate_dps), now_s
-                if now_s - best_s >= STOP_STALL_S or now_s - started_s >= STOP_MAX_S:
-                    break
-                clock.sleep(POLL_S)
+            rest_dps, last = _at_rest_dps(table, clock)
+            if rest_dps is not None:
+                return SafeAction("table", True, f"table stopped (read back {rest_dps:.3f} deg/s)",
+                                  attempt)
         except Exception as exc:  # noqa: BLE001 - every failure is attempted again, then reported
             last = _failure(exc)
     return _not_confirmed("table", last, attempts)
@@ -202,7 +236,7 @@ def make_safe(table: RateTable, chamber: Chamber, policy: SafePolicy, clock: Clo
     each whatever the others did."""
     _reset(table)
     _reset(chamber)
-    actions = [stop_table(table, clock, policy.table_attempts),
+    actions = [stop_table(table, clock, policy.table_attempts, policy.table_hold),
                chamber_to_safe(chamber, policy.setpoint_c, clock, policy.chamber_attempts)]
     if coil is not None:
         _reset(coil)

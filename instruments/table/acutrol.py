@@ -168,6 +168,28 @@ class Acutrol3000Table:
                 self._setting(proto.DEMAND_RATE, rate_dps=0.0)
             self._setting(proto.MODE_OFF)
 
+    def hold(self) -> None:
+        """Stop and keep the axis under servo: demand zero rate, then position mode.
+
+        The safe state of a horizontal axis (``table.orientation: horizontal``):
+        the servo must stay on or an unbalanced load swings the axis down.
+        Position mode keeps "stable steady state positioning" (TM-8004 §4.7.4,
+        p. 151), which holds the angle against a gravity torque where a zero rate
+        demand (§4.3.6, p. 113) would only hold the velocity. The zero demand is
+        refused when the table is not in rate mode (position mode already
+        holds), so only a failure of ``:Mode:Position`` — refused while the
+        interlock is open — is raised.
+        """
+        with self._lock:
+            with contextlib.suppress(InstrumentError):
+                self._setting(proto.DEMAND_RATE, rate_dps=0.0)
+            self._setting(proto.MODE_POSITION)
+
+    def read_servo_mode(self) -> str:
+        """The servo mode as read back (``:Mode?``, TM-8004 §4.7 p. 147): ``position``,
+        ``rate``, ``arate``, ``synthesis``, ``track`` or ``off``."""
+        return self.read_mode().name.lower()
+
     def reset_link(self) -> None:
         """Discard the session (and any late reply in it); the next command opens a fresh one."""
         with self._lock:
