@@ -230,3 +230,50 @@ def test_interlock_answers_in_the_manuals_words(answer, state):
 def test_an_interlock_answer_outside_the_manual_is_unreadable():
     with pytest.raises(InstrumentProtocolError, match="Close, Open or Fault"):
         run([(":Interlock? 1", reply("1"))], lambda t: t.interlock_state())
+
+
+def test_hold_demands_zero_rate_then_position_mode_and_reads_the_mode_back():
+    """The safe state of a horizontal axis: zero rate demand (§4.3.6 p. 113), then position
+    mode, whose servo keeps the axis positioned (§4.7.4 p. 151); the mode read back with
+    :Mode? (§4.7 p. 147, letter P). No :Mode:Off (§4.7.3 p. 150) is ever sent."""
+    script = [
+        (":Utility:Lockout ON", reply()),
+        (":Demand:Rate 1,0.000000", reply()),
+        (":Mode:Position 1", reply()),
+        (":Read:Rate? 1", reply("0.0004")),                   # §4.10.5 p. 169
+        (":Mode? 1", reply("P")),
+    ]
+    result = run(script, lambda t: (t.hold(), t.read_rate_dps(), t.read_servo_mode()))
+    assert result == (None, 0.0004, "position")
+
+
+def test_hold_from_position_mode_goes_on_when_the_zero_rate_demand_is_refused():
+    """In position mode (a tilt step) the rate demand is refused (not rate mode, *ESR? bit 2
+    clear); position mode is commanded all the same."""
+    script = [
+        (":Utility:Lockout ON", reply()),
+        (":Demand:Rate 1,0.000000", reply(code=11)),
+        (":Query:Error? 11", reply("Wrong mode")),
+        ("*STB?", reply("128")),
+        ("*ESR?", reply("0")),
+        (":Mode:Position 1", reply()),
+    ]
+    run(script, lambda t: t.hold())
+
+
+def test_hold_with_the_interlock_open_is_a_safety_error_naming_position_mode():
+    """With the interlock open both commands are refused (*STB? bit 0, §3.10 p. 19); the
+    refusal of :Mode:Position is what the safe state reports."""
+    refused = [("*STB?", reply("1")), ("*ESR?", reply("0"))]
+    script = [
+        (":Utility:Lockout ON", reply()),
+        (":Demand:Rate 1,0.000000", reply(code=3)),
+        (":Query:Error? 3", reply("Interlock open")),
+        *refused,
+        (":Mode:Position 1", reply(code=3)),
+        (":Query:Error? 3", reply("Interlock open")),
+        *refused,
+    ]
+    with pytest.raises(InstrumentSafetyError) as caught:
+        run(script, lambda t: t.hold())
+    assert caught.value.command == ":Mode:Position 1"
