@@ -122,7 +122,7 @@ def _policy(procedure: Procedure) -> EnginePolicy:
         read_timeout_margin_s=procedure.station.gyro.timeout_s,
         chamber_retries=procedure.station.chamber.retries,
         table_retries=procedure.station.table.retries,
-        table_hold=procedure.station.table.orientation == "horizontal",
+        table_hold=procedure.station.table.holds_axis_when_safe,
         unit_power=_unit_power(procedure.station.supply),
     )
 

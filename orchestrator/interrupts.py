@@ -29,8 +29,8 @@ from typing import Any, Generic, TypeVar
 from gyrocal.instruments.interfaces import (
     Chamber,
     ChamberStatus,
-    Identity,
     HoldingTable,
+    Identity,
     PositionTable,
     RateTable,
     SynthesisTable,

@@ -33,6 +33,7 @@ from gyrocal.orchestrator.procedure import (
     TiltLinearityTest,
 )
 from gyrocal.orchestrator.record.step_kind import StepKind
+from gyrocal.orchestrator.safe_state import table_safe_text
 from gyrocal.orchestrator.table_synthesis import REST_BEFORE_SYNTHESIS_S
 from gyrocal.orchestrator.units import format_duration, format_hms, format_number
 
@@ -98,6 +99,7 @@ class Plan:
     total_s: float              # expected time from start to the end of the last step
     max_total_s: float          # if every soak waits its maximum
     finish_s: float             # afterwards: table stop and chamber back to its safe setpoint
+    table_hold: bool = False    # the safe state holds the table under servo (horizontal axis)
 
     def index_of(self, step_id: str) -> int:
         for index, step in enumerate(self.steps):
@@ -380,6 +382,7 @@ def expand_plan(procedure: Procedure, start_temp_c: float | None = None) -> Plan
         total_s=expander.clock_s,
         max_total_s=expander.max_clock_s,
         finish_s=expander.finish(),
+        table_hold=procedure.station.table.holds_axis_when_safe,
     )
 
 
@@ -450,5 +453,6 @@ def format_plan(plan: Plan) -> str:
         f"ETA {format_duration(plan.total_s)} (worst case {format_duration(plan.max_total_s)} "
         "if every soak waits its maximum), then "
         f"{format_duration(plan.finish_s)} to return to the safe state",
+        f"Safe state (a fault, the end): {table_safe_text(plan.table_hold)}",
     ]
     return "\n".join(lines)

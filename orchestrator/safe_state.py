@@ -122,6 +122,15 @@ def _at_rest_dps(table: RateTable, clock: Clock) -> tuple[float | None, str]:
         clock.sleep(POLL_S)
 
 
+def table_safe_text(hold: bool) -> str:
+    """What the table's safe state does, as ``gyrocal plan`` announces it."""
+    if hold:
+        return ("table held at rest under servo in position mode, confirmed by read-back of "
+                "rest and mode (horizontal axis: servo off would let an unbalanced load swing "
+                "down)")
+    return "table stopped, then servo off (:Mode:Off), rest confirmed by read-back"
+
+
 def _hold_once(table: RateTable, clock: Clock) -> tuple[str | None, str]:
     """One attempt at holding: (the confirmation, "") or (None, why not)."""
     if not isinstance(table, HoldingTable):

@@ -158,6 +158,12 @@ class TableConfig:
     #: tilts the unit through gravity, for the tilt_linearity test)
     orientation: str = "vertical"
 
+    @property
+    def holds_axis_when_safe(self) -> bool:
+        """A horizontal axis is held under servo in the safe state, never switched off: an
+        unbalanced load on a servo-off horizontal axis swings down (safe_state.py)."""
+        return self.orientation == "horizontal"
+
 
 @dataclass(frozen=True)
 class GyroConfig:

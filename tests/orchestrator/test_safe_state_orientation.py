@@ -75,3 +75,15 @@ def test_a_fault_leaves_a_vertical_table_in_mode_off(h: Any, tmp_path: Path, sim
     assert sim.table_physics.mode == "off"
     assert _at_rest(sim)
     assert _safe_state(out, h)["actions"]["table"].startswith("table stopped (read back 0.0")
+
+
+def test_the_plan_says_what_the_safe_state_does_for_each_orientation(h: Any, tmp_path: Path,
+                                                                      capsys) -> None:
+    assert main(["plan", str(_write(tmp_path))]) == EXIT_OK
+    horizontal = capsys.readouterr().out
+    assert "Safe state (a fault, the end): table held at rest under servo in position mode" \
+        in horizontal
+    assert ":Mode:Off" not in horizontal
+    assert main(["plan", str(h.write_procedure(tmp_path))]) == EXIT_OK
+    vertical = capsys.readouterr().out
+    assert "Safe state (a fault, the end): table stopped, then servo off (:Mode:Off)" in vertical
