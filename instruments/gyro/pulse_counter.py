@@ -18,12 +18,12 @@ each other without dead time (the simulator assumes they do).
 from __future__ import annotations
 
 import contextlib
-import time
 from collections.abc import Callable
 
 import numpy as np
 
-from gyrocal.instruments.errors import InstrumentError, InstrumentTimeout
+from gyrocal.instruments.errors import InstrumentError
+from gyrocal.instruments.gyro.reading_memory import pull_readings
 from gyrocal.instruments.interfaces import GyroBlock, Identity
 from gyrocal.instruments.retry import RetryPolicy
 from gyrocal.instruments.scpi_link import ScpiLink
@@ -36,6 +36,13 @@ def totalize_setup(channel: int, fs_hz: float) -> list[str]:
     """The lines that start back-to-back timed totalize gates of one readout each."""
     return ["ABORt", f"CONFigure:TOTalize:TIMed {1.0 / fs_hz:.9g},(@{channel})",
             "TRIGger:SOURce IMMediate", "TRIGger:COUNt 1", f"SAMPle:COUNt {SAMPLE_COUNT}", "INIT"]
+
+
+def _whole_counts(values: list[float], count: int) -> str | None:
+    """Each totalize reading is a whole number of pulses, one per readout asked."""
+    if len(values) != count or any(v != round(v) for v in values):
+        return f"expected {count} whole counts"
+    return None
 
 
 class CounterPulseGyro:
@@ -69,37 +76,14 @@ class CounterPulseGyro:
     def read_samples(self, n: int, timeout_s: float) -> GyroBlock:
         if not self._started:
             self.flush()
-        counts: list[float] = []
-        deadline = time.monotonic() + timeout_s
-        while len(counts) < n:
-            points = int(self.link.ask_float("DATA:POINts?"))
-            if points > 0:
-                counts += self._remove(min(points, n - len(counts)))
-                continue
-            if time.monotonic() > deadline:
-                raise InstrumentTimeout(self.name, "DATA:POINts?",
-                                        f"{len(counts)} of {n} readings within {timeout_s:g} s")
-            time.sleep(min(0.05, max(0.001, (n - len(counts)) / self.fs_hz / 4)))
+        counts = pull_readings(self.link, self.name, n, timeout_s, self.fs_hz,
+                               _whole_counts)
         pulses = np.asarray(counts, dtype=np.float64)
         index = np.arange(self._next_index, self._next_index + len(pulses), dtype=np.int64)
         self._next_index += len(pulses)
         rate_dps = pulses * self.pulse_deg * self.fs_hz
         return GyroBlock(rate=rate_dps, counter=(index % 256).astype(np.uint8), index=index,
                          status=np.zeros(len(pulses), np.uint8), extra={"pulses": pulses})
-
-    def _remove(self, count: int) -> list[float]:
-        command = f"DATA:REMove? {count}"
-        reply = self.link.ask(command)
-        try:
-            values = [float(v) for v in reply.split(",") if v.strip()]
-        except ValueError:
-            self.link.reset()
-            raise InstrumentError(self.name, command, "unreadable readings", reply=reply[:80],
-                                  transient=True) from None
-        if len(values) != count or any(v != round(v) for v in values):
-            raise InstrumentError(self.name, command, f"expected {count} whole counts",
-                                  reply=reply[:80])
-        return values
 
     def close(self) -> None:
         with contextlib.suppress(InstrumentError):

@@ -25,7 +25,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from gyrocal.instruments.errors import InstrumentError, InstrumentTimeout
+from gyrocal.instruments.errors import InstrumentError
+from gyrocal.instruments.gyro.reading_memory import pull_readings
 from gyrocal.instruments.interfaces import GyroBlock, Identity
 from gyrocal.instruments.retry import RetryPolicy
 from gyrocal.instruments.scpi_link import ScpiLink
@@ -47,6 +48,13 @@ def stream_setup(range_v: float, fs_hz: float, aperture_s: float | None,
             "SENSe:VOLTage:DC:ZERO:AUTO OFF", integration, "TRIGger:SOURce IMM",
             "TRIGger:COUNt 1", "SAMPle:SOURce TIMer", f"SAMPle:TIMer {1.0 / fs_hz:.9g}",
             f"SAMPle:COUNt {SAMPLE_COUNT}", "INIT"]
+
+
+def _finite_readings(values: list[float], count: int) -> str | None:
+    """One finite reading per reading asked (an overload is finite: 9.9E37)."""
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        return f"{len(values)} readings, asked {count}"
+    return None
 
 
 class TruevoltAnalogGyro:
@@ -90,38 +98,14 @@ class TruevoltAnalogGyro:
     def read_samples(self, n: int, timeout_s: float) -> GyroBlock:
         if not self._started:
             self.flush()
-        values: list[float] = []
-        deadline = time.monotonic() + timeout_s
-        while len(values) < n:
-            points = int(self.link.ask_float("DATA:POINts?"))
-            if points > 0:
-                take = min(points, n - len(values))
-                values += self._remove(take)
-                continue
-            if time.monotonic() > deadline:
-                raise InstrumentTimeout(self.name, "DATA:POINts?",
-                                        f"{len(values)} of {n} readings within {timeout_s:g} s")
-            self._sleep(min(0.05, max(0.001, (n - len(values)) / self.fs_hz / 4)))
+        values = pull_readings(self.link, self.name, n, timeout_s, self.fs_hz,
+                               _finite_readings, self._sleep)
         volts = np.asarray(values, dtype=np.float64)
         index = np.arange(self._next_index, self._next_index + len(volts), dtype=np.int64)
         self._next_index += len(volts)
         overload = np.abs(volts) >= OVERLOAD_V
         return GyroBlock(rate=volts, counter=(index % 256).astype(np.uint8), index=index,
                          status=overload.astype(np.uint8), flagged=overload)
-
-    def _remove(self, count: int) -> list[float]:
-        command = f"DATA:REMove? {count}"
-        reply = self.link.ask(command)
-        try:
-            values = [float(v) for v in reply.split(",") if v.strip()]
-        except ValueError:
-            self.link.reset()
-            raise InstrumentError(self.name, command, "unreadable readings", reply=reply[:80],
-                                  transient=True) from None
-        if len(values) != count or not all(math.isfinite(v) for v in values):
-            raise InstrumentError(self.name, command, f"{len(values)} readings, asked {count}",
-                                  reply=reply[:80])
-        return values
 
     def close(self) -> None:
         with contextlib.suppress(InstrumentError):
