@@ -64,7 +64,6 @@ import select
 import struct
 import termios
 import threading
-import tty
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -82,6 +81,7 @@ from gyrocal.instruments.gyro.datagram import (
 )
 from gyrocal.instruments.sim.faults import FaultInjector
 from gyrocal.instruments.sim.gyro_frames import SpecificForceSource, encode_sim_frames
+from gyrocal.instruments.sim.pty_port import PtyWriterPort
 from gyrocal.models.clock import RealClock, SimClock
 
 FAULTS = ("corrupt_frames", "lose_frames", "garbage", "stall", "saturate")
@@ -117,8 +117,11 @@ _IDLE_TAIL_S = 0.1      # simulated clock, nobody reading: the frames of this la
 _WRITE_BYTES = 1 << 16  # simulated clock: bytes handed to the pty per write
 
 
-class SimulatedGyroPort:
+class SimulatedGyroPort(PtyWriterPort):
     """Streams datagrams from ``source`` into a pty; the driver opens :attr:`port_name`."""
+
+    thread_name = "sim-gyro-pty"
+    label = "simulated gyro"
 
     def __init__(
         self,
@@ -163,16 +166,10 @@ class SimulatedGyroPort:
         self.frames_written = 0         # frames fully handed to the pty
         self.next_frame = 0             # k of the next frame to produce
         self.error: BaseException | None = None   # what ended the writer thread, if anything
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._master_fd, self._slave_fd = os.openpty()
-        tty.setraw(self._slave_fd)
-        os.set_blocking(self._master_fd, False)
+        super().__init__()
         # packet mode: the master reads a status byte when the reader flushes its input
         fcntl.ioctl(self._master_fd, termios.TIOCPKT, struct.pack("i", 1))
         self._flushed_k = -(2**62)      # frames before this one were flushed by the reader
-        self.port_name = os.ttyname(self._slave_fd)
-        self._closed = False
         self._out = bytearray()         # simulated clock: bytes made, not yet in the pty
         self._out_lock = threading.Condition()
         self._spans: deque[_Span] = deque()   # simulated clock: read spans not yet made
@@ -180,42 +177,16 @@ class SimulatedGyroPort:
 
     # ------------------------------------------------------------------ lifecycle
 
-    def start(self) -> SimulatedGyroPort:
-        if self._closed:
-            raise RuntimeError("simulated gyro: cannot start after stop()")
-        if self._thread is None:
-            if isinstance(self.clock, SimClock):
-                self.next_frame = max(self.next_frame, self._frames_before(self.clock.now_s()))
-                self.clock.subscribe(self._on_advance)
-            self._thread = threading.Thread(target=self._run, name="sim-gyro-pty", daemon=True)
-            self._thread.start()
-        return self
+    def _before_start(self) -> None:
+        if isinstance(self.clock, SimClock):
+            self.next_frame = max(self.next_frame, self._frames_before(self.clock.now_s()))
+            self.clock.subscribe(self._on_advance)
 
-    def stop(self) -> None:
-        """Stop the writer, join it and close both pty ends (safe to call twice)."""
-        self._stop.set()
+    def _before_join(self) -> None:
         if isinstance(self.clock, SimClock):
             self.clock.unsubscribe(self._on_advance)
         with self._out_lock:
             self._out_lock.notify_all()
-        if self._thread is not None:
-            self._thread.join(timeout=5.0)
-        if not self._closed:
-            self._closed = True
-            for fd in (self._master_fd, self._slave_fd):
-                with contextlib.suppress(OSError):
-                    os.close(fd)
-
-    @property
-    def running(self) -> bool:
-        """True while the writer thread is alive (it ends on stop() or on an error)."""
-        return self._thread is not None and self._thread.is_alive()
-
-    def __enter__(self) -> SimulatedGyroPort:
-        return self.start()
-
-    def __exit__(self, *exc_info) -> None:
-        self.stop()
 
     # ------------------------------------------------------------------ writer
 

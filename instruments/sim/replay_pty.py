@@ -14,15 +14,13 @@ dropped (the reader sees garbage and a gap), never released late as if current.
 
 from __future__ import annotations
 
-import contextlib
 import errno
 import os
 import select
-import threading
-import tty
 
 from gyrocal.instruments.gyro.datagram import FrameDecoder
 from gyrocal.instruments.gyro.survey import StreamSurvey, survey_stream
+from gyrocal.instruments.sim.pty_port import PtyWriterPort
 from gyrocal.models.clock import RealClock
 
 _POLL_S = 0.01           # how often the writer releases the bytes the clock has reached
@@ -30,8 +28,11 @@ _MAX_WRITE = 1 << 16
 _MAX_LAG_S = 0.5         # a reader this far behind lost the bytes in between, as on a real UART
 
 
-class ReplayGyroPort:
+class ReplayGyroPort(PtyWriterPort):
     """Writes ``data`` into a pty at the capture's rate; the driver opens :attr:`port_name`."""
+
+    thread_name = "replay-gyro-pty"
+    label = "replayed gyro"
 
     def __init__(self, data: bytes, clock: RealClock, loop: bool = True, source: str = "capture") -> None:
         survey = survey_stream(data[: 1 << 18])
@@ -52,13 +53,7 @@ class ReplayGyroPort:
         self.bytes_dropped = 0        # skipped while nobody read (the reader sees a gap)
         self.error: BaseException | None = None
         self._reader_behind = False   # the pty was full at the last write: nobody is reading
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._master_fd, self._slave_fd = os.openpty()
-        tty.setraw(self._slave_fd)
-        os.set_blocking(self._master_fd, False)
-        self.port_name = os.ttyname(self._slave_fd)
-        self._closed = False
+        super().__init__()
 
     @property
     def passes(self) -> int:
@@ -69,34 +64,6 @@ class ReplayGyroPort:
     def address(self) -> str:
         """Where the driver opens it (the simulated station's name for every server's address)."""
         return self.port_name
-
-    def start(self) -> ReplayGyroPort:
-        if self._closed:
-            raise RuntimeError("replayed gyro: cannot start after stop()")
-        if self._thread is None:
-            self._thread = threading.Thread(target=self._run, name="replay-gyro-pty", daemon=True)
-            self._thread.start()
-        return self
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5.0)
-        if not self._closed:
-            self._closed = True
-            for fd in (self._master_fd, self._slave_fd):
-                with contextlib.suppress(OSError):
-                    os.close(fd)
-
-    @property
-    def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
-
-    def __enter__(self) -> ReplayGyroPort:
-        return self.start()
-
-    def __exit__(self, *exc_info) -> None:
-        self.stop()
 
     def _run(self) -> None:
         t0_s = self.clock.now_s()
