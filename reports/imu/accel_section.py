@@ -35,6 +35,7 @@ from gyrocal.reports.imu.accel import (
     fit_all_accelerometers,
     static_mean,
 )
+from gyrocal.reports.imu.table_check import Calibration, check_rows
 
 _ACC_COLUMNS = ("acc_x_g", "acc_y_g", "acc_z_g")
 #: standard uncertainty assumed for a measured local gravity the station gives without one (m/s²)
@@ -120,35 +121,16 @@ def _series(fits: list[AccelFit]) -> dict[str, list[list[float]]]:
     return series
 
 
-def _interpolated(fits: list[AccelFit], temp_c: float, leave_out: int | None):
-    kept = [f for k, f in enumerate(fits) if k != leave_out]
-    if len(kept) < 2:
-        return None
-    order = np.argsort([f.temp_c for f in kept])
-    temps = np.array([kept[k].temp_c for k in order])
-    flat = np.array([np.concatenate([kept[k].sensitivity.ravel(), kept[k].bias_g]) for k in order])
-    at = np.array([comp.interp_extrap(temps, flat[:, c], np.array([temp_c]))[0]
-                   for c in range(flat.shape[1])])
-    return at[:9].reshape(3, 3), at[9:]
-
-
 def _check(fits: list[AccelFit]) -> list[dict[str, Any]]:
     """Residual specific force after compensation, per temperature and axis (µg)."""
-    rows = []
-    for k, fit in enumerate(fits):
-        row: dict[str, Any] = {"temp_c": fit.temp_c, "setpoint_c": fit.setpoint_c}
-        for label, leave_out in (("in_sample", None), ("leave_one_out", k)):
-            cal = (fit.sensitivity, fit.bias_g) if leave_out is None else \
-                _interpolated(fits, fit.temp_c, leave_out)
-            if cal is None or not np.all(np.isfinite(cal[0])):
-                row[label] = None
-                continue
-            res = np.array([compensate_force(cal[0], cal[1], s.mean_g) - fit.input_force_g(s)
-                            for s in fit.statics]) * 1e6
-            row[label] = {"rms_ug": _per_axis(np.sqrt(np.mean(res**2, axis=0))),
-                          "max_ug": _per_axis(np.max(np.abs(res), axis=0))}
-        rows.append(row)
-    return rows
+    def residual(fit: AccelFit, cal: Calibration) -> np.ndarray:
+        return np.array([compensate_force(cal[0], cal[1], s.mean_g) - fit.input_force_g(s)
+                         for s in fit.statics]) * 1e6
+
+    def summary(res: np.ndarray) -> dict[str, Any]:
+        return {"rms_ug": _per_axis(np.sqrt(np.mean(res**2, axis=0))),
+                "max_ug": _per_axis(np.max(np.abs(res), axis=0))}
+    return check_rows(fits, lambda f: f.bias_g, residual, summary)
 
 
 def accelerometer_section(run_dir: Path, plan: PlanRecord, events: list[dict[str, Any]],

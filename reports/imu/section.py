@@ -29,6 +29,7 @@ from gyrocal.reports import compensation as comp
 from gyrocal.reports.dwell import dwell_mean
 from gyrocal.reports.imu.accel_section import accelerometer_section
 from gyrocal.reports.imu.matrix import ImuDwell, MatrixFit, compensate, fit_all
+from gyrocal.reports.imu.table_check import Calibration, check_rows
 
 _AXIS_COLUMNS = ("gyro_x", "gyro_y", "gyro_z")
 
@@ -104,45 +105,17 @@ def _element_series(fits: list[MatrixFit]) -> dict[str, list[list[float]]]:
     return series
 
 
-def _interpolated(fits: list[MatrixFit], temp_c: float, leave_out: int | None
-                  ) -> tuple[np.ndarray, np.ndarray] | None:
-    """S and b at ``temp_c`` from the piecewise-linear tables (optionally without one point)."""
-    kept = [f for k, f in enumerate(fits) if k != leave_out]
-    if len(kept) < 2:
-        return None
-    temps = np.array([f.temp_c for f in kept])
-    order = np.argsort(temps)
-    temps = temps[order]
-    s = np.array([kept[k].sensitivity for k in order])
-    b = np.array([kept[k].bias_output for k in order])
-
-    def at(values: np.ndarray) -> np.ndarray:
-        flat = values.reshape(len(temps), -1)
-        return np.array([comp.interp_extrap(temps, flat[:, c], np.array([temp_c]))[0]
-                         for c in range(flat.shape[1])]).reshape(values.shape[1:])
-    return at(s), at(b)
-
-
 def _check_table(fits: list[MatrixFit]) -> list[dict[str, Any]]:
     """Residual body rate after compensation, per temperature and axis (deg/h RMS)."""
-    rows = []
-    for k, fit in enumerate(fits):
-        row: dict[str, Any] = {"temp_c": fit.temp_c, "setpoint_c": fit.setpoint_c}
-        for label, leave_out in (("in_sample", None), ("leave_one_out", k)):
-            cal = (fit.sensitivity, fit.bias_output) if leave_out is None else \
-                _interpolated(fits, fit.temp_c, leave_out)
-            if cal is None or not np.all(np.isfinite(cal[0])):
-                row[label] = None
-                continue
-            residual = np.array([compensate(cal[0], cal[1], d.mean_xyz)
-                                 - d.mounting.up_vector() * (d.rate_dps + fit.earth_vertical_dps)
-                                 for d in fit.dwells]) * 3600.0
-            row[label] = {"rms_dph": {a: float(np.sqrt(np.mean(residual[:, i] ** 2)))
-                                      for i, a in enumerate(AXES)},
-                          "max_dph": {a: float(np.max(np.abs(residual[:, i])))
-                                      for i, a in enumerate(AXES)}}
-        rows.append(row)
-    return rows
+    def residual(fit: MatrixFit, cal: Calibration) -> np.ndarray:
+        return np.array([compensate(cal[0], cal[1], d.mean_xyz)
+                         - d.mounting.up_vector() * (d.rate_dps + fit.earth_vertical_dps)
+                         for d in fit.dwells]) * 3600.0
+
+    def summary(res: np.ndarray) -> dict[str, Any]:
+        return {"rms_dph": {a: float(np.sqrt(np.mean(res[:, i] ** 2))) for i, a in enumerate(AXES)},
+                "max_dph": {a: float(np.max(np.abs(res[:, i]))) for i, a in enumerate(AXES)}}
+    return check_rows(fits, lambda f: f.bias_output, residual, summary)
 
 
 def imu_section(run_dir: Path, plan: dict[str, Any], events: list[dict[str, Any]],
