@@ -16,54 +16,40 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gyrocal.cli import EXIT_OK, main
 from gyrocal.models.imu_model import load_any_model
 from gyrocal.orchestrator.plan import expand_plan, format_plan
 from gyrocal.orchestrator.procedure import load_procedure
+from tests.support.dry_run import dry_run, sim_procedure
 
 REPO = Path(__file__).resolve().parents[2]
 STATION = REPO / "stations" / "sim-imu.yaml"
 ACC = load_any_model(REPO / "gyro-models" / "fog-imu.yaml").accelerometers
 
-PROCEDURE = f"""\
-version: 1
-name: short IMU accelerometer calibration (test)
-unit_under_test: {{model: FOG IMU, serial: IMU-SIM-02, output_units: deg/s, nominal_scale_factor: 1.0}}
-station: {STATION}
-safety:
-  chamber: {{min_temp_c: -15.0, max_temp_c: 45.0, max_ramp_c_per_min: 5.0}}
-  table: {{max_rate_dps: 300.0, max_accel_dps2: 100.0}}
-defaults:
-  ramp_c_per_min: 5.0
-  soak: {{tolerance_c: 0.5, hold: 1 min, max_wait: 1 h}}
-  settle: 2 s
-  accel_dps2: 50.0
-  sample_rate_hz: 250
-data_quality: {{max_lost_frame_fraction: 0.001, max_step_repeats: 2}}
+PROCEDURE = sim_procedure(
+    "short IMU accelerometer calibration (test)", "model: FOG IMU, serial: IMU-SIM-02", STATION,
+    ["settle: 2 s", "accel_dps2: 50.0"], """\
 mountings:
-  - {{name: X, up: +x, face: A}}
-  - {{name: Y, up: +y, face: B}}
-  - {{name: Z, up: +z, face: C}}
-  - {{name: Xdown, up: -x, face: D}}
-  - {{name: Ydown, up: -y, face: E}}
-  - {{name: Zdown, up: -z, face: F}}
+  - {name: X, up: +x, face: A}
+  - {name: Y, up: +y, face: B}
+  - {name: Z, up: +z, face: C}
+  - {name: Xdown, up: -x, face: D}
+  - {name: Ydown, up: -y, face: E}
+  - {name: Zdown, up: -z, face: F}
 mounting_order: mountings_inside
 templates:
-  point: &point [{{kind: static, duration: 1 min}}]
+  point: &point [{kind: static, duration: 1 min}]
 sequence:
-  - {{setpoint_c: 0.0, tests: *point}}
-  - {{setpoint_c: 20.0, tests: *point}}
-  - {{setpoint_c: 40.0, tests: *point}}
-"""
+  - {setpoint_c: 0.0, tests: *point}
+  - {setpoint_c: 20.0, tests: *point}
+  - {setpoint_c: 40.0, tests: *point}
+""")
 
 
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory) -> Path:
     tmp = tmp_path_factory.mktemp("acc")
     (tmp / "acc.yaml").write_text(PROCEDURE)
-    out = tmp / "run"
-    assert main(["run", str(tmp / "acc.yaml"), "--sim", "--out", str(out), "--seed", "3"]) == EXIT_OK
-    return out
+    return dry_run(tmp / "acc.yaml", tmp / "run", "--seed", "3")
 
 
 @pytest.fixture(scope="module")

@@ -20,38 +20,27 @@ from gyrocal.models.imu_model import load_any_model
 from gyrocal.orchestrator.plan import expand_plan
 from gyrocal.orchestrator.procedure import load_procedure
 from gyrocal.orchestrator.remount import CONFIRM_FILE, FileConfirmOperator, check_mounting
+from tests.orchestrator.conftest import events
+from tests.support.dry_run import dry_run, sim_procedure
 
 REPO = Path(__file__).resolve().parents[2]
 STATION = REPO / "stations" / "sim-imu.yaml"
 MODEL = load_any_model(REPO / "gyro-models" / "fog-imu.yaml")
 
-PROCEDURE = f"""\
-version: 1
-name: short IMU calibration (test)
-unit_under_test: {{model: FOG IMU, serial: IMU-SIM-01, output_units: deg/s, nominal_scale_factor: 1.0}}
-station: {STATION}
-safety:
-  chamber: {{min_temp_c: -15.0, max_temp_c: 45.0, max_ramp_c_per_min: 5.0}}
-  table: {{max_rate_dps: 300.0, max_accel_dps2: 100.0}}
-defaults:
-  ramp_c_per_min: 5.0
-  soak: {{tolerance_c: 0.5, hold: 1 min, max_wait: 1 h}}
-  dwell: 10 s
-  settle: 2 s
-  accel_dps2: 50.0
-  sample_rate_hz: 250
-data_quality: {{max_lost_frame_fraction: 0.001, max_step_repeats: 2}}
+PROCEDURE = sim_procedure(
+    "short IMU calibration (test)", "model: FOG IMU, serial: IMU-SIM-01", STATION,
+    ["dwell: 10 s", "settle: 2 s", "accel_dps2: 50.0"], """\
 mountings:
-  - {{name: X, up: +x, face: A}}
-  - {{name: Y, up: +y, face: B}}
-  - {{name: Z, up: +z, face: C}}
+  - {name: X, up: +x, face: A}
+  - {name: Y, up: +y, face: B}
+  - {name: Z, up: +z, face: C}
 mounting_order: ORDER
 sequence:
   - setpoint_c: 0.0
-    tests: [{{kind: sf_sweep, rates_dps: [50, 200], directions: both, min_revolutions: 2}}]
+    tests: [{kind: sf_sweep, rates_dps: [50, 200], directions: both, min_revolutions: 2}]
   - setpoint_c: 40.0
-    tests: [{{kind: sf_sweep, rates_dps: [50, 200], directions: both, min_revolutions: 2}}]
-"""
+    tests: [{kind: sf_sweep, rates_dps: [50, 200], directions: both, min_revolutions: 2}]
+""")
 
 
 def write(tmp_path: Path, order: str = "mountings_inside", edit: tuple[str, str] | None = None) -> Path:
@@ -64,15 +53,10 @@ def write(tmp_path: Path, order: str = "mountings_inside", edit: tuple[str, str]
     return path
 
 
-def events(run: Path) -> list[dict]:
-    return [json.loads(line) for line in (run / "journal.jsonl").read_text().splitlines()]
-
-
 @pytest.fixture(scope="module")
 def imu_run(tmp_path_factory) -> Path:
     tmp = tmp_path_factory.mktemp("imu")
-    out = tmp / "run"
-    assert main(["run", str(write(tmp)), "--sim", "--out", str(out), "--seed", "3"]) == EXIT_OK
+    out = dry_run(write(tmp), tmp / "run", "--seed", "3")
     return out
 
 

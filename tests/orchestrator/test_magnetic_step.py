@@ -16,26 +16,15 @@ from pathlib import Path
 import pytest
 
 from gyrocal.cli import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_OK, main
+from tests.orchestrator.conftest import events
+from tests.support.dry_run import dry_run, sim_procedure
 
 REPO = Path(__file__).resolve().parents[2]
 STATION = REPO / "stations" / "sim-magnetic.yaml"
 TRUE_DPH_PER_T = 10000.0     # gyro-models/fog-magnetic.yaml
 COIL_T_PER_A = 5e-4          # stations/sim-magnetic.yaml
 
-PROCEDURE = """\
-version: 1
-name: magnetic (test)
-unit_under_test: {{model: FOG, serial: SIM-MAG, output_units: deg/s, nominal_scale_factor: 1.0}}
-station: {station}
-safety:
-  chamber: {{min_temp_c: -15.0, max_temp_c: 45.0, max_ramp_c_per_min: 5.0}}
-  table: {{max_rate_dps: 300.0, max_accel_dps2: 100.0}}
-defaults:
-  ramp_c_per_min: 5.0
-  soak: {{tolerance_c: 0.5, hold: 1 min, max_wait: 1 h}}
-  settle: 5 s
-  sample_rate_hz: 250
-data_quality: {{max_lost_frame_fraction: 0.001, max_step_repeats: 2}}
+SEQUENCE = """\
 sequence:
   - setpoint_c: 25.0
     tests: [{{kind: magnetic, field_t: {field}, duration: 3 min}}]
@@ -48,20 +37,15 @@ def _write(tmp: Path, field: str = "0.0005", station_text: str | None = None) ->
         station = tmp / "station.yaml"
         station.write_text(station_text.replace("../gyro-models/", f"{REPO}/gyro-models/"))
     path = tmp / "p.yaml"
-    path.write_text(PROCEDURE.format(station=station, field=field))
+    path.write_text(sim_procedure("magnetic (test)", "model: FOG, serial: SIM-MAG", station,
+                                  ["settle: 5 s"], SEQUENCE.format(field=field)))
     return path
-
-
-def _events(run: Path) -> list[dict]:
-    return [json.loads(line) for line in (run / "journal.jsonl").read_text().splitlines()]
 
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory) -> Path:
     tmp = tmp_path_factory.mktemp("mag")
-    out = tmp / "run"
-    assert main(["run", str(_write(tmp)), "--sim", "--out", str(out)]) == EXIT_OK
-    return out
+    return dry_run(_write(tmp), tmp / "run")
 
 
 @pytest.mark.timeout(120)
@@ -81,7 +65,7 @@ def test_the_dry_run_recovers_the_simulated_sensitivity_within_its_uncertainty(r
 
 @pytest.mark.timeout(120)
 def test_the_coil_is_set_read_back_and_switched_off_per_step(run: Path) -> None:
-    coil = [e for e in _events(run) if e["event"] == "coil_field"]
+    coil = [e for e in events(run) if e["event"] == "coil_field"]
     sets = [(e["step_id"], e["set_field_t"], e["positive_current_a"], e["negative_current_a"])
             for e in coil if e["when"] == "set"]
     # 0.5 mT / 5e-4 T/A = 1 A on the +B channel, then both off, then 1 A on the -B channel
@@ -89,7 +73,7 @@ def test_the_coil_is_set_read_back_and_switched_off_per_step(run: Path) -> None:
                     ("T01.mag.neg", -5e-4, 0.0, 1.0)]
     offs = [e for e in coil if e["when"] == "off"]
     assert len(offs) == 3 and all(e["field_t"] == 0.0 for e in offs)
-    returned = [e for e in _events(run) if e["event"] == "returned_safe"][-1]
+    returned = [e for e in events(run) if e["event"] == "returned_safe"][-1]
     assert returned["confirmed"]["coil"] is True
 
 
@@ -126,7 +110,7 @@ def test_a_supply_dropout_mid_field_is_a_fault_that_leaves_the_coil_off(tmp_path
     code = main(["run", str(_write(tmp_path, station_text=text)), "--sim", "--out", str(out),
                  "--inject", "supply.dropout:always@T01.mag.pos"])
     assert code == EXIT_FAULT
-    safe = [e for e in _events(out) if e["event"] == "safe_state"][-1]
+    safe = [e for e in events(out) if e["event"] == "safe_state"][-1]
     assert safe["confirmed"]["coil"] is True
     assert safe["actions"]["coil"] == "coil switched off (read back: both channels off)"
     assert main(["resume", str(out)]) == EXIT_OK

@@ -13,38 +13,26 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gyrocal.cli import EXIT_OK, main
+from gyrocal.cli import main
+from tests.support.dry_run import dry_run, sim_procedure
 
 REPO = Path(__file__).resolve().parents[2]
 
-PROCEDURE = f"""\
-version: 1
-name: table interference (test)
-unit_under_test: {{model: FOG, serial: SIM-INTF, output_units: deg/s, nominal_scale_factor: 1.0}}
-station: {REPO / "stations" / "sim-table-interference.yaml"}
-safety:
-  chamber: {{min_temp_c: -15.0, max_temp_c: 45.0, max_ramp_c_per_min: 5.0}}
-  table: {{max_rate_dps: 300.0, max_accel_dps2: 100.0}}
-defaults:
-  ramp_c_per_min: 5.0
-  soak: {{tolerance_c: 0.5, hold: 1 min, max_wait: 1 h}}
-  settle: 2 s
-  accel_dps2: 50.0
-  sample_rate_hz: 250
-data_quality: {{max_lost_frame_fraction: 0.001, max_step_repeats: 2}}
+PROCEDURE = sim_procedure(
+    "table interference (test)", "model: FOG, serial: SIM-INTF",
+    REPO / "stations" / "sim-table-interference.yaml", ["settle: 2 s", "accel_dps2: 50.0"],
+    """\
 sequence:
   - setpoint_c: 25.0
-    tests: [{{kind: table_interference, duration: 5 min}}]
-"""
+    tests: [{kind: table_interference, duration: 5 min}]
+""")
 
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory) -> Path:
     tmp = tmp_path_factory.mktemp("intf")
     (tmp / "p.yaml").write_text(PROCEDURE)
-    out = tmp / "run"
-    assert main(["run", str(tmp / "p.yaml"), "--sim", "--out", str(out)]) == EXIT_OK
-    return out
+    return dry_run(tmp / "p.yaml", tmp / "run")
 
 
 def test_the_report_finds_the_drive_lines_and_the_drift_ratio(run: Path) -> None:

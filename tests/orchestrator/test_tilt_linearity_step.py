@@ -19,27 +19,15 @@ from pathlib import Path
 import pytest
 
 from gyrocal.cli import EXIT_BAD_INPUT, EXIT_OK, main
+from tests.support.dry_run import dry_run, sim_procedure
 
 REPO = Path(__file__).resolve().parents[2]
 STATION = REPO / "stations" / "sim-tilt.yaml"
 
-PROCEDURE = """\
-version: 1
-name: tilt (test)
-unit_under_test: {{model: STIM300, serial: SIM-TILT, output_units: deg/s, nominal_scale_factor: 1.0}}
-station: {station}
-safety:
-  chamber: {{min_temp_c: -15.0, max_temp_c: 45.0, max_ramp_c_per_min: 5.0}}
-  table: {{max_rate_dps: 300.0, max_accel_dps2: 100.0}}
-defaults:
-  ramp_c_per_min: 5.0
-  soak: {{tolerance_c: 0.5, hold: 1 min, max_wait: 1 h}}
-  settle: 1 s
-  sample_rate_hz: 250
-data_quality: {{max_lost_frame_fraction: 0.001, max_step_repeats: 2}}
+SEQUENCE = """\
 sequence:
   - setpoint_c: 25.0
-    tests: [{{kind: tilt_linearity, points: vendor_90, dwell: 10 s, zero_stability: 2 min}}]
+    tests: [{kind: tilt_linearity, points: vendor_90, dwell: 10 s, zero_stability: 2 min}]
 """
 
 
@@ -49,16 +37,15 @@ def _write(tmp: Path, station_text: str | None = None) -> Path:
         station = tmp / "station.yaml"
         station.write_text(station_text.replace("../gyro-models/", f"{REPO}/gyro-models/"))
     path = tmp / "p.yaml"
-    path.write_text(PROCEDURE.format(station=station))
+    path.write_text(sim_procedure("tilt (test)", "model: STIM300, serial: SIM-TILT", station,
+                                  ["settle: 1 s"], SEQUENCE))
     return path
 
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory) -> Path:
     tmp = tmp_path_factory.mktemp("tilt")
-    out = tmp / "run"
-    assert main(["run", str(_write(tmp)), "--sim", "--out", str(out)]) == EXIT_OK
-    return out
+    return dry_run(_write(tmp), tmp / "run")
 
 
 @pytest.mark.timeout(180)
