@@ -19,10 +19,9 @@ import pytest
 
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
 from tests.orchestrator.conftest import SimCapture, events
-from tests.orchestrator.test_threshold_dry_run import MODEL
+from tests.orchestrator.test_threshold_dry_run import write_model_station
 
 pytestmark = pytest.mark.timeout(300)
-REPO = Path(__file__).resolve().parents[2]
 BANDWIDTH_HZ = 2.0
 PHASE_AT_1HZ_DEG = -26.565051177
 
@@ -52,12 +51,7 @@ acceptance:
 
 
 def write_inputs(tmp_path: Path) -> Path:
-    tmp_path.mkdir(exist_ok=True)
-    effects = f"[{{name: rate_bandwidth, bandwidth_hz: {BANDWIDTH_HZ}}}]"
-    (tmp_path / "model.yaml").write_text(MODEL.replace("EFFECTS", effects), encoding="utf-8")
-    station = (REPO / "stations" / "sim.yaml").read_text(encoding="utf-8")
-    station = station.replace("../gyro-models/nominal-fog.yaml", str(tmp_path / "model.yaml"))
-    (tmp_path / "station.yaml").write_text(station, encoding="utf-8")
+    write_model_station(tmp_path, f"[{{name: rate_bandwidth, bandwidth_hz: {BANDWIDTH_HZ}}}]")
     (tmp_path / "procedure.yaml").write_text(PROCEDURE, encoding="utf-8")
     return tmp_path / "procedure.yaml"
 
@@ -89,7 +83,7 @@ def test_the_bandwidth_and_phase_are_recovered_within_u(tmp_path):
 
 def test_without_a_bandwidth_the_gain_stays_at_one_and_no_bandwidth_is_claimed(tmp_path):
     procedure = write_inputs(tmp_path)
-    (tmp_path / "model.yaml").write_text(MODEL.replace("EFFECTS", "[]"), encoding="utf-8")
+    write_model_station(tmp_path, "[]")
     text = procedure.read_text().split("acceptance:")[0]
     procedure.write_text(text, encoding="utf-8")
     out = tmp_path / "run"

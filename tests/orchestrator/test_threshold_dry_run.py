@@ -60,12 +60,17 @@ acceptance:
 """
 
 
-def write_inputs(tmp_path: Path, effects: str, increments: str) -> Path:
+def write_model_station(tmp_path: Path, effects: str) -> None:
+    """model.yaml (MODEL with ``effects``) and station.yaml (the sim station using it) in tmp_path."""
     tmp_path.mkdir(exist_ok=True)
     (tmp_path / "model.yaml").write_text(MODEL.replace("EFFECTS", effects), encoding="utf-8")
     station = (REPO / "stations" / "sim.yaml").read_text(encoding="utf-8")
     station = station.replace("../gyro-models/nominal-fog.yaml", str(tmp_path / "model.yaml"))
     (tmp_path / "station.yaml").write_text(station, encoding="utf-8")
+
+
+def write_inputs(tmp_path: Path, effects: str, increments: str) -> Path:
+    write_model_station(tmp_path, effects)
     (tmp_path / "procedure.yaml").write_text(
         PROCEDURE.replace("[0.01, 0.02, 0.03, 0.04]", increments), encoding="utf-8")
     return tmp_path / "procedure.yaml"
