@@ -211,30 +211,33 @@ class Probe:
 
     def describe(self) -> str:
         k, s = self.kind, self.size
-        if k is ProbeKind.BIAS_STEP:
-            return f"a bias step of {s:+.3g} deg/h near t = {self.where:.0f} s"
-        if k is ProbeKind.SF_STEP:
-            return f"a scale-factor step of {s:+.3g} ppm near t = {self.where:.0f} s"
         if k is ProbeKind.SLOW_SINE:
             return f"a slow sinusoid of {s:.3g} deg/h, period {1.0 / self.where:.0f} s"
         if k is ProbeKind.TIME_CUBIC:
             a, b, c = self.coeffs
             return (f"a bias curving in time (cubic over the record: {a:+.3g}·u {b:+.3g}·u² "
                     f"{c:+.3g}·u³ deg/h, u = −1…+1; {s:.3g} deg/h peak to peak)")
-        if k is ProbeKind.ABS_TIME_RAMP:
-            return f"a bias ramp in |t − t0| of {s:+.3g} deg/h per hour turning at t0 = {self.where:.0f} s"
         if k is ProbeKind.ONE_SIGN_RATE2:
             sign = "positive" if self.where > 0 else "negative"
             return f"a rate² term on {sign} rates only of {s:+.3g} deg/h per (deg/s)²"
         if k is ProbeKind.RATE_SIGN_BIAS:
             return f"a bias by rate sign of ±{abs(s):.3g} deg/h ({'+' if s > 0 else '−'} for positive rates)"
-        if k is ProbeKind.SF_TIME_RAMP:
-            return f"a scale factor drifting by {s:+.3g} ppm per hour"
-        if k is ProbeKind.TEMP_CUBIC:
-            return f"a bias cubic in temperature, {s:+.3g} deg/h per degC³ (about the record's mean)"
-        if k is ProbeKind.ABS_TEMP_RATE:
-            return f"a bias in |dT/dt| of {s:+.3g} deg/h per degC/min (same sign heating and cooling)"
-        return f"a bias in dT/dt·(T − mean T) of {s:+.3g} deg/h per degC·degC/min"
+        return _DESCRIPTIONS[k].format(s=s, where=self.where)
+
+
+#: how ``Probe.describe`` words the kinds that need only their size ``s`` and ``where``
+_DESCRIPTIONS: dict[ProbeKind, str] = {
+    ProbeKind.BIAS_STEP: "a bias step of {s:+.3g} deg/h near t = {where:.0f} s",
+    ProbeKind.SF_STEP: "a scale-factor step of {s:+.3g} ppm near t = {where:.0f} s",
+    ProbeKind.ABS_TIME_RAMP:
+        "a bias ramp in |t − t0| of {s:+.3g} deg/h per hour turning at t0 = {where:.0f} s",
+    ProbeKind.SF_TIME_RAMP: "a scale factor drifting by {s:+.3g} ppm per hour",
+    ProbeKind.TEMP_CUBIC:
+        "a bias cubic in temperature, {s:+.3g} deg/h per degC³ (about the record's mean)",
+    ProbeKind.ABS_TEMP_RATE:
+        "a bias in |dT/dt| of {s:+.3g} deg/h per degC/min (same sign heating and cooling)",
+    ProbeKind.TEMP_RATE_X_TEMP: "a bias in dT/dt·(T − mean T) of {s:+.3g} deg/h per degC·degC/min",
+}
 
 
 def step_columns(n_bins: int, positions: np.ndarray) -> np.ndarray:
