@@ -17,7 +17,7 @@ import pytest
 
 from gyrocal.cli import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_OK, main
 from tests.orchestrator.conftest import events
-from tests.support.dry_run import dry_run, sim_procedure
+from tests.support.dry_run import dry_run, sim_procedure, station_file, write_procedure
 
 REPO = Path(__file__).resolve().parents[2]
 STATION = REPO / "stations" / "sim-magnetic.yaml"
@@ -32,14 +32,9 @@ sequence:
 
 
 def _write(tmp: Path, field: str = "0.0005", station_text: str | None = None) -> Path:
-    station = STATION
-    if station_text is not None:
-        station = tmp / "station.yaml"
-        station.write_text(station_text.replace("../gyro-models/", f"{REPO}/gyro-models/"))
-    path = tmp / "p.yaml"
-    path.write_text(sim_procedure("magnetic (test)", "model: FOG, serial: SIM-MAG", station,
-                                  ["settle: 5 s"], SEQUENCE.format(field=field)))
-    return path
+    station = station_file(tmp, STATION, station_text)
+    return write_procedure(tmp, sim_procedure("magnetic (test)", "model: FOG, serial: SIM-MAG",
+                                              station, ["settle: 5 s"], SEQUENCE.format(field=field)))
 
 
 @pytest.fixture(scope="module")

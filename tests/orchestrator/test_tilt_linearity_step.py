@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from gyrocal.cli import EXIT_BAD_INPUT, EXIT_OK, main
-from tests.support.dry_run import dry_run, sim_procedure
+from tests.support.dry_run import dry_run, sim_procedure, station_file, write_procedure
 
 REPO = Path(__file__).resolve().parents[2]
 STATION = REPO / "stations" / "sim-tilt.yaml"
@@ -32,14 +32,9 @@ sequence:
 
 
 def _write(tmp: Path, station_text: str | None = None) -> Path:
-    station = STATION
-    if station_text is not None:
-        station = tmp / "station.yaml"
-        station.write_text(station_text.replace("../gyro-models/", f"{REPO}/gyro-models/"))
-    path = tmp / "p.yaml"
-    path.write_text(sim_procedure("tilt (test)", "model: STIM300, serial: SIM-TILT", station,
-                                  ["settle: 1 s"], SEQUENCE))
-    return path
+    station = station_file(tmp, STATION, station_text)
+    return write_procedure(tmp, sim_procedure("tilt (test)", "model: STIM300, serial: SIM-TILT",
+                                              station, ["settle: 1 s"], SEQUENCE))
 
 
 @pytest.fixture(scope="module")

@@ -13,6 +13,8 @@ from pathlib import Path
 
 from gyrocal.cli import EXIT_OK, main
 
+REPO = Path(__file__).resolve().parents[2]
+
 
 def sim_procedure(name: str, uut: str, station: Path | str, defaults: Sequence[str],
                   body: str) -> str:
@@ -41,3 +43,20 @@ def dry_run(procedure: Path, out: Path, *args: str) -> Path:
     """``gyrocal run procedure --sim --out out [args]``, which must succeed; the run folder."""
     assert main(["run", str(procedure), "--sim", "--out", str(out), *args]) == EXIT_OK
     return out
+
+
+def station_file(tmp: Path, station: Path, text: str | None) -> Path:
+    """``station``, or when ``text`` is given (an edited copy of it) that text written to
+    tmp/station.yaml with its ``../gyro-models/`` references made absolute."""
+    if text is None:
+        return station
+    path = tmp / "station.yaml"
+    path.write_text(text.replace("../gyro-models/", f"{REPO}/gyro-models/"))
+    return path
+
+
+def write_procedure(tmp: Path, text: str) -> Path:
+    """``text`` written to tmp/p.yaml."""
+    path = tmp / "p.yaml"
+    path.write_text(text)
+    return path
