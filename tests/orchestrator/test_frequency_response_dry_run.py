@@ -19,26 +19,13 @@ import pytest
 
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
 from tests.orchestrator.conftest import SimCapture, events
-from tests.orchestrator.test_threshold_dry_run import write_model_station
+from tests.orchestrator.test_threshold_dry_run import one_point_procedure, write_model_station
 
 pytestmark = pytest.mark.timeout(300)
 BANDWIDTH_HZ = 2.0
 PHASE_AT_1HZ_DEG = -26.565051177
 
-PROCEDURE = """version: 1
-name: Frequency response check
-unit_under_test: {model: Simulated FOG, serial: SIM-F, output_units: deg/s,
-                  nominal_scale_factor: 1.0}
-station: station.yaml
-safety:
-  chamber: {min_temp_c: 15.0, max_temp_c: 35.0, max_ramp_c_per_min: 5.0}
-  table: {max_rate_dps: 200.0, max_accel_dps2: 100.0}
-defaults: {ramp_c_per_min: 5.0, soak: {tolerance_c: 0.5, hold: 10 s, max_wait: 10 min},
-           dwell: 5 s, settle: 1 s, accel_dps2: 100.0, sample_rate_hz: 250}
-data_quality: {max_lost_frame_fraction: 0.01, max_step_repeats: 2}
-sequence:
-  - setpoint_c: 23.0
-    tests:
+PROCEDURE = one_point_procedure("Frequency response check", "SIM-F", """\
       - kind: frequency_response
         amplitude_dps: 1.0
         frequencies_hz: [0.5, 1, 1.5, 1.8, 2, 2.2, 2.5, 3, 4]
@@ -47,7 +34,7 @@ sequence:
 acceptance:
   - {name: Bandwidth, metric: frequency_response.bandwidth_hz, min: 1.5, unit: Hz,
      decision_rule: guarded}
-"""
+""")
 
 
 def write_inputs(tmp_path: Path) -> Path:

@@ -37,27 +37,34 @@ noise: {arw_deg_per_rth: 0.01, bias_instability_dph: 0.03, rrw_deg_per_h_rth: 0.
 effects: EFFECTS
 """
 
-PROCEDURE = """version: 1
-name: Threshold check
-unit_under_test: {model: Simulated FOG, serial: SIM-T, output_units: deg/s,
-                  nominal_scale_factor: 1.0}
+
+def one_point_procedure(name: str, serial: str, rest: str) -> str:
+    """A one-temperature (23 °C) procedure on station.yaml beside it; ``rest`` follows ``tests:``."""
+    return f"""version: 1
+name: {name}
+unit_under_test: {{model: Simulated FOG, serial: {serial}, output_units: deg/s,
+                  nominal_scale_factor: 1.0}}
 station: station.yaml
 safety:
-  chamber: {min_temp_c: 15.0, max_temp_c: 35.0, max_ramp_c_per_min: 5.0}
-  table: {max_rate_dps: 200.0, max_accel_dps2: 100.0}
-defaults: {ramp_c_per_min: 5.0, soak: {tolerance_c: 0.5, hold: 10 s, max_wait: 10 min},
-           dwell: 5 s, settle: 1 s, accel_dps2: 100.0, sample_rate_hz: 250}
-data_quality: {max_lost_frame_fraction: 0.01, max_step_repeats: 2}
+  chamber: {{min_temp_c: 15.0, max_temp_c: 35.0, max_ramp_c_per_min: 5.0}}
+  table: {{max_rate_dps: 200.0, max_accel_dps2: 100.0}}
+defaults: {{ramp_c_per_min: 5.0, soak: {{tolerance_c: 0.5, hold: 10 s, max_wait: 10 min}},
+           dwell: 5 s, settle: 1 s, accel_dps2: 100.0, sample_rate_hz: 250}}
+data_quality: {{max_lost_frame_fraction: 0.01, max_step_repeats: 2}}
 sequence:
   - setpoint_c: 23.0
     tests:
+{rest}"""
+
+
+PROCEDURE = one_point_procedure("Threshold check", "SIM-T", """\
       - kind: threshold
         base_rates_dps: [0, 10]
         increments_dps: [0.01, 0.02, 0.03, 0.04]
 acceptance:
   - {name: Threshold, metric: threshold.threshold_dps, max: 0.04, unit: deg/s,
      decision_rule: guarded}
-"""
+""")
 
 
 def write_model_station(tmp_path: Path, effects: str) -> None:
