@@ -15,16 +15,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from gyrocal.models.gravity import (
     NORMAL_GRAVITY_ANOMALY_MPS2,
     STANDARD_GRAVITY_MPS2,
     normal_gravity_mps2,
 )
-from gyrocal.models.imu_model import AXES, Mounting
-from gyrocal.orchestrator.record.logged_steps import completed_attempts
+from gyrocal.models.imu_model import AXES
 from gyrocal.orchestrator.record.plan_record import PlanRecord
 from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.reports import compensation as comp
@@ -35,6 +32,7 @@ from gyrocal.reports.imu.accel import (
     fit_all_accelerometers,
     static_mean,
 )
+from gyrocal.reports.imu.mounted_steps import mounted_steps, unit_temp_c
 from gyrocal.reports.imu.table_check import Calibration, check_rows
 
 _ACC_COLUMNS = ("acc_x_g", "acc_y_g", "acc_z_g")
@@ -57,28 +55,19 @@ def local_gravity(plan: PlanRecord) -> tuple[float, float, str]:
 def read_statics(run_dir: Path, plan: PlanRecord, events: list[dict[str, Any]],
                  notes: list[str]) -> list[AccStatic]:
     """Every completed static of a mountings plan, reduced to three accelerometer means."""
-    mountings = {m.name: Mounting(m.up_axis, m.sign) for m in plan.mountings}
     statics = []
-    for step_id, event in completed_attempts(events).items():
-        step = plan.step(step_id)
-        if step is None or step.kind != StepKind.STATIC or step.mounting not in mountings:
-            continue
-        tables = [pq.read_table(Path(run_dir) / rel) for rel in event["chunks"]]
-        table = pa.concat_tables(tables) if len(tables) > 1 else tables[0]
-        if not all(c in table.column_names for c in _ACC_COLUMNS):
-            notes.append(f"imu accelerometers: step {step_id} logged no acc_x_g…; left out")
-            continue
+    for logged in mounted_steps(run_dir, plan, events, StepKind.STATIC, _ACC_COLUMNS, notes,
+                                "imu accelerometers: step {step_id} logged no acc_x_g…; left out"):
+        table, step = logged.table, logged.step
         good = np.ones(table.num_rows, dtype=bool)
         if "acc_status" in table.column_names:
             good &= table.column("acc_status").to_numpy() == 0
         if "status" in table.column_names:
             good &= table.column("status").to_numpy() == 0
         means = [static_mean(table.column(c).to_numpy()[good]) for c in _ACC_COLUMNS]
-        sensor = table.column("sensor_temp_c").to_numpy()[good]
-        chamber = table.column("chamber_temp_c").to_numpy()[good]
-        temp = sensor[np.isfinite(sensor)] if np.isfinite(sensor).any() else chamber
-        statics.append(AccStatic(step_id, step.temp_index, step.setpoint_c, float(np.mean(temp)),
-                                 mountings[step.mounting], np.array([m for m, _ in means]),
+        statics.append(AccStatic(logged.step_id, step.temp_index, step.setpoint_c,
+                                 unit_temp_c(table, good),
+                                 logged.mounting, np.array([m for m, _ in means]),
                                  np.array([u for _, u in means]), int(good.sum())))
     return statics
 

@@ -18,17 +18,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
-from gyrocal.models.imu_model import AXES, Mounting
-from gyrocal.orchestrator.record.logged_steps import completed_attempts
+from gyrocal.models.imu_model import AXES
 from gyrocal.orchestrator.record.plan_record import PlanRecord
 from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.reports import compensation as comp
 from gyrocal.reports.dwell import dwell_mean
 from gyrocal.reports.imu.accel_section import accelerometer_section
 from gyrocal.reports.imu.matrix import ImuDwell, MatrixFit, compensate, fit_all
+from gyrocal.reports.imu.mounted_steps import mounted_steps, unit_temp_c
 from gyrocal.reports.imu.table_check import Calibration, check_rows
 
 _AXIS_COLUMNS = ("gyro_x", "gyro_y", "gyro_z")
@@ -37,18 +35,11 @@ _AXIS_COLUMNS = ("gyro_x", "gyro_y", "gyro_z")
 def read_imu_dwells(run_dir: Path, plan: PlanRecord, events: list[dict[str, Any]],
                     notes: list[str]) -> list[ImuDwell]:
     """Every completed dwell of a mountings plan, reduced to three axis means."""
-    mountings = {m.name: Mounting(m.up_axis, m.sign) for m in plan.mountings}
     fs_hz = plan.sample_rate_hz
     dwells = []
-    for step_id, event in completed_attempts(events).items():
-        step = plan.step(step_id)
-        if step is None or step.kind != StepKind.DWELL or step.mounting not in mountings:
-            continue
-        tables = [pq.read_table(Path(run_dir) / rel) for rel in event["chunks"]]
-        table = pa.concat_tables(tables) if len(tables) > 1 else tables[0]
-        if not all(c in table.column_names for c in _AXIS_COLUMNS):
-            notes.append(f"imu: step {step_id} has no three-axis columns; left out")
-            continue
+    for logged in mounted_steps(run_dir, plan, events, StepKind.DWELL, _AXIS_COLUMNS, notes,
+                                "imu: step {step_id} has no three-axis columns; left out"):
+        table, step = logged.table, logged.step
         if "status" in table.column_names:
             good = table.column("status").to_numpy() == 0
         else:
@@ -57,11 +48,8 @@ def read_imu_dwells(run_dir: Path, plan: PlanRecord, events: list[dict[str, Any]
         whole = int(turns) if turns and float(turns).is_integer() else "all"
         means = [dwell_mean(table.column(c).to_numpy()[good], fs_hz, 0.0, step.rate_dps,
                             revolutions=whole) for c in _AXIS_COLUMNS]
-        sensor = table.column("sensor_temp_c").to_numpy()[good]
-        chamber = table.column("chamber_temp_c").to_numpy()[good]
-        temp = sensor[np.isfinite(sensor)] if np.isfinite(sensor).any() else chamber
-        dwells.append(ImuDwell(step_id, step.temp_index, step.setpoint_c, float(np.mean(temp)),
-                               mountings[step.mounting], step.rate_dps,
+        dwells.append(ImuDwell(logged.step_id, step.temp_index, step.setpoint_c,
+                               unit_temp_c(table, good), logged.mounting, step.rate_dps,
                                np.array([m.mean for m in means]), means[0].n_samples))
     return dwells
 
