@@ -17,13 +17,12 @@ each other without dead time (the simulator assumes they do).
 
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Callable
 
 import numpy as np
 
 from gyrocal.instruments.errors import InstrumentError
-from gyrocal.instruments.gyro.reading_memory import pull_readings
+from gyrocal.instruments.gyro.reading_memory import ReadingMemoryGyro
 from gyrocal.instruments.interfaces import GyroBlock, Identity
 from gyrocal.instruments.retry import RetryPolicy
 from gyrocal.instruments.scpi_link import ScpiLink
@@ -45,7 +44,7 @@ def _whole_counts(values: list[float], count: int) -> str | None:
     return None
 
 
-class CounterPulseGyro:
+class CounterPulseGyro(ReadingMemoryGyro):
     """``GyroStream`` for a pulse gyro on a universal counter: counts × pulse weight → deg/s."""
 
     def __init__(self, resource: str, sample_rate_hz: float, pulse_weight_arcsec: float,
@@ -58,8 +57,7 @@ class CounterPulseGyro:
         self.pulse_deg = float(pulse_weight_arcsec) / 3600.0
         self.channel = int(channel)
         self.link = ScpiLink(resource, name, timeout_s, retry or RetryPolicy(), on_retry)
-        self._next_index = 0
-        self._started = False
+        super().__init__()
 
     def identify(self) -> Identity:
         return Identity("gyro", DRIVER_NAME, self.resource,
@@ -67,25 +65,13 @@ class CounterPulseGyro:
                         f"channel {self.channel}, gate {1e3 / self.fs_hz:g} ms, pulse weight "
                         f"{self.pulse_deg * 3600:g} arcsec")
 
-    def flush(self) -> None:
-        for line in totalize_setup(self.channel, self.fs_hz):
-            self.link.send(line)
-        self._next_index = 0
-        self._started = True
+    def _setup_lines(self) -> list[str]:
+        return totalize_setup(self.channel, self.fs_hz)
 
-    def read_samples(self, n: int, timeout_s: float) -> GyroBlock:
-        if not self._started:
-            self.flush()
-        counts = pull_readings(self.link, self.name, n, timeout_s, self.fs_hz,
-                               _whole_counts)
-        pulses = np.asarray(counts, dtype=np.float64)
-        index = np.arange(self._next_index, self._next_index + len(pulses), dtype=np.int64)
-        self._next_index += len(pulses)
-        rate_dps = pulses * self.pulse_deg * self.fs_hz
+    def _check(self, values: list[float], count: int) -> str | None:
+        return _whole_counts(values, count)
+
+    def _block(self, values: np.ndarray, index: np.ndarray) -> GyroBlock:
+        rate_dps = values * self.pulse_deg * self.fs_hz
         return GyroBlock(rate=rate_dps, counter=(index % 256).astype(np.uint8), index=index,
-                         status=np.zeros(len(pulses), np.uint8), extra={"pulses": pulses})
-
-    def close(self) -> None:
-        with contextlib.suppress(InstrumentError):
-            self.link.send("ABORt")
-        self.link.close()
+                         status=np.zeros(len(values), np.uint8), extra={"pulses": values})

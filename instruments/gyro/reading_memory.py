@@ -8,10 +8,14 @@ Each driver keeps its own check of what a reading may be (whole counts, finite v
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Callable
 
+import numpy as np
+
 from gyrocal.instruments.errors import InstrumentError, InstrumentTimeout
+from gyrocal.instruments.interfaces import GyroBlock
 from gyrocal.instruments.scpi_link import ScpiLink
 
 #: a reply's problem given (readings, count asked), or None when they are acceptable
@@ -51,3 +55,51 @@ def pull_readings(link: ScpiLink, name: str, n: int, timeout_s: float, fs_hz: fl
                                     f"{len(values)} of {n} readings within {timeout_s:g} s")
         sleep(min(0.05, max(0.001, (n - len(values)) / fs_hz / 4)))
     return values
+
+
+class ReadingMemoryGyro:
+    """``GyroStream`` skeleton for a gyro read through a meter's reading memory.
+
+    The sample number since ``INIT`` is the sample's time, so flush() restarts the
+    meter's run and the numbering together; a subclass gives the setup lines, what
+    a reading may be, and how readings become a :class:`GyroBlock`.
+    """
+
+    name: str
+    fs_hz: float
+    link: ScpiLink
+
+    def __init__(self) -> None:
+        self._sleep: Callable[[float], None] = time.sleep
+        self._next_index = 0          # sample number (since INIT) of the next reading pulled
+        self._started = False
+
+    def _setup_lines(self) -> list[str]:
+        raise NotImplementedError
+
+    def _check(self, values: list[float], count: int) -> str | None:
+        raise NotImplementedError
+
+    def _block(self, values: np.ndarray, index: np.ndarray) -> GyroBlock:
+        raise NotImplementedError
+
+    def flush(self) -> None:
+        """Restart the stream: the next reading is sample 0 of a fresh run."""
+        for line in self._setup_lines():
+            self.link.send(line)
+        self._next_index = 0
+        self._started = True
+
+    def read_samples(self, n: int, timeout_s: float) -> GyroBlock:
+        if not self._started:
+            self.flush()
+        values = np.asarray(pull_readings(self.link, self.name, n, timeout_s, self.fs_hz,
+                                          self._check, self._sleep), dtype=np.float64)
+        index = np.arange(self._next_index, self._next_index + len(values), dtype=np.int64)
+        self._next_index += len(values)
+        return self._block(values, index)
+
+    def close(self) -> None:
+        with contextlib.suppress(InstrumentError):
+            self.link.send("ABORt")
+        self.link.close()

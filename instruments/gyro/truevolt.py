@@ -18,7 +18,6 @@ available: all are **unconfirmed** in docs/protocol-elements.md.
 
 from __future__ import annotations
 
-import contextlib
 import math
 import time
 from collections.abc import Callable
@@ -26,7 +25,7 @@ from collections.abc import Callable
 import numpy as np
 
 from gyrocal.instruments.errors import InstrumentError
-from gyrocal.instruments.gyro.reading_memory import pull_readings
+from gyrocal.instruments.gyro.reading_memory import ReadingMemoryGyro
 from gyrocal.instruments.interfaces import GyroBlock, Identity
 from gyrocal.instruments.retry import RetryPolicy
 from gyrocal.instruments.scpi_link import ScpiLink
@@ -57,7 +56,7 @@ def _finite_readings(values: list[float], count: int) -> str | None:
     return None
 
 
-class TruevoltAnalogGyro:
+class TruevoltAnalogGyro(ReadingMemoryGyro):
     """``GyroStream`` for an analog gyro on a Truevolt DMM (volts out, in the unit's output units)."""
 
     def __init__(self, resource: str, sample_rate_hz: float, range_v: float = 10.0,
@@ -74,9 +73,8 @@ class TruevoltAnalogGyro:
         self.nplc = nplc
         self.timeout_s = float(timeout_s)
         self.link = ScpiLink(resource, name, timeout_s, retry or RetryPolicy(), on_retry)
+        super().__init__()
         self._sleep = clock_sleep
-        self._next_index = 0          # sample number (since INIT) of the next reading pulled
-        self._started = False
 
     def identify(self) -> Identity:
         idn = self.link.ask("*IDN?")
@@ -88,26 +86,13 @@ class TruevoltAnalogGyro:
                         f"range {self.range_v:g} V, {integration}, sample timer "
                         f"{self.fs_hz:g} Hz")
 
-    def flush(self) -> None:
-        """Restart the stream: the next reading is sample 0 of a fresh timer run."""
-        for line in stream_setup(self.range_v, self.fs_hz, self.aperture_s, self.nplc):
-            self.link.send(line)
-        self._next_index = 0
-        self._started = True
+    def _setup_lines(self) -> list[str]:
+        return stream_setup(self.range_v, self.fs_hz, self.aperture_s, self.nplc)
 
-    def read_samples(self, n: int, timeout_s: float) -> GyroBlock:
-        if not self._started:
-            self.flush()
-        values = pull_readings(self.link, self.name, n, timeout_s, self.fs_hz,
-                               _finite_readings, self._sleep)
-        volts = np.asarray(values, dtype=np.float64)
-        index = np.arange(self._next_index, self._next_index + len(volts), dtype=np.int64)
-        self._next_index += len(volts)
-        overload = np.abs(volts) >= OVERLOAD_V
-        return GyroBlock(rate=volts, counter=(index % 256).astype(np.uint8), index=index,
+    def _check(self, values: list[float], count: int) -> str | None:
+        return _finite_readings(values, count)
+
+    def _block(self, values: np.ndarray, index: np.ndarray) -> GyroBlock:
+        overload = np.abs(values) >= OVERLOAD_V
+        return GyroBlock(rate=values, counter=(index % 256).astype(np.uint8), index=index,
                          status=overload.astype(np.uint8), flagged=overload)
-
-    def close(self) -> None:
-        with contextlib.suppress(InstrumentError):
-            self.link.send("ABORt")
-        self.link.close()
