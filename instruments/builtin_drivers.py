@@ -159,7 +159,7 @@ def _open_e36300(req: OpenRequest):
 def _sim_e36300(req: SimRequest):
     from gyrocal.instruments.sim.supply_server import SimulatedE36300
 
-    return SimulatedE36300(req.faults, seed=req.seed)  # type: ignore[arg-type]
+    return SimulatedE36300(req.faults, seed=req.seed, clock=req.clock)  # type: ignore[arg-type]
 
 
 def _open_truevolt(req: OpenRequest):

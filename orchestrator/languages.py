@@ -360,6 +360,10 @@ SIMULATION = Section(
                     "the lateral sensitivity measures)", False, "0"),
                 Key("noise_g", _num(0.0, 0.1), "white noise per sample, g (1 σ)", False, "0"),
             )), "inclinometer errors", False),
+        Key("gyro_startup_s", _num(0.0, 60.0), "the simulated unit follows the supply's "
+            "output (needs a supply: section): nothing while it is off, the first frame this "
+            "long after the output-on, the warm-up transient restarted at each power-on; "
+            "absent: the unit sends from the start, whatever the supply does", False),
     ))
 
 NOTIFY = Section(

@@ -275,6 +275,9 @@ class SimulationConfig:
     chamber: ChamberPhysics
     table: TablePhysics
     inclinometer: InclinometerSim = InclinometerSim()
+    #: the simulated unit's start-up delay from the supply's output-on to its first frame;
+    #: None: the unit ignores the supply (sends from the start, as before supplies existed)
+    gyro_startup_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -687,8 +690,10 @@ def _simulation(ctx: Context, where: KeyPath, value: object, base_dir: Path) -> 
     tb.finish()
     inclinometer = _inclinometer_sim(ctx, fields) if fields.raw("inclinometer")[0] \
         else InclinometerSim()
+    startup_s = fields.take("gyro_startup_s", number(0.0, 60.0, unit="s"), required=False,
+                            default=None)
     fields.finish()
-    return SimulationConfig(gyro_model, seed, chamber, table, inclinometer)
+    return SimulationConfig(gyro_model, seed, chamber, table, inclinometer, startup_s)
 
 
 def _inclinometer_sim(ctx: Context, parent: Fields) -> InclinometerSim:

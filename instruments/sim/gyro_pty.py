@@ -80,7 +80,11 @@ from gyrocal.instruments.gyro.datagram import (
     layout_of,
 )
 from gyrocal.instruments.sim.faults import FaultInjector
-from gyrocal.instruments.sim.gyro_frames import SpecificForceSource, encode_sim_frames
+from gyrocal.instruments.sim.gyro_frames import (
+    SpecificForce,
+    SpecificForceSource,
+    encode_sim_frames,
+)
 from gyrocal.instruments.sim.pty_port import PtyWriterPort
 from gyrocal.models.clock import RealClock, SimClock
 
@@ -419,6 +423,15 @@ class SimulatedGyroPort(PtyWriterPort):
         else:                       # a single-axis gyro: its output on the unit-under-test axis
             rate = np.zeros((k.size, 3), dtype=np.float64)
             rate[:, self.axis] = rate_out.reshape(k.shape)
+        if rate_out.ndim == 1 and np.isnan(rate_out).any():
+            # an unpowered unit sends nothing (station_sim.UnitPower): keep the frames it sends
+            sent = ~np.isnan(rate_out.reshape(k.shape))
+            k, rate = k[sent], rate[sent]
+            if temp_c is not None and np.ndim(temp_c) > 0:
+                temp_c = np.asarray(temp_c).reshape(-1)[sent]
+            force = None if force is None else SpecificForce(force.acc_g[sent], force.incl_g[sent])
+            if k.size == 0:
+                return b"", 0, int(t_s[-1] * self.sample_rate_hz) + 1
         if self.with_temperature:
             if temp_c is None:
                 raise ValueError("simulated gyro: with_temperature=True but the source gave no temperature")

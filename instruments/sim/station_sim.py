@@ -40,6 +40,26 @@ class CoilCurrents(Protocol):
     def output_current_a(self, channel: int) -> float: ...
 
 
+@runtime_checkable
+class SwitchedOutput(Protocol):
+    """A simulated supply that says when a channel's output was switched on (None: off)."""
+
+    def on_since_s(self, channel: int) -> float | None: ...
+
+
+@dataclass(frozen=True)
+class UnitPower:
+    """The simulated unit on a supply channel: silent while the output is off and for
+    ``startup_s`` after it is switched on; its warm-up transient starts at the switch-on."""
+
+    supply: SwitchedOutput
+    channel: int
+    startup_s: float
+
+    def on_since_s(self) -> float | None:
+        return self.supply.on_since_s(self.channel)
+
+
 #: Seed offsets so the chamber, table and gyro noise streams are independent.
 _SEED_CHAMBER, _SEED_TABLE, _SEED_GYRO, _SEED_PTY, _SEED_DRIVE = 101, 202, 303, 404, 505
 _SEED_TILT = 606
@@ -53,6 +73,8 @@ class GyroPhysicsSource:
                  interference: DriveInterference | None = None,
                  field: Callable[[], float] | None = None) -> None:
         self.simulator = simulator
+        #: the supply the unit runs from; None: always powered, warm-up from the start
+        self.power: UnitPower | None = None
         #: the magnetic field along the gyro's sensitive axis now (T); None: no coil
         self.field = field
         #: what the table's drive adds while powered (interlock closed); None: nothing
@@ -92,7 +114,24 @@ class GyroPhysicsSource:
         gyro = samples.gyro
         if self.interference is not None and self.table.interlock_closed:
             gyro = gyro + self.interference(t_s) / 3600.0 * sim.model.scale_factor
+        if self.power is not None:
+            gyro = self._powered(t_s, gyro)
         return gyro, samples.sensor_temp_c
+
+    def _powered(self, t_s: np.ndarray, gyro: np.ndarray) -> np.ndarray:
+        """NaN (no frame) where the unit is off or still starting; the warm-up transient
+        (the model's A·e^(−t/τ) from the clock's origin) moved to start at the switch-on."""
+        assert self.power is not None
+        on_s = self.power.on_since_s()
+        if on_s is None:
+            return np.full_like(gyro, np.nan)
+        gyro = np.where(t_s >= on_s + self.power.startup_s, gyro, np.nan)
+        warmup = self.simulator.model.effect("warmup_transient")
+        if warmup is not None:
+            amplitude_dph, tau_s = float(warmup["amplitude_dph"]), float(warmup["tau_s"])
+            shift_dph = amplitude_dph * (np.exp(-(t_s - on_s) / tau_s) - np.exp(-t_s / tau_s))
+            gyro = gyro + shift_dph / 3600.0 * self.simulator.model.scale_factor
+        return gyro
 
     def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.emit(t_s, self._inputs(t_s))
@@ -194,6 +233,8 @@ class SimulatedStation:
                 station.supply.settings, self.supply_faults))
         if station.coil is not None and isinstance(self.source, GyroPhysicsSource):
             self.source.field = self._coil_field(station.coil)
+        if sim.gyro_startup_s is not None and isinstance(self.source, GyroPhysicsSource):
+            self.source.power = self._unit_power(station, sim.gyro_startup_s)
         self.gyro_port: SimServer
         if gyro_port is not None:
             self.gyro_port = gyro_port
@@ -216,6 +257,14 @@ class SimulatedStation:
             return along * coil.constant_t_per_a * (supply.output_current_a(coil.positive_channel)
                                                     - supply.output_current_a(coil.negative_channel))
         return field_t
+
+    def _unit_power(self, station, startup_s: float) -> UnitPower:
+        """The unit follows the simulated supply's output (turn-on steps switch it)."""
+        supply = self.supply_server
+        if station.supply is None or not isinstance(supply, SwitchedOutput):
+            raise ValueError(f"{station.file}: simulation.gyro_startup_s needs a supply: section "
+                             "whose simulator reports when its output was switched on")
+        return UnitPower(supply, int(station.supply.settings.get("channel") or 1), startup_s)
 
     def begin_attempt(self, step_id: str, attempt: int) -> None:
         """Every simulator draws from (seed, step id, attempt) from here (``models/seeding.py``).

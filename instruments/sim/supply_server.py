@@ -30,12 +30,15 @@ _CHANNEL = re.compile(r"\(@(\d)\)\s*$")
 
 class SimulatedE36300(SimulatedScpiInstrument):
     def __init__(self, faults: FaultInjector | None = None, load_ohm: float = 20.0,
-                 noise_a: float = 2e-4, seed: int = 0) -> None:
+                 noise_a: float = 2e-4, seed: int = 0, clock=None) -> None:
         super().__init__(faults or FaultInjector(FAULTS, owner="simulated supply"), IDN)
         self.load_ohm, self.noise_a = float(load_ohm), float(noise_a)
         self.voltage_v = {ch: 0.0 for ch in RATINGS}
         self.current_a = {ch: 0.1 for ch in RATINGS}
         self.output = {ch: False for ch in RATINGS}
+        #: the station clock; with it the supply notes when each output was switched on
+        self.clock = clock
+        self._on_since_s: dict[int, float | None] = {ch: None for ch in RATINGS}
         self._rng = np.random.default_rng(seed)
 
     def reseed(self, seed) -> None:
@@ -62,6 +65,13 @@ class SimulatedE36300(SimulatedScpiInstrument):
         if not self.output[channel] or self.faults.is_armed("dropout"):
             return 0.0
         return min(self.voltage_v[channel] / self.load_ohm, self.current_a[channel])
+
+    def on_since_s(self, channel: int) -> float | None:
+        """Clock time the channel's output was last switched on; None while it is off (a
+        powered unit on it restarts then: instruments/sim/station_sim.py)."""
+        if not self.output[channel] or self.faults.is_armed("dropout"):
+            return None
+        return self._on_since_s[channel]
 
     def answer(self, line: str) -> str | None:
         match = _CHANNEL.search(line)
@@ -91,7 +101,10 @@ class SimulatedE36300(SimulatedScpiInstrument):
         if head.startswith("OUTP"):
             if arg.upper() not in ("1", "0", "ON", "OFF"):
                 raise ScpiError(-224, "Illegal parameter value")
+            was_on = self.output[channel]
             self.output[channel] = arg.upper() in ("1", "ON") and not self.faults.is_armed("dropout")
+            if self.output[channel] and not was_on:
+                self._on_since_s[channel] = self.clock.now_s() if self.clock is not None else 0.0
             return
         try:
             value = float(arg)
