@@ -42,6 +42,7 @@ from gyrocal.orchestrator.table_synthesis import (
     Sinusoid,
     start_sinusoid,
 )
+from gyrocal.orchestrator.turn_on import power_cycle, wait_first_frame
 from gyrocal.orchestrator.unit_power import UnitPowerPolicy, power_on
 from gyrocal.orchestrator.unit_power import check as check_power
 
@@ -145,6 +146,7 @@ class RunEngine:
             StepKind.FREQUENCY_RESPONSE: self._frequency_step,
             StepKind.MAGNETIC: self._magnetic_step,
             StepKind.TILT: self._tilt_step,
+            StepKind.TURN_ON: self._turn_on_step,
         }
         if operator is not None:
             self._executors[StepKind.REMOUNT] = self._remount_executor().execute
@@ -260,7 +262,10 @@ class RunEngine:
                                 address=ident.address, description=ident.description)
         self.folder.update_manifest(instruments=identities)
         if self.inst.supply is not None and self.policy.unit_power is not None:
+            powered_s = self.clock.now_s()
             power_on(self.inst.supply, self.policy.unit_power, self.journal)
+            # a unit just switched on sends after its start-up delay (turn_on.py)
+            wait_first_frame(self.inst.gyro, self.clock, powered_s, "preflight")
         self.machine.identified()
         status = self.inst.chamber.read_status()
         if status.alarm:
@@ -443,6 +448,24 @@ class RunEngine:
                             set_field_t=0.0, field_t=reading.field_t,
                             positive_current_a=reading.positive_current_a,
                             negative_current_a=reading.negative_current_a, ok=True)
+
+    def _turn_on_step(self, step: PlanStep) -> None:
+        """The table at rest, the supply switches the unit off for the step's off time
+        (``settle_s``) and on; the first frame's arrival is journaled, then the step is logged
+        from it (orchestrator/turn_on.py). A fault leaves the power to the station's safe
+        state; a resumed run cycles the power again."""
+        supply = self.inst.supply
+        if supply is None:
+            raise RunFaultError(f"{step.step_id}: a turn_on step needs the station's supply")
+        self.conditions.set_table_rate(0.0)
+        cycle = power_cycle(supply, self.inst.gyro, self.clock, step.step_id, step.settle_s)
+        self.journal.append(JournalEvent.UNIT_POWER_CYCLE, step_id=step.step_id,
+                            off_clock_s=round(cycle.off_clock_s, 6),
+                            on_clock_s=round(cycle.on_clock_s, 6),
+                            first_frame_clock_s=round(cycle.first_frame_clock_s, 6),
+                            poll_s=cycle.poll_s,
+                            first_frame_after_s=round(cycle.first_frame_after_s, 6))
+        self._log_step(replace(step, settle_s=0.0))
 
     def _log_step(self, step: PlanStep, reference: Sinusoid | None = None) -> None:
         """Log a step; a bad attempt (frame loss, a gyro read that failed) is repeated.

@@ -630,6 +630,27 @@ TEST_FREQUENCY_RESPONSE = Section(
         Key("min_duration", _duration(), "the least logged time at a frequency", False, "1 s"),
     ))
 
+TEST_TURN_ON = Section(
+    "test-turn_on", "test kind: turn_on",
+    "Turn-on time and warm-up (IEEE Std 952 / 1431): the table at rest, the station's supply "
+    "switches the unit off (read back off), `off` passes, the output is switched on; the "
+    "gyro is polled from that command until its first valid frame (journal "
+    "`unit_power_cycle`; a unit silent for 30 s is a fault), then logged for `duration`. "
+    "The turn-on time is the middle of the poll interval the first frame came in "
+    "(rectangular u); b∞ + A·e^(−t/τ) is fitted to 1-s means of the bias from the "
+    "output-on (type A u); the time until the bias stays within ±`band_dph` of b∞ follows "
+    "from the fit (u propagated), the measured one beside it; U = 2u. Needs a station with "
+    "a `supply:` section. Results: `turn_on.time_to_first_data_s`, `turn_on.warmup_tau_s`, "
+    "`turn_on.warmup_amplitude_dph`, `turn_on.time_to_band_s`.",
+    (
+        *_COMMON_TEST_KEYS,
+        Key("off", _duration(), "time the unit is off before the output-on (cool-down)"),
+        Key("duration", _duration(), "logged time from the first frame; several warm-up "
+            "time constants"),
+        Key("band_dph", _num(above=0.0, maximum=1e6), "the stated band about the settled "
+            "bias, deg/h"),
+    ))
+
 TEMPERATURE_STEP = Section(
     "sequence", "sequence[] (a temperature step)",
     "One chamber setpoint: ramp to it, soak until stable, then run its tests in order.",
@@ -647,7 +668,8 @@ TEMPERATURE_STEP = Section(
                                               ("rate_limit", TEST_RATE_LIMIT),
                                               ("frequency_response", TEST_FREQUENCY_RESPONSE),
                                               ("magnetic", TEST_MAGNETIC),
-                                              ("tilt_linearity", TEST_TILT))),
+                                              ("tilt_linearity", TEST_TILT),
+                                              ("turn_on", TEST_TURN_ON))),
                             min_items=0),
             "what is measured at this temperature, in order (an empty list just soaks)", False),
     ))

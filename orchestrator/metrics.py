@@ -24,6 +24,7 @@ class Metric:
 _SWEEP, _SWEEP_TEMPS, _BIAS_TEMPS, _ALLAN = "sweep", "sweep_temps", "bias_temps", "allan"
 _THRESHOLD = "threshold"
 _FREQUENCY = "frequency_response"
+_TURN_ON = "turn_on"
 _LIMIT_POS, _LIMIT_NEG = "rate_limit_positive", "rate_limit_negative"
 
 METRICS: dict[str, Metric] = {
@@ -46,6 +47,10 @@ METRICS: dict[str, Metric] = {
         Metric("rate_limits.max_negative_dps", "deg/s", _LIMIT_NEG),
         Metric("frequency_response.bandwidth_hz", "Hz", _FREQUENCY),
         Metric("frequency_response.phase_deg", "deg", _FREQUENCY),
+        Metric("turn_on.time_to_first_data_s", "s", _TURN_ON),
+        Metric("turn_on.time_to_band_s", "s", _TURN_ON),
+        Metric("turn_on.warmup_tau_s", "s", _TURN_ON),
+        Metric("turn_on.warmup_amplitude_dph", "deg/h", _TURN_ON),
     )
 }
 
@@ -58,6 +63,7 @@ NEEDS_TEXT = {
     _LIMIT_POS: "a rate_limit test walking the positive direction",
     _LIMIT_NEG: "a rate_limit test walking the negative direction",
     _FREQUENCY: "a frequency_response test",
+    _TURN_ON: "a turn_on test",
 }
 
 

@@ -31,10 +31,12 @@ from gyrocal.orchestrator.procedure import (
     TemperatureStep,
     ThresholdTest,
     TiltLinearityTest,
+    TurnOnTest,
 )
 from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.safe_state import table_safe_text
 from gyrocal.orchestrator.table_synthesis import REST_BEFORE_SYNTHESIS_S
+from gyrocal.orchestrator.turn_on import FIRST_FRAME_TIMEOUT_S
 from gyrocal.orchestrator.units import format_duration, format_hms, format_number
 
 ASSUMED_START_TEMP_C = 25.0   # chamber temperature at the start when the station does not say
@@ -87,6 +89,8 @@ class PlanStep:
     field_t: float | None = None
     # tilt steps: the table angle (position mode, axis horizontal), deg
     angle_deg: float | None = None
+    # turn-on steps: the stated band of the settled bias, deg/h (off time: settle_s)
+    band_dph: float | None = None
 
 
 @dataclass(frozen=True)
@@ -124,7 +128,8 @@ def _test_tags(step: TemperatureStep) -> list[str]:
     """``sf``, ``static``, ``allan``; numbered (``sf1``, ``sf2``) when a kind repeats in a step."""
     base = {"sf_sweep": "sf", "static": "static", "allan": "allan",
             "table_interference": "interference", "threshold": "thr", "rate_limit": "lim",
-            "frequency_response": "freq", "magnetic": "mag", "tilt_linearity": "tilt"}
+            "frequency_response": "freq", "magnetic": "mag", "tilt_linearity": "tilt",
+            "turn_on": "turnon"}
     kinds = [base[test.kind] for test in step.tests]
     seen: dict[str, int] = {}
     tags = []
@@ -252,6 +257,13 @@ class _Expander:
                     self.add(step_id=f"{prefix}.{tag}{suffix}.zero", kind=StepKind.TILT,
                              direction="", duration_s=test.zero_stability_s,
                              settle_s=test.settle_s, angle_deg=0.0, **base)
+                    continue
+                if isinstance(test, TurnOnTest):
+                    # settle: the time the unit is off before the output-on (the ETA adds it)
+                    self.add(step_id=f"{prefix}.{tag}{suffix}", kind=StepKind.TURN_ON,
+                             direction="", duration_s=test.duration_s, settle_s=test.off_s,
+                             max_duration_s=test.duration_s + FIRST_FRAME_TIMEOUT_S,
+                             band_dph=test.band_dph, **base)
                     continue
                 if isinstance(test, ThresholdTest):
                     self.threshold(prefix, tag, suffix, test, base)

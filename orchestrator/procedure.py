@@ -56,7 +56,7 @@ OUTPUT_UNITS = ("deg/s", "deg/h", "rad/s", "V", "LSB")
 DIRECTIONS = ("both", "positive", "negative")
 SPACINGS = ("linear", "log")
 TEST_KINDS = ("static", "sf_sweep", "allan", "table_interference", "threshold", "rate_limit",
-              "frequency_response", "magnetic", "tilt_linearity")
+              "frequency_response", "magnetic", "tilt_linearity", "turn_on")
 #: Frequency-response defaults: whole sinusoid periods logged per frequency (at least
 #: ``min_duration``), and periods turned before logging so the unit's transient has gone.
 DEFAULT_FR_CYCLES = 10
@@ -307,8 +307,24 @@ class FrequencyResponseTest:
         return self.settle_cycles / freq_hz
 
 
+@dataclass(frozen=True)
+class TurnOnTest:
+    """Turn-on time and warm-up (IEEE Std 952 / IEEE Std 1431): the station's supply switches
+    the unit off for ``off_s``, then on (the table at rest); the gyro is logged from its first
+    frame for ``duration_s``. The report gives the time from the output-on command to the
+    first valid frame, the warm-up fit (reports/warmup.py) and the time until the bias stays
+    within ±``band_dph`` of its settled value."""
+
+    off_s: float
+    duration_s: float
+    band_dph: float
+    repeats: int
+    label: str | None
+    kind: str = "turn_on"
+
+
 Test = (StaticTest | AllanTest | SweepTest | TableInterferenceTest | ThresholdTest
-        | RateLimitTest | FrequencyResponseTest | MagneticTest | TiltLinearityTest)
+        | RateLimitTest | FrequencyResponseTest | MagneticTest | TiltLinearityTest | TurnOnTest)
 
 
 @dataclass(frozen=True)
@@ -827,6 +843,8 @@ class _Parser:
             return self.frequency_response_test(fields, defaults, repeats, label)
         if kind == "magnetic":
             return self.magnetic_test(fields, defaults, repeats, label)
+        if kind == "turn_on":
+            return self.turn_on_test(fields, repeats, label)
         if kind == "tilt_linearity":
             return self.tilt_test(fields, defaults, repeats, label)
         if kind != "sf_sweep":
@@ -852,6 +870,20 @@ class _Parser:
         fields.finish()
         return SweepTest(rates, schedule, directions, dwell, settle, accel, revolutions,
                          repeats, label)
+
+    def turn_on_test(self, fields: Fields, repeats: int, label: str | None) -> TurnOnTest | None:
+        """The station must have a supply that powers the unit (it switches it off and on)."""
+        off_s = fields.take("off", _duration())
+        duration_s = fields.take("duration", _duration())
+        band_dph = fields.take("band_dph", number(above=0.0, maximum=1e6, unit="deg/h"))
+        station = self.station
+        if station is not None and station.supply is None:
+            self.ctx.report(fields.child("kind"), f"a turn_on test switches the unit's power; the "
+                            f"station {station.file} has no supply: section")
+        fields.finish()
+        if None in (off_s, duration_s, band_dph):
+            return None
+        return TurnOnTest(off_s, duration_s, band_dph, repeats, label)
 
     def magnetic_test(self, fields: Fields, defaults: Defaults, repeats: int,
                       label: str | None) -> MagneticTest | None:
@@ -1220,6 +1252,8 @@ def _what_is_measured(sequence: tuple[TemperatureStep, ...]) -> set[str]:
                 measured.add("threshold")
             elif isinstance(test, FrequencyResponseTest):
                 measured.add("frequency_response")
+            elif isinstance(test, TurnOnTest):
+                measured.add("turn_on")
             elif isinstance(test, RateLimitTest):
                 ways = ("positive", "negative") if test.directions == "both" else (test.directions,)
                 measured.update(f"rate_limit_{way}" for way in ways)

@@ -72,6 +72,8 @@ from gyrocal.reports.sanity import check_physics
 from gyrocal.reports.scale_factor import ScaleFactorResult, analyze_scale_factor
 from gyrocal.reports.threshold import ThresholdDwell, headline_uncertainty, threshold_section
 from gyrocal.reports.tilt_section import tilt_section
+from gyrocal.reports.turn_on_section import TurnOnRecord, turn_on_section
+from gyrocal.reports.turn_on_section import headline_uncertainty as turn_on_uncertainty
 from gyrocal.reports.uncertainty import MeanU
 from gyrocal.reports.uncertainty_section import StepMean, add_uncertainties
 
@@ -462,6 +464,7 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
         "threshold": _threshold(data, nominal_sf, notes),
         "rate_limits": _rate_limits(data, notes),
         "frequency_response": _frequency_response(data, nominal_sf, notes),
+        "turn_on": _turn_on(data, nominal_sf, notes),
         "earth_rate_removed_dph": earth_dph,
         "reference_temp_c": REFERENCE_TEMP_C,
         **_provenance(data, notes),
@@ -470,13 +473,15 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
     add_uncertainties(results, [_mean_u(s) for s in data.steps
                                 if s.step.kind not in (StepKind.THRESHOLD, StepKind.RATE_LIMIT,
                                                        StepKind.FREQUENCY_RESPONSE,
-                                                       StepKind.MAGNETIC, StepKind.TILT)],
+                                                       StepKind.MAGNETIC, StepKind.TILT,
+                                                       StepKind.TURN_ON)],
                       data.plan,
                       REFERENCE_TEMP_C, notes)
     results.setdefault("uncertainty", {}).update(headline_uncertainty(results["threshold"]))
     results["uncertainty"].update(rate_limits.headline_uncertainty(results["rate_limits"]))
     results["uncertainty"].update(
         frequency_section.headline_uncertainty(results["frequency_response"]))
+    results["uncertainty"].update(turn_on_uncertainty(results["turn_on"]))
     results["acceptance"] = evaluate_acceptance(results, data.plan.get("acceptance") or [], notes,
                                                 measured=measured_needs(data))
     sf_tolerance = (data.plan.get("sanity") or {}).get("sf_tolerance_pct")
@@ -515,6 +520,8 @@ def measured_needs(data: RunData) -> frozenset[str]:
         needs.add("threshold")
     if _all_done(data, StepKind.FREQUENCY_RESPONSE):
         needs.add("frequency_response")
+    if _all_done(data, StepKind.TURN_ON):
+        needs.add("turn_on")
     for sign, way in ((1.0, "positive"), (-1.0, "negative")):
         if _all_done(data, StepKind.RATE_LIMIT, sign):
             needs.add(f"rate_limit_{way}")
@@ -563,6 +570,28 @@ def _frequency_response(data: RunData, nominal_sf: float, notes: list[str]
                                                notes)
 
 
+def _turn_on(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any] | None:
+    """Turn-on time and warm-up from the turn_on steps' power cycles and samples
+    (reports/turn_on_section.py); a step's last power cycle is the one its data follows."""
+    done = completed_attempts(data.events)
+    cycles = {e["step_id"]: e for e in data.events
+              if e.get("event") == JournalEvent.UNIT_POWER_CYCLE}
+    records = []
+    for step in data.record.steps:
+        if step.kind != StepKind.TURN_ON or step.step_id not in done:
+            continue
+        cycle = cycles.get(step.step_id)
+        if cycle is None:
+            notes.append(f"turn_on {step.step_id}: the journal has no power cycle; not reduced")
+            continue
+        columns = _read_columns(data.folder, done[step.step_id]["chunks"], ("t_s", "gyro"))
+        records.append(TurnOnRecord(
+            step.step_id, step.setpoint_c, float(step.band_dph or 0.0),
+            float(cycle["on_clock_s"]), float(cycle["first_frame_after_s"]),
+            float(cycle["poll_s"]), columns["t_s"], columns["gyro"] / nominal_sf * 3600.0))
+    return turn_on_section(records, notes)
+
+
 def _rate_limits(data: RunData, notes: list[str]) -> dict[str, Any] | None:
     """Maximum input rate each way from the rate-limit walk (reports/rate_limits.py)."""
     dwells = [rate_limits.LimitDwell(s.step.step_id, s.step.setpoint_c, s.step.rate_dps,
@@ -591,6 +620,10 @@ DEFINITIONS = {
                           "nominal SF × table rate amplitude), smallest over temperatures; "
                           "phase_deg: output against table rate at the stated frequency (first "
                           "temperature)",
+    "turn_on": "time_to_first_data_s: output-on command to the first valid frame; warmup_tau_s "
+               "/ warmup_amplitude_dph: fit of b∞ + A·e^(−t/τ) from the output-on; "
+               "time_to_band_s: until the fitted bias stays within ±band_dph of b∞ (first "
+               "turn_on step)",
     "rate_limits": "max_positive_dps / max_negative_dps: the largest walked rate that, with every "
                    "smaller one, stays within the stated % of the linear fit (smallest over "
                    "temperatures)",

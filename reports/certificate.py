@@ -68,7 +68,15 @@ _SINGLE = (("Scale factor, LS line at the reference temperature", "scale_factor_
             "synthesis mode; U from the sine fits and the interpolation)",
             "frequency_response.bandwidth_hz", "Hz"),
            ("Phase at the stated frequency, IEEE Std 952 / 1431 frequency response test "
-            "(U from the sine fits and the sample timing)", "frequency_response.phase_deg", "deg"))
+            "(U from the sine fits and the sample timing)", "frequency_response.phase_deg", "deg"),
+           ("Turn-on time, IEEE Std 952 / 1431 turn-on test (output-on to first valid data; U "
+            "from the poll interval)", "turn_on.time_to_first_data_s", "s"),
+           ("Warm-up time constant, IEEE Std 952 / 1431 warm-up test (fit of b∞ + A·e^(−t/τ))",
+            "turn_on.warmup_tau_s", "s"),
+           ("Warm-up amplitude, IEEE Std 952 / 1431 warm-up test", "turn_on.warmup_amplitude_dph",
+            "deg/h"),
+           ("Warm-up time to the stated band of the settled bias, IEEE Std 952 / 1431",
+            "turn_on.time_to_band_s", "s"))
 
 
 def result_rows(results: dict[str, Any]) -> list[list[str]]:

@@ -117,6 +117,15 @@ Bandwidth: {{ vu(r.frequency_response.bandwidth_hz, un["frequency_response.bandw
 {% endfor %}{% endfor %}</table>
 {% endif %}
 
+{% if r.turn_on %}
+<h2>Turn-on time and warm-up (IEEE Std 952 / IEEE Std 1431)</h2>
+<p>The station's supply switched the unit off, then on, the table at rest; the gyro was polled from the output-on command and logged from its first valid frame. The turn-on time is the middle of the poll interval the first frame came in (rectangular u); b∞ + A·e^(−t/τ) is fitted to 1-s means from the output-on (type A u), and the time until the bias stays within ±{{ fmt(r.turn_on.band_dph) }} deg/h of b∞ follows from the fit (k = {{ fmt(r.turn_on.k) }}).
+Turn-on time: {{ vu(r.turn_on.time_to_first_data_s, un["turn_on.time_to_first_data_s"] and un["turn_on.time_to_first_data_s"].U) }} s; τ: {{ vu(r.turn_on.warmup_tau_s, un["turn_on.warmup_tau_s"] and un["turn_on.warmup_tau_s"].U) }} s; A: {{ vu(r.turn_on.warmup_amplitude_dph, un["turn_on.warmup_amplitude_dph"] and un["turn_on.warmup_amplitude_dph"].U) }} deg/h; time to the band: {{ vu(r.turn_on.time_to_band_s, un["turn_on.time_to_band_s"] and un["turn_on.time_to_band_s"].U) }} s.</p>
+<table><tr><th>Step</th><th>°C</th><th>First data (s)</th><th>τ (s) ± u</th><th>A (deg/h) ± u</th><th>b∞ (deg/h)</th><th>Band (s), fit ± u</th><th>Band (s), measured</th></tr>
+{% for t in r.turn_on.tests %}<tr><td>{{ t.step_id }}</td><td>{{ fmt(t.temp_c) }}</td><td>{{ fmt(t.time_to_first_data_s, 4) }}</td><td>{{ fmt(t.warmup_tau_s, 4) }} ± {{ fmt(t.u_warmup_tau_s, 2) }}</td><td>{{ fmt(t.warmup_amplitude_dph, 4) }} ± {{ fmt(t.u_warmup_amplitude_dph, 2) }}</td><td>{{ fmt(t.settled_bias_dph, 4) }}</td><td>{{ fmt(t.time_to_band_s, 4) }} ± {{ fmt(t.u_time_to_band_s, 2) }}</td><td>{{ fmt(t.measured_time_to_band_s, 4) }}</td></tr>
+{% endfor %}</table>
+{% endif %}
+
 <h2>Compensation tables</h2>
 {% for what, t in r.compensation.tables.items() %}
 {% set label, cunit = compensation[what] if what in compensation else (what, "") %}

@@ -69,6 +69,8 @@ class JournalEvent(str, Enum):
     SUPPLY_READ = "supply_read"          # the unit's supply read back (orchestrator/unit_power.py)
     COIL_FIELD = "coil_field"            # the coil's field set/read back/off (magnetic steps)
     TABLE_POSITION = "table_position"    # the table reached a tilt step's angle (position mode)
+    #: a turn-on step switched the unit off and on: the output-on time and the first frame's
+    UNIT_POWER_CYCLE = "unit_power_cycle"
     SIMULATOR_ERROR = "simulator_error"
     STEPS_DONE = "steps_done"
     REPORT_WRITTEN = "report_written"

@@ -112,6 +112,7 @@ class RecordedStep:
     phase_at_hz: float | None = None
     field_t: float | None = None              # magnetic steps: the coil's set field, T
     angle_deg: float | None = None            # tilt steps: the table angle, deg
+    band_dph: float | None = None             # turn-on steps: the stated band, deg/h
 
     @classmethod
     def of(cls, raw: dict[str, Any]) -> RecordedStep:
@@ -122,7 +123,7 @@ class RecordedStep:
                    raw.get("confidence"), raw.get("max_error_fraction"),
                    raw.get("linearity_tolerance_pct"), raw.get("fit_rates"),
                    raw.get("freq_hz"), raw.get("amplitude_dps"), raw.get("phase_at_hz"),
-                   raw.get("field_t"), raw.get("angle_deg"))
+                   raw.get("field_t"), raw.get("angle_deg"), raw.get("band_dph"))
 
 
 @dataclass(frozen=True)

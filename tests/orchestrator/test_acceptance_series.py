@@ -16,6 +16,9 @@ DEAD_ZONE_DPS = 0.025     # typed from gyro-models/series-fog.yaml, not read fro
 SATURATION_DPS = {"positive": 320.0, "negative": 270.0}
 BANDWIDTH_HZ = 1.0        # rate_bandwidth, typed
 PHASE_AT_HALF_HZ_DEG = -26.565051177   # −atan(0.5 / 1.0) in degrees, worked by hand
+STARTUP_S = 0.8           # stations/sim-series.yaml simulation.gyro_startup_s, typed
+WARMUP_TAU_S, WARMUP_DPH = 10.0, 20.0   # warmup_transient, typed
+TIME_TO_BAND_S = 29.957322736          # 10 s · ln(20 / 1 deg/h), worked by hand
 
 
 def test_the_acceptance_series_recovers_each_truth(tmp_path, capsys):
@@ -46,13 +49,26 @@ def test_the_acceptance_series_recovers_each_truth(tmp_path, capsys):
     assert one_hz["gain_db"] == pytest.approx(-3.0103, abs=0.01)     # 1/√2 at the corner
     assert results["uncertainty"]["frequency_response.bandwidth_hz"]["U"] == \
         test["U_bandwidth_hz"]
-    assert [a["decision"] for a in results["acceptance"]] == ["PASS"] * 7
+    turn_on = results["turn_on"]["tests"][0]
+    # the first frame is the first on the 250 Hz grid at or after output-on + 0.8 s: within
+    # 4 ms of 0.8 s, inside U (0.02 s poll: U = 2·0.02/√12 = 0.0115 s)
+    assert abs(turn_on["time_to_first_data_s"] - STARTUP_S) <= turn_on["U_time_to_first_data_s"]
+    assert abs(turn_on["warmup_tau_s"] - WARMUP_TAU_S) <= turn_on["U_warmup_tau_s"], turn_on
+    assert abs(turn_on["warmup_amplitude_dph"] - WARMUP_DPH) <= turn_on["U_warmup_amplitude_dph"]
+    assert abs(turn_on["time_to_band_s"] - TIME_TO_BAND_S) <= turn_on["U_time_to_band_s"]
+    assert turn_on["U_warmup_tau_s"] < 1.0
+    assert results["uncertainty"]["turn_on.warmup_tau_s"]["U"] == turn_on["U_warmup_tau_s"]
+    cycles = [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()
+              if '"unit_power_cycle"' in line]
+    assert [c["step_id"] for c in cycles] == [turn_on["step_id"]]
+    assert [a["decision"] for a in results["acceptance"]] == ["PASS"] * 9
     html = (out / "report" / "report.html").read_text()
     assert "<h2>Threshold and resolution (IEEE Std 952 / IEEE Std 1431)</h2>" in html
     assert "0.03 (in (0.02, 0.03])" in html
     assert "<h2>Input rate limits (IEEE Std 952 / IEEE Std 1431)</h2>" in html
     assert "300 (limit in [300, 350))" in html
     assert "<h2>Frequency response (IEEE Std 952 / IEEE Std 1431)</h2>" in html
+    assert "<h2>Turn-on time and warm-up (IEEE Std 952 / IEEE Std 1431)</h2>" in html
     synthesis = [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()
                  if '"table_synthesis"' in line]
     assert [e["freq_hz"] for e in synthesis] == [0.25, 0.5, 0.75, 0.9, 1.0, 1.1, 1.25, 1.5, 2.0]

@@ -15,9 +15,10 @@ pytestmark = pytest.mark.timeout(30)
 REPO = Path(__file__).resolve().parents[2]
 PROCEDURES = sorted((REPO / "procedures").glob("*.yaml"))
 SIM = REPO / "stations" / "sim.yaml"
-#: procedures whose tests need what sim.yaml lacks (a coil on a supply, a horizontal table):
+#: procedures whose tests need what sim.yaml lacks (a coil on a supply, a horizontal table,
+#: a supply that switches the unit for turn_on):
 #: their own station
-OWN_STATION = {"magnetic-sensitivity.yaml", "tilt-linearity.yaml"}
+OWN_STATION = {"magnetic-sensitivity.yaml", "tilt-linearity.yaml", "acceptance-series.yaml"}
 
 
 def plan_of(name):

@@ -1,0 +1,106 @@
+"""Turn-on time and warm-up (IEEE Std 952 / IEEE Std 1431 turn-on and warm-up tests).
+
+Each turn_on step is one power cycle (orchestrator/turn_on.py): the journal's
+``unit_power_cycle`` event gives the output-on command's clock time and the poll interval
+the first valid frame came in; the step's samples (clock ``t_s``) are the record from that
+frame. Reported per step:
+
+* time to first valid data: the middle of that interval after the output-on, with a
+  rectangular u of half its width (u = poll/√12);
+* the warm-up fit b∞ + A·e^(−t/τ) of reports/warmup.py on t from the output-on, with the
+  fit's type A u of τ and A;
+* the time until the bias stays within ±band of its settled value: from the fit, with its
+  u propagated, and the measured one (the last 1-s bin outside the band) beside it.
+
+The bias is the output over the nominal scale factor, deg/h (Earth rate and the settled
+bias are in b∞, which the band is taken about).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from gyrocal.reports.warmup import COVERAGE_K, fit_warmup, measured_time_to_band_s
+
+#: bin of the warm-up fit (the record's white noise averages down in it)
+BIN_S = 1.0
+
+
+@dataclass(frozen=True)
+class TurnOnRecord:
+    step_id: str
+    temp_c: float
+    band_dph: float
+    on_clock_s: float
+    first_frame_after_s: float
+    poll_s: float
+    t_s: np.ndarray           # clock time of each sample
+    bias_dph: np.ndarray      # output / nominal SF, deg/h
+
+
+def _one(record: TurnOnRecord, notes: list[str]) -> dict[str, Any]:
+    since_on_s = record.t_s - record.on_clock_s
+    u_first_s = record.poll_s / math.sqrt(12.0)
+    out: dict[str, Any] = {
+        "step_id": record.step_id, "temp_c": record.temp_c, "band_dph": record.band_dph,
+        "time_to_first_data_s": record.first_frame_after_s, "u_time_to_first_data_s": u_first_s,
+        "U_time_to_first_data_s": COVERAGE_K * u_first_s,
+    }
+    try:
+        fit = fit_warmup(since_on_s, record.bias_dph, BIN_S)
+    except (ValueError, RuntimeError) as exc:
+        notes.append(f"turn_on {record.step_id}: no warm-up fit ({exc})")
+        return out
+    t_band, u_band = fit.time_to_band_s(record.band_dph)
+    out.update({
+        "settled_bias_dph": fit.settled_dph, "u_settled_bias_dph": fit.u_settled_dph,
+        "warmup_tau_s": fit.tau_s, "u_warmup_tau_s": fit.u_tau_s,
+        "U_warmup_tau_s": COVERAGE_K * fit.u_tau_s,
+        "warmup_amplitude_dph": fit.amplitude_dph, "u_warmup_amplitude_dph": fit.u_amplitude_dph,
+        "U_warmup_amplitude_dph": COVERAGE_K * fit.u_amplitude_dph,
+        "time_to_band_s": t_band, "u_time_to_band_s": u_band,
+        "U_time_to_band_s": COVERAGE_K * u_band,
+        "measured_time_to_band_s": measured_time_to_band_s(
+            since_on_s, record.bias_dph, fit.settled_dph, record.band_dph, BIN_S),
+    })
+    if not (0.0 < fit.tau_s < 10.0 * float(since_on_s[-1])):
+        notes.append(f"turn_on {record.step_id}: the fitted τ {fit.tau_s:.4g} s is not "
+                     "determined by the record's length")
+    return out
+
+
+def turn_on_section(records: list[TurnOnRecord], notes: list[str]) -> dict[str, Any] | None:
+    """results.json ``turn_on``: one entry per power cycle; the headline numbers are the
+    first cycle's (a procedure runs one turn_on per temperature)."""
+    if not records:
+        return None
+    tests = [_one(r, notes) for r in records]
+    first = tests[0]
+    return {"tests": tests, "k": COVERAGE_K, "band_dph": first["band_dph"],
+            **{key: first.get(key) for key in (
+                "time_to_first_data_s", "warmup_tau_s", "warmup_amplitude_dph",
+                "time_to_band_s", "settled_bias_dph")}}
+
+
+_HEADLINES = (("time_to_first_data_s", "s", "rectangular over the first-frame poll interval"),
+              ("warmup_tau_s", "s", "type A of the least-squares warm-up fit (1-s bin means)"),
+              ("warmup_amplitude_dph", "deg/h", "type A of the least-squares warm-up fit"),
+              ("time_to_band_s", "s", "τ·ln(|A|/band), propagated from the fit's covariance"))
+
+
+def headline_uncertainty(section: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
+    """``uncertainty`` entries for the turn_on headline numbers (the first power cycle's)."""
+    out: dict[str, dict[str, Any]] = {}
+    if section is None:
+        return out
+    first = section["tests"][0]
+    for key, unit, method in _HEADLINES:
+        if first.get(key) is not None:
+            out[f"turn_on.{key}"] = {"value": first[key], "u": first[f"u_{key}"],
+                                     "U": first[f"U_{key}"], "k": COVERAGE_K, "unit": unit,
+                                     "method": method}
+    return out
