@@ -147,6 +147,7 @@ class RunEngine:
             StepKind.MAGNETIC: self._magnetic_step,
             StepKind.TILT: self._tilt_step,
             StepKind.TURN_ON: self._turn_on_step,
+            StepKind.TURN_ON_CYCLE: self._turn_on_step,
         }
         if operator is not None:
             self._executors[StepKind.REMOUNT] = self._remount_executor().execute
@@ -458,13 +459,16 @@ class RunEngine:
         if supply is None:
             raise RunFaultError(f"{step.step_id}: a turn_on step needs the station's supply")
         self.conditions.set_table_rate(0.0)
-        cycle = power_cycle(supply, self.inst.gyro, self.clock, step.step_id, step.settle_s)
+        off_s = step.settle_s if step.off_s is None else step.off_s
+        cycle = power_cycle(supply, self.inst.gyro, self.clock, step.step_id, off_s)
         self.journal.append(JournalEvent.UNIT_POWER_CYCLE, step_id=step.step_id,
                             off_clock_s=round(cycle.off_clock_s, 6),
                             on_clock_s=round(cycle.on_clock_s, 6),
                             first_frame_clock_s=round(cycle.first_frame_clock_s, 6),
                             poll_s=cycle.poll_s,
                             first_frame_after_s=round(cycle.first_frame_after_s, 6))
+        # a repeatability cycle settles (unread) after the first frame, then logs
+        self.clock.sleep(step.settle_s - off_s)
         self._log_step(replace(step, settle_s=0.0))
 
     def _log_step(self, step: PlanStep, reference: Sinusoid | None = None) -> None:

@@ -364,6 +364,9 @@ SIMULATION = Section(
             "output (needs a supply: section): nothing while it is off, the first frame this "
             "long after the output-on, the warm-up transient restarted at each power-on; "
             "absent: the unit sends from the start, whatever the supply does", False),
+        Key("turn_on_bias_dph", _num(0.0, 1e4), "with gyro_startup_s: 1 σ of a bias offset "
+            "drawn afresh at each power-on (the turn-on-to-turn-on repeatability truth), deg/h",
+            False, "0"),
     ))
 
 NOTIFY = Section(
@@ -651,6 +654,25 @@ TEST_TURN_ON = Section(
             "bias, deg/h"),
     ))
 
+TEST_TURN_ON_REPEATABILITY = Section(
+    "test-turn_on_repeatability", "test kind: turn_on_repeatability",
+    "Turn-on-to-turn-on bias repeatability (IEEE Std 952 / 1431): `cycles` power cycles "
+    "(plan steps `….c1`, `….c2`, …), each: the table at rest, the supply off for `off` (the "
+    "cool-down, read back off), on, the first valid frame awaited (journal "
+    "`unit_power_cycle`), `settle` passes, `duration` is logged. The bias of a cycle is its "
+    "record's mean; the repeatability is their standard deviation with u = s/√(2(N−1)), "
+    "U = 2u; the in-run bias stability (pooled standard deviation of 1-s means within the "
+    "cycles) is given beside it. Needs a station with a `supply:` section. Result: "
+    "`turn_on_repeatability.std_dph`.",
+    (
+        *_COMMON_TEST_KEYS,
+        Key("cycles", _int(2, 100), "how many power cycles (N)"),
+        Key("off", _duration(), "time the unit is off before each power-on (cool-down)"),
+        Key("settle", _duration(positive=False), "time after the first frame before logging "
+            "(the stated settling time)"),
+        Key("duration", _duration(), "logged time of each cycle"),
+    ))
+
 TEMPERATURE_STEP = Section(
     "sequence", "sequence[] (a temperature step)",
     "One chamber setpoint: ramp to it, soak until stable, then run its tests in order.",
@@ -669,7 +691,9 @@ TEMPERATURE_STEP = Section(
                                               ("frequency_response", TEST_FREQUENCY_RESPONSE),
                                               ("magnetic", TEST_MAGNETIC),
                                               ("tilt_linearity", TEST_TILT),
-                                              ("turn_on", TEST_TURN_ON))),
+                                              ("turn_on", TEST_TURN_ON),
+                                              ("turn_on_repeatability",
+                                               TEST_TURN_ON_REPEATABILITY))),
                             min_items=0),
             "what is measured at this temperature, in order (an empty list just soaks)", False),
     ))

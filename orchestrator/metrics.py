@@ -25,6 +25,7 @@ _SWEEP, _SWEEP_TEMPS, _BIAS_TEMPS, _ALLAN = "sweep", "sweep_temps", "bias_temps"
 _THRESHOLD = "threshold"
 _FREQUENCY = "frequency_response"
 _TURN_ON = "turn_on"
+_REPEATABILITY = "turn_on_repeatability"
 _LIMIT_POS, _LIMIT_NEG = "rate_limit_positive", "rate_limit_negative"
 
 METRICS: dict[str, Metric] = {
@@ -51,6 +52,7 @@ METRICS: dict[str, Metric] = {
         Metric("turn_on.time_to_band_s", "s", _TURN_ON),
         Metric("turn_on.warmup_tau_s", "s", _TURN_ON),
         Metric("turn_on.warmup_amplitude_dph", "deg/h", _TURN_ON),
+        Metric("turn_on_repeatability.std_dph", "deg/h", _REPEATABILITY),
     )
 }
 
@@ -64,6 +66,7 @@ NEEDS_TEXT = {
     _LIMIT_NEG: "a rate_limit test walking the negative direction",
     _FREQUENCY: "a frequency_response test",
     _TURN_ON: "a turn_on test",
+    _REPEATABILITY: "a turn_on_repeatability test",
 }
 
 

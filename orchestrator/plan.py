@@ -31,6 +31,7 @@ from gyrocal.orchestrator.procedure import (
     TemperatureStep,
     ThresholdTest,
     TiltLinearityTest,
+    TurnOnRepeatabilityTest,
     TurnOnTest,
 )
 from gyrocal.orchestrator.record.step_kind import StepKind
@@ -91,6 +92,8 @@ class PlanStep:
     angle_deg: float | None = None
     # turn-on steps: the stated band of the settled bias, deg/h (off time: settle_s)
     band_dph: float | None = None
+    # turn-on cycles (repeatability): the cool-down the unit is off (part of settle_s)
+    off_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -129,7 +132,7 @@ def _test_tags(step: TemperatureStep) -> list[str]:
     base = {"sf_sweep": "sf", "static": "static", "allan": "allan",
             "table_interference": "interference", "threshold": "thr", "rate_limit": "lim",
             "frequency_response": "freq", "magnetic": "mag", "tilt_linearity": "tilt",
-            "turn_on": "turnon"}
+            "turn_on": "turnon", "turn_on_repeatability": "rep"}
     kinds = [base[test.kind] for test in step.tests]
     seen: dict[str, int] = {}
     tags = []
@@ -264,6 +267,15 @@ class _Expander:
                              direction="", duration_s=test.duration_s, settle_s=test.off_s,
                              max_duration_s=test.duration_s + FIRST_FRAME_TIMEOUT_S,
                              band_dph=test.band_dph, **base)
+                    continue
+                if isinstance(test, TurnOnRepeatabilityTest):
+                    # each cycle: off, on, settle after the first frame, log
+                    for cycle in range(1, test.cycles + 1):
+                        self.add(step_id=f"{prefix}.{tag}{suffix}.c{cycle}",
+                                 kind=StepKind.TURN_ON_CYCLE, direction="",
+                                 duration_s=test.duration_s,
+                                 settle_s=test.off_s + test.settle_s, off_s=test.off_s,
+                                 max_duration_s=test.duration_s + FIRST_FRAME_TIMEOUT_S, **base)
                     continue
                 if isinstance(test, ThresholdTest):
                     self.threshold(prefix, tag, suffix, test, base)

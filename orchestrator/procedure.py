@@ -56,7 +56,8 @@ OUTPUT_UNITS = ("deg/s", "deg/h", "rad/s", "V", "LSB")
 DIRECTIONS = ("both", "positive", "negative")
 SPACINGS = ("linear", "log")
 TEST_KINDS = ("static", "sf_sweep", "allan", "table_interference", "threshold", "rate_limit",
-              "frequency_response", "magnetic", "tilt_linearity", "turn_on")
+              "frequency_response", "magnetic", "tilt_linearity", "turn_on",
+              "turn_on_repeatability")
 #: Frequency-response defaults: whole sinusoid periods logged per frequency (at least
 #: ``min_duration``), and periods turned before logging so the unit's transient has gone.
 DEFAULT_FR_CYCLES = 10
@@ -323,8 +324,25 @@ class TurnOnTest:
     kind: str = "turn_on"
 
 
+@dataclass(frozen=True)
+class TurnOnRepeatabilityTest:
+    """Turn-on-to-turn-on bias repeatability (IEEE Std 952 / IEEE Std 1431): ``cycles`` power
+    cycles, each off for ``off_s`` (the cool-down), on, ``settle_s`` after the first frame,
+    then ``duration_s`` logged; the repeatability is the standard deviation of the cycles'
+    biases, u from N (reports/warmup.py), the in-run bias stability beside it."""
+
+    cycles: int
+    off_s: float
+    settle_s: float
+    duration_s: float
+    repeats: int
+    label: str | None
+    kind: str = "turn_on_repeatability"
+
+
 Test = (StaticTest | AllanTest | SweepTest | TableInterferenceTest | ThresholdTest
-        | RateLimitTest | FrequencyResponseTest | MagneticTest | TiltLinearityTest | TurnOnTest)
+        | RateLimitTest | FrequencyResponseTest | MagneticTest | TiltLinearityTest | TurnOnTest
+        | TurnOnRepeatabilityTest)
 
 
 @dataclass(frozen=True)
@@ -845,6 +863,8 @@ class _Parser:
             return self.magnetic_test(fields, defaults, repeats, label)
         if kind == "turn_on":
             return self.turn_on_test(fields, repeats, label)
+        if kind == "turn_on_repeatability":
+            return self.repeatability_test(fields, repeats, label)
         if kind == "tilt_linearity":
             return self.tilt_test(fields, defaults, repeats, label)
         if kind != "sf_sweep":
@@ -876,14 +896,29 @@ class _Parser:
         off_s = fields.take("off", _duration())
         duration_s = fields.take("duration", _duration())
         band_dph = fields.take("band_dph", number(above=0.0, maximum=1e6, unit="deg/h"))
-        station = self.station
-        if station is not None and station.supply is None:
-            self.ctx.report(fields.child("kind"), f"a turn_on test switches the unit's power; the "
-                            f"station {station.file} has no supply: section")
+        self.needs_supply(fields, "turn_on")
         fields.finish()
         if None in (off_s, duration_s, band_dph):
             return None
         return TurnOnTest(off_s, duration_s, band_dph, repeats, label)
+
+    def repeatability_test(self, fields: Fields, repeats: int,
+                           label: str | None) -> TurnOnRepeatabilityTest | None:
+        cycles = fields.take("cycles", integer(2, 100))
+        off_s = fields.take("off", _duration())
+        settle_s = fields.take("settle", _duration(positive=False))
+        duration_s = fields.take("duration", _duration())
+        self.needs_supply(fields, "turn_on_repeatability")
+        fields.finish()
+        if None in (cycles, off_s, settle_s, duration_s):
+            return None
+        return TurnOnRepeatabilityTest(cycles, off_s, settle_s, duration_s, repeats, label)
+
+    def needs_supply(self, fields: Fields, kind: str) -> None:
+        station = self.station
+        if station is not None and station.supply is None:
+            self.ctx.report(fields.child("kind"), f"a {kind} test switches the unit's power; the "
+                            f"station {station.file} has no supply: section")
 
     def magnetic_test(self, fields: Fields, defaults: Defaults, repeats: int,
                       label: str | None) -> MagneticTest | None:
@@ -1254,6 +1289,8 @@ def _what_is_measured(sequence: tuple[TemperatureStep, ...]) -> set[str]:
                 measured.add("frequency_response")
             elif isinstance(test, TurnOnTest):
                 measured.add("turn_on")
+            elif isinstance(test, TurnOnRepeatabilityTest):
+                measured.add("turn_on_repeatability")
             elif isinstance(test, RateLimitTest):
                 ways = ("positive", "negative") if test.directions == "both" else (test.directions,)
                 measured.update(f"rate_limit_{way}" for way in ways)

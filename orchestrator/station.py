@@ -278,6 +278,8 @@ class SimulationConfig:
     #: the simulated unit's start-up delay from the supply's output-on to its first frame;
     #: None: the unit ignores the supply (sends from the start, as before supplies existed)
     gyro_startup_s: float | None = None
+    #: with it: 1 σ of a bias offset drawn afresh at each power-on (turn-on repeatability), deg/h
+    turn_on_bias_dph: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -692,8 +694,11 @@ def _simulation(ctx: Context, where: KeyPath, value: object, base_dir: Path) -> 
         else InclinometerSim()
     startup_s = fields.take("gyro_startup_s", number(0.0, 60.0, unit="s"), required=False,
                             default=None)
+    turn_on_bias = fields.take("turn_on_bias_dph", number(0.0, 1e4, unit="deg/h"), required=False,
+                               default=0.0)
     fields.finish()
-    return SimulationConfig(gyro_model, seed, chamber, table, inclinometer, startup_s)
+    return SimulationConfig(gyro_model, seed, chamber, table, inclinometer, startup_s,
+                            turn_on_bias)
 
 
 def _inclinometer_sim(ctx: Context, parent: Fields) -> InclinometerSim:

@@ -72,7 +72,13 @@ from gyrocal.reports.sanity import check_physics
 from gyrocal.reports.scale_factor import ScaleFactorResult, analyze_scale_factor
 from gyrocal.reports.threshold import ThresholdDwell, headline_uncertainty, threshold_section
 from gyrocal.reports.tilt_section import tilt_section
-from gyrocal.reports.turn_on_section import TurnOnRecord, turn_on_section
+from gyrocal.reports.turn_on_section import (
+    CycleRecord,
+    TurnOnRecord,
+    repeatability_section,
+    repeatability_uncertainty,
+    turn_on_section,
+)
 from gyrocal.reports.turn_on_section import headline_uncertainty as turn_on_uncertainty
 from gyrocal.reports.uncertainty import MeanU
 from gyrocal.reports.uncertainty_section import StepMean, add_uncertainties
@@ -465,6 +471,7 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
         "rate_limits": _rate_limits(data, notes),
         "frequency_response": _frequency_response(data, nominal_sf, notes),
         "turn_on": _turn_on(data, nominal_sf, notes),
+        "turn_on_repeatability": _repeatability(data, nominal_sf, notes),
         "earth_rate_removed_dph": earth_dph,
         "reference_temp_c": REFERENCE_TEMP_C,
         **_provenance(data, notes),
@@ -474,7 +481,8 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
                                 if s.step.kind not in (StepKind.THRESHOLD, StepKind.RATE_LIMIT,
                                                        StepKind.FREQUENCY_RESPONSE,
                                                        StepKind.MAGNETIC, StepKind.TILT,
-                                                       StepKind.TURN_ON)],
+                                                       StepKind.TURN_ON,
+                                                       StepKind.TURN_ON_CYCLE)],
                       data.plan,
                       REFERENCE_TEMP_C, notes)
     results.setdefault("uncertainty", {}).update(headline_uncertainty(results["threshold"]))
@@ -482,6 +490,7 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
     results["uncertainty"].update(
         frequency_section.headline_uncertainty(results["frequency_response"]))
     results["uncertainty"].update(turn_on_uncertainty(results["turn_on"]))
+    results["uncertainty"].update(repeatability_uncertainty(results["turn_on_repeatability"]))
     results["acceptance"] = evaluate_acceptance(results, data.plan.get("acceptance") or [], notes,
                                                 measured=measured_needs(data))
     sf_tolerance = (data.plan.get("sanity") or {}).get("sf_tolerance_pct")
@@ -522,6 +531,8 @@ def measured_needs(data: RunData) -> frozenset[str]:
         needs.add("frequency_response")
     if _all_done(data, StepKind.TURN_ON):
         needs.add("turn_on")
+    if _all_done(data, StepKind.TURN_ON_CYCLE):
+        needs.add("turn_on_repeatability")
     for sign, way in ((1.0, "positive"), (-1.0, "negative")):
         if _all_done(data, StepKind.RATE_LIMIT, sign):
             needs.add(f"rate_limit_{way}")
@@ -592,6 +603,18 @@ def _turn_on(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, An
     return turn_on_section(records, notes)
 
 
+def _repeatability(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any] | None:
+    """Turn-on-to-turn-on repeatability from the turn_on_cycle steps' samples."""
+    done = completed_attempts(data.events)
+    cycles = []
+    for step in data.record.steps:
+        if step.kind == StepKind.TURN_ON_CYCLE and step.step_id in done:
+            columns = _read_columns(data.folder, done[step.step_id]["chunks"], ("t_s", "gyro"))
+            cycles.append(CycleRecord(step.step_id, step.setpoint_c, columns["t_s"],
+                                      columns["gyro"] / nominal_sf * 3600.0))
+    return repeatability_section(cycles, notes)
+
+
 def _rate_limits(data: RunData, notes: list[str]) -> dict[str, Any] | None:
     """Maximum input rate each way from the rate-limit walk (reports/rate_limits.py)."""
     dwells = [rate_limits.LimitDwell(s.step.step_id, s.step.setpoint_c, s.step.rate_dps,
@@ -624,6 +647,9 @@ DEFINITIONS = {
                "/ warmup_amplitude_dph: fit of b∞ + A·e^(−t/τ) from the output-on; "
                "time_to_band_s: until the fitted bias stays within ±band_dph of b∞ (first "
                "turn_on step)",
+    "turn_on_repeatability": "std_dph: standard deviation of the cycles' mean biases (each "
+                             "logged after the settling time), u = s/√(2(N−1)); in_run_std_dph: "
+                             "pooled standard deviation of 1-s means within the cycles",
     "rate_limits": "max_positive_dps / max_negative_dps: the largest walked rate that, with every "
                    "smaller one, stays within the stated % of the linear fit (smallest over "
                    "temperatures)",

@@ -76,7 +76,9 @@ _SINGLE = (("Scale factor, LS line at the reference temperature", "scale_factor_
            ("Warm-up amplitude, IEEE Std 952 / 1431 warm-up test", "turn_on.warmup_amplitude_dph",
             "deg/h"),
            ("Warm-up time to the stated band of the settled bias, IEEE Std 952 / 1431",
-            "turn_on.time_to_band_s", "s"))
+            "turn_on.time_to_band_s", "s"),
+           ("Turn-on-to-turn-on bias repeatability, IEEE Std 952 / 1431 (standard deviation "
+            "of the cycles' biases; U from N)", "turn_on_repeatability.std_dph", "deg/h"))
 
 
 def result_rows(results: dict[str, Any]) -> list[list[str]]:

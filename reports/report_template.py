@@ -126,6 +126,15 @@ Turn-on time: {{ vu(r.turn_on.time_to_first_data_s, un["turn_on.time_to_first_da
 {% endfor %}</table>
 {% endif %}
 
+{% if r.turn_on_repeatability %}
+<h2>Turn-on-to-turn-on bias repeatability (IEEE Std 952 / IEEE Std 1431)</h2>
+<p>The supply switched the unit off (cool-down) and on for each cycle; the bias of each is the mean of its record, logged after the settling time. The repeatability is their standard deviation, u = s/√(2(N−1)) (k = {{ fmt(r.turn_on_repeatability.k) }}); the in-run bias stability beside it is the pooled standard deviation of 1-s means within the records.
+Repeatability: {{ vu(r.turn_on_repeatability.std_dph, un["turn_on_repeatability.std_dph"] and un["turn_on_repeatability.std_dph"].U) }} deg/h; in-run: {{ fmt(r.turn_on_repeatability.in_run_std_dph, 4) }} deg/h.</p>
+<table><tr><th>Test</th><th>°C</th><th>N</th><th>Biases (deg/h)</th><th>s ± u (deg/h)</th><th>In-run (deg/h)</th></tr>
+{% for t in r.turn_on_repeatability.tests %}<tr><td>{{ t.test }}</td><td>{{ fmt(t.temp_c) }}</td><td>{{ t.cycles }}</td><td>{% for b in t.biases_dph %}{{ fmt(b, 4) }} {% endfor %}</td><td>{{ fmt(t.std_dph, 4) }} ± {{ fmt(t.u_std_dph, 2) }}</td><td>{{ fmt(t.in_run_std_dph, 4) }}</td></tr>
+{% endfor %}</table>
+{% endif %}
+
 <h2>Compensation tables</h2>
 {% for what, t in r.compensation.tables.items() %}
 {% set label, cunit = compensation[what] if what in compensation else (what, "") %}

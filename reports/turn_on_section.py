@@ -14,6 +14,11 @@ frame. Reported per step:
 
 The bias is the output over the nominal scale factor, deg/h (Earth rate and the settled
 bias are in b∞, which the band is taken about).
+
+Turn-on-to-turn-on repeatability: the turn_on_cycle steps of one test, each logged after
+its settling time; the bias of each is its record's mean, the repeatability their standard
+deviation with u = s/√(2(N−1)); the in-run bias stability beside it is the pooled standard
+deviation of the 1-s means within the cycles' records.
 """
 
 from __future__ import annotations
@@ -24,7 +29,13 @@ from typing import Any
 
 import numpy as np
 
-from gyrocal.reports.warmup import COVERAGE_K, fit_warmup, measured_time_to_band_s
+from gyrocal.reports.warmup import (
+    COVERAGE_K,
+    bin_means,
+    fit_warmup,
+    measured_time_to_band_s,
+    turn_on_repeatability,
+)
 
 #: bin of the warm-up fit (the record's white noise averages down in it)
 BIN_S = 1.0
@@ -104,3 +115,51 @@ def headline_uncertainty(section: dict[str, Any] | None) -> dict[str, dict[str, 
                                      "U": first[f"U_{key}"], "k": COVERAGE_K, "unit": unit,
                                      "method": method}
     return out
+
+
+@dataclass(frozen=True)
+class CycleRecord:
+    step_id: str              # ``<test>.c<n>``
+    temp_c: float
+    t_s: np.ndarray
+    bias_dph: np.ndarray
+
+
+def _test_of(step_id: str) -> str:
+    return step_id.rsplit(".c", 1)[0]
+
+
+def _group(cycles: list[CycleRecord], notes: list[str]) -> dict[str, Any] | None:
+    if len(cycles) < 2:
+        notes.append(f"turn_on_repeatability {_test_of(cycles[0].step_id)}: one completed "
+                     "cycle; the repeatability needs two")
+        return None
+    rep = turn_on_repeatability([float(np.mean(c.bias_dph)) for c in cycles])
+    variances = [float(np.var(bin_means(c.t_s, c.bias_dph, BIN_S)[1], ddof=1)) for c in cycles]
+    return {"test": _test_of(cycles[0].step_id), "temp_c": cycles[0].temp_c, "cycles": rep.n,
+            "biases_dph": list(rep.biases_dph), "std_dph": rep.std_dph, "u_std_dph": rep.u_std_dph,
+            "U_std_dph": COVERAGE_K * rep.u_std_dph,
+            "in_run_std_dph": math.sqrt(float(np.mean(variances)))}
+
+
+def repeatability_section(cycles: list[CycleRecord], notes: list[str]) -> dict[str, Any] | None:
+    """results.json ``turn_on_repeatability``: one entry per test; the headline the first's."""
+    groups: dict[str, list[CycleRecord]] = {}
+    for cycle in cycles:
+        groups.setdefault(_test_of(cycle.step_id), []).append(cycle)
+    tests = [t for t in (_group(g, notes) for g in groups.values()) if t is not None]
+    if not tests:
+        return None
+    first = tests[0]
+    return {"tests": tests, "k": COVERAGE_K, "std_dph": first["std_dph"],
+            "in_run_std_dph": first["in_run_std_dph"]}
+
+
+def repeatability_uncertainty(section: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
+    if section is None:
+        return {}
+    first = section["tests"][0]
+    return {"turn_on_repeatability.std_dph": {
+        "value": first["std_dph"], "u": first["u_std_dph"], "U": first["U_std_dph"],
+        "k": COVERAGE_K, "unit": "deg/h",
+        "method": "s/√(2(N−1)) of the standard deviation of N normal biases"}}

@@ -47,7 +47,7 @@ class SwitchedOutput(Protocol):
     def on_since_s(self, channel: int) -> float | None: ...
 
 
-@dataclass(frozen=True)
+@dataclass
 class UnitPower:
     """The simulated unit on a supply channel: silent while the output is off and for
     ``startup_s`` after it is switched on; its warm-up transient starts at the switch-on."""
@@ -55,14 +55,31 @@ class UnitPower:
     supply: SwitchedOutput
     channel: int
     startup_s: float
+    #: 1 σ of the bias offset each power-on draws (turn-on-to-turn-on repeatability), deg/h
+    turn_on_bias_dph: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        self._rng = np.random.default_rng(self.seed)
+        self._offsets: dict[float, float] = {}
 
     def on_since_s(self) -> float | None:
         return self.supply.on_since_s(self.channel)
+
+    def turn_on_offset_dph(self, on_s: float) -> float:
+        """The offset of the power-on at ``on_s``: each new power-on draws the next value of
+        one seeded stream, so it is the same for every block of that power-on."""
+        if self.turn_on_bias_dph == 0.0:
+            return 0.0
+        if on_s not in self._offsets:
+            self._offsets[on_s] = float(self._rng.normal(0.0, self.turn_on_bias_dph))
+        return self._offsets[on_s]
 
 
 #: Seed offsets so the chamber, table and gyro noise streams are independent.
 _SEED_CHAMBER, _SEED_TABLE, _SEED_GYRO, _SEED_PTY, _SEED_DRIVE = 101, 202, 303, 404, 505
 _SEED_TILT = 606
+_SEED_POWER = 707
 
 
 class GyroPhysicsSource:
@@ -131,7 +148,8 @@ class GyroPhysicsSource:
             amplitude_dph, tau_s = float(warmup["amplitude_dph"]), float(warmup["tau_s"])
             shift_dph = amplitude_dph * (np.exp(-(t_s - on_s) / tau_s) - np.exp(-t_s / tau_s))
             gyro = gyro + shift_dph / 3600.0 * self.simulator.model.scale_factor
-        return gyro
+        offset_dph = self.power.turn_on_offset_dph(on_s)
+        return gyro + offset_dph / 3600.0 * self.simulator.model.scale_factor
 
     def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.emit(t_s, self._inputs(t_s))
@@ -234,7 +252,8 @@ class SimulatedStation:
         if station.coil is not None and isinstance(self.source, GyroPhysicsSource):
             self.source.field = self._coil_field(station.coil)
         if sim.gyro_startup_s is not None and isinstance(self.source, GyroPhysicsSource):
-            self.source.power = self._unit_power(station, sim.gyro_startup_s)
+            self.source.power = self._unit_power(station, sim.gyro_startup_s,
+                                                 sim.turn_on_bias_dph)
         self.gyro_port: SimServer
         if gyro_port is not None:
             self.gyro_port = gyro_port
@@ -258,13 +277,14 @@ class SimulatedStation:
                                                     - supply.output_current_a(coil.negative_channel))
         return field_t
 
-    def _unit_power(self, station, startup_s: float) -> UnitPower:
+    def _unit_power(self, station, startup_s: float, turn_on_bias_dph: float) -> UnitPower:
         """The unit follows the simulated supply's output (turn-on steps switch it)."""
         supply = self.supply_server
         if station.supply is None or not isinstance(supply, SwitchedOutput):
             raise ValueError(f"{station.file}: simulation.gyro_startup_s needs a supply: section "
                              "whose simulator reports when its output was switched on")
-        return UnitPower(supply, int(station.supply.settings.get("channel") or 1), startup_s)
+        return UnitPower(supply, int(station.supply.settings.get("channel") or 1), startup_s,
+                         turn_on_bias_dph, self.seed + _SEED_POWER)
 
     def begin_attempt(self, step_id: str, attempt: int) -> None:
         """Every simulator draws from (seed, step id, attempt) from here (``models/seeding.py``).

@@ -113,6 +113,7 @@ class RecordedStep:
     field_t: float | None = None              # magnetic steps: the coil's set field, T
     angle_deg: float | None = None            # tilt steps: the table angle, deg
     band_dph: float | None = None             # turn-on steps: the stated band, deg/h
+    off_s: float | None = None                # turn-on cycles: the cool-down, s
 
     @classmethod
     def of(cls, raw: dict[str, Any]) -> RecordedStep:
@@ -123,7 +124,8 @@ class RecordedStep:
                    raw.get("confidence"), raw.get("max_error_fraction"),
                    raw.get("linearity_tolerance_pct"), raw.get("fit_rates"),
                    raw.get("freq_hz"), raw.get("amplitude_dps"), raw.get("phase_at_hz"),
-                   raw.get("field_t"), raw.get("angle_deg"), raw.get("band_dph"))
+                   raw.get("field_t"), raw.get("angle_deg"), raw.get("band_dph"),
+                   raw.get("off_s"))
 
 
 @dataclass(frozen=True)

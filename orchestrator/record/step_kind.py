@@ -21,6 +21,7 @@ class StepKind(str, Enum):
     MAGNETIC = "magnetic"  # log at rest with the station's coil at a set field
     TILT = "tilt"          # log with the table (axis horizontal) held at an angle point
     TURN_ON = "turn_on"    # the supply switches the unit off, then on; logged from its first frame
+    TURN_ON_CYCLE = "turn_on_cycle"  # one power cycle of a repeatability test, logged after settling
 
     def __str__(self) -> str:     # as written in plan.json and the journal
         return self.value
@@ -29,4 +30,5 @@ class StepKind(str, Enum):
     def logs_data(self) -> bool:
         return self in (StepKind.STATIC, StepKind.ALLAN, StepKind.DWELL, StepKind.DRIVE_OFF,
                         StepKind.THRESHOLD, StepKind.RATE_LIMIT, StepKind.FREQUENCY_RESPONSE,
-                        StepKind.MAGNETIC, StepKind.TILT, StepKind.TURN_ON)
+                        StepKind.MAGNETIC, StepKind.TILT, StepKind.TURN_ON,
+                        StepKind.TURN_ON_CYCLE)

@@ -19,6 +19,9 @@ PHASE_AT_HALF_HZ_DEG = -26.565051177   # −atan(0.5 / 1.0) in degrees, worked b
 STARTUP_S = 0.8           # stations/sim-series.yaml simulation.gyro_startup_s, typed
 WARMUP_TAU_S, WARMUP_DPH = 10.0, 20.0   # warmup_transient, typed
 TIME_TO_BAND_S = 29.957322736          # 10 s · ln(20 / 1 deg/h), worked by hand
+# simulation.turn_on_bias_dph 2.0 (1 σ per power-on), typed; each cycle's 10-s mean adds the
+# white noise 0.6 deg/h/√Hz / √10 s = 0.19 deg/h: √(2² + 0.19²) = 2.009 deg/h
+REPEATABILITY_DPH = 2.009
 
 
 def test_the_acceptance_series_recovers_each_truth(tmp_path, capsys):
@@ -60,8 +63,14 @@ def test_the_acceptance_series_recovers_each_truth(tmp_path, capsys):
     assert results["uncertainty"]["turn_on.warmup_tau_s"]["U"] == turn_on["U_warmup_tau_s"]
     cycles = [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()
               if '"unit_power_cycle"' in line]
-    assert [c["step_id"] for c in cycles] == [turn_on["step_id"]]
-    assert [a["decision"] for a in results["acceptance"]] == ["PASS"] * 9
+    assert [c["step_id"] for c in cycles][0] == turn_on["step_id"]
+    rep = results["turn_on_repeatability"]["tests"][0]
+    assert rep["cycles"] == 8 and len(set(rep["biases_dph"])) == 8
+    assert abs(rep["std_dph"] - REPEATABILITY_DPH) <= rep["U_std_dph"], rep
+    assert rep["u_std_dph"] == pytest.approx(rep["std_dph"] / 14 ** 0.5)     # s/√(2(N−1))
+    assert 0.5 < rep["in_run_std_dph"] < 0.8      # 1-s means of 0.6 deg/h/√Hz white noise
+    assert [c["step_id"] for c in cycles][1:] == [f"T01.rep.c{n}" for n in range(1, 9)]
+    assert [a["decision"] for a in results["acceptance"]] == ["PASS"] * 10
     html = (out / "report" / "report.html").read_text()
     assert "<h2>Threshold and resolution (IEEE Std 952 / IEEE Std 1431)</h2>" in html
     assert "0.03 (in (0.02, 0.03])" in html
@@ -69,6 +78,7 @@ def test_the_acceptance_series_recovers_each_truth(tmp_path, capsys):
     assert "300 (limit in [300, 350))" in html
     assert "<h2>Frequency response (IEEE Std 952 / IEEE Std 1431)</h2>" in html
     assert "<h2>Turn-on time and warm-up (IEEE Std 952 / IEEE Std 1431)</h2>" in html
+    assert "<h2>Turn-on-to-turn-on bias repeatability (IEEE Std 952 / IEEE Std 1431)</h2>" in html
     synthesis = [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()
                  if '"table_synthesis"' in line]
     assert [e["freq_hz"] for e in synthesis] == [0.25, 0.5, 0.75, 0.9, 1.0, 1.1, 1.25, 1.5, 2.0]

@@ -75,3 +75,29 @@ def test_a_turn_on_limit_needs_a_turn_on_test(folder):
             + "  - {name: t, metric: turn_on.warmup_tau_s, max: 60, unit: s}\n")
     problems, _ = problems_for(folder, text)
     assert any("it needs a turn_on test in the sequence" in p for p in problems), problems
+
+
+REPEAT = """      - {kind: allan, duration: 1 h}
+      - {kind: turn_on_repeatability, cycles: 4, off: 2 min, settle: 5 min, duration: 1 min}
+"""
+
+
+def test_a_repeatability_test_plans_one_step_per_cycle_with_its_cool_down(folder):
+    path = folder / "procedures" / "p.yaml"
+    path.write_text(powered(folder, REPEAT), encoding="utf-8")
+    steps = [s for s in expand_plan(load_procedure(path)).steps
+             if s.kind == StepKind.TURN_ON_CYCLE]
+    assert [s.step_id for s in steps] == [f"T02.rep.c{n}" for n in range(1, 5)]
+    # off 120 s + settle 300 s before each 60 s record
+    assert {(s.off_s, s.settle_s, s.duration_s) for s in steps} == {(120.0, 420.0, 60.0)}
+
+
+def test_a_repeatability_test_needs_two_cycles_and_a_supply(folder):
+    text = powered(folder, REPEAT.replace("cycles: 4", "cycles: 1"))
+    problems, path = problems_for(folder, text)
+    assert any(p.startswith(f"{path}:{line_of(text, 'cycles: 1')}: sequence[1].tests[3].cycles")
+               for p in problems), problems
+    shutil.copy(REPO / "stations" / "sim.yaml", folder / "stations" / "sim.yaml")
+    problems, _ = problems_for(folder, edit("      - {kind: allan, duration: 1 h}\n", REPEAT))
+    assert any("a turn_on_repeatability test switches the unit's power" in p
+               for p in problems), problems
