@@ -23,6 +23,9 @@ DEAD_ZONE_DPS = 0.025      # gyro-models/series-fog.yaml, typed
 SATURATION_DPS = {"positive": 320.0, "negative": 270.0}
 BANDWIDTH_HZ = 1.0         # rate_bandwidth, typed
 PHASE_AT_HALF_HZ_DEG = -26.565051177   # −atan(0.5 Hz / 1 Hz)
+STARTUP_S = 0.8            # stations/sim-series.yaml simulation.gyro_startup_s, typed
+WARMUP_TAU_S = 10.0        # warmup_transient, typed
+REPEATABILITY_DPH = 2.009  # √(turn_on_bias_dph 2² + (0.6 deg/h/√Hz / √10 s)²)
 
 
 def one_run(seed: int, folder: Path) -> tuple[int, str, dict | None]:
@@ -43,6 +46,7 @@ def main_cli() -> None:
     covered = failed = 0
     limits = {"positive": 0, "negative": 0}
     response = {"bandwidth": 0, "phase": 0}
+    power = {"turn-on time": 0, "warm-up tau": 0, "repeatability": 0}
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(1, runs + 1):
             code, console, results = one_run(seed, Path(tmp))
@@ -67,6 +71,8 @@ def main_cli() -> None:
             response_hits = _frequency_response(results["frequency_response"])
             for key, hit in response_hits.items():
                 response[key] += hit
+            for key, hit in _turn_on(results).items():
+                power[key] += hit
     done = runs - failed
     print(f"{done} of {runs} runs completed with every limit passed")
     print(f"threshold (dead zone {DEAD_ZONE_DPS} deg/s): {covered}/{done} covered")
@@ -76,6 +82,25 @@ def main_cli() -> None:
     print(f"bandwidth (truth {BANDWIDTH_HZ:g} Hz): {response['bandwidth']}/{done} covered")
     print(f"phase at 0.5 Hz (truth {PHASE_AT_HALF_HZ_DEG:.3f} deg): {response['phase']}/{done} "
           "covered")
+    truths = {"turn-on time": f"{STARTUP_S:g} s", "warm-up tau": f"{WARMUP_TAU_S:g} s",
+              "repeatability": f"{REPEATABILITY_DPH:g} deg/h"}
+    for key, hits in power.items():
+        print(f"{key} (truth {truths[key]}): {hits}/{done} covered")
+
+
+def _turn_on(results: dict) -> dict[str, bool]:
+    """Turn-on time, warm-up τ and repeatability against the typed truths, printed."""
+    on = results["turn_on"]["tests"][0]
+    rep = results["turn_on_repeatability"]["tests"][0]
+    hits = {"turn-on time": abs(on["time_to_first_data_s"] - STARTUP_S)
+            <= on["U_time_to_first_data_s"],
+            "warm-up tau": abs(on["warmup_tau_s"] - WARMUP_TAU_S) <= on["U_warmup_tau_s"],
+            "repeatability": abs(rep["std_dph"] - REPEATABILITY_DPH) <= rep["U_std_dph"]}
+    print(f"  turn-on {on['time_to_first_data_s']:.3f} s, tau {on['warmup_tau_s']:.2f} "
+          f"U {on['U_warmup_tau_s']:.2g} s, repeatability {rep['std_dph']:.3f} "
+          f"U {rep['U_std_dph']:.2g} deg/h: "
+          + ", ".join(f"{k} {'covered' if v else 'MISSED'}" for k, v in hits.items()))
+    return hits
 
 
 def _frequency_response(section: dict) -> dict[str, bool]:
