@@ -1,0 +1,40 @@
+"""A turn_on step whose unit never sends after the output-on is a fault (exit 3), and the
+resumed run cycles the power again and recovers the turn-on truths (acceptance series)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
+
+pytestmark = pytest.mark.timeout(300)
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _events(out: Path, name: str) -> list[dict]:
+    return [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()
+            if f'"{name}"' in line]
+
+
+def test_a_silent_unit_after_power_on_faults_and_the_resumed_run_cycles_it_again(tmp_path,
+                                                                                   capsys):
+    out = tmp_path / "run"
+    # the supply's output drops out when the turn-on step switches it on: no frame comes
+    code = main(["run", str(REPO / "procedures" / "acceptance-series.yaml"), "--sim",
+                 "--out", str(out), "--seed", "3", "--inject", "supply.dropout@T01.turnon"])
+    err = capsys.readouterr().err
+    assert code == EXIT_FAULT, err
+    assert "T01.turnon: no valid frame within 30 s of the output-on" in err
+    faults = _events(out, "fault")
+    assert faults[-1]["step_id"] == "T01.turnon"
+    assert _events(out, "unit_power_cycle") == []
+    assert main(["resume", str(out)]) == EXIT_OK, capsys.readouterr()
+    cycles = _events(out, "unit_power_cycle")
+    assert [c["step_id"] for c in cycles][:2] == ["T01.turnon", "T01.rep.c1"]
+    results = json.loads((out / "report" / "results.json").read_text())
+    turn_on = results["turn_on"]["tests"][0]
+    assert abs(turn_on["time_to_first_data_s"] - 0.8) <= turn_on["U_time_to_first_data_s"]
+    assert abs(turn_on["warmup_tau_s"] - 10.0) <= turn_on["U_warmup_tau_s"]
