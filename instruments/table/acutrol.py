@@ -173,7 +173,7 @@ class Acutrol3000Table:
 
         The safe state of a horizontal axis (``table.orientation: horizontal``):
         the servo must stay on or an unbalanced load swings the axis down.
-        Position mode keeps "stable steady state positioning" (TM-8004 §4.7.4,
+        Position mode servos the axis to a fixed angle (TM-8004 §4.7.4,
         p. 151), which holds the angle against a gravity torque where a zero rate
         demand (§4.3.6, p. 113) would only hold the velocity. The zero demand is
         refused when the table is not in rate mode (position mode already
