@@ -136,7 +136,7 @@ def parse_command(text: str) -> AclCommand:
         return AclCommand(text, (header,), query, args)
     path = _path(header)
     if path is not None and path[0] == "READ":
-        query = True  # "For ACT2000 compatibility, the ? is not required" (§4.10.4, §4.10.5)
+        query = True  # the manual lets these queries omit the ? (ACT2000 compatibility, §4.10.4, §4.10.5)
     return AclCommand(text, path, query, args)
 
 
