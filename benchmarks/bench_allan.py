@@ -1,4 +1,4 @@
-"""Overlapping ADEV: gyrocal.reports.allan against allantools.oadev, side by side.
+"""Overlapping ADEV: gyrocal.analysis.allan.deviation against allantools.oadev, side by side.
 
 Prints one table: wall time of each on the same data and τ grid (runs
 interleaved, median of --repeats), the pairwise speed-up, the largest relative difference between the two curves, and the
@@ -17,7 +17,7 @@ import tracemalloc
 
 import numpy as np
 
-from gyrocal.reports.allan import log_spaced_m, overlapping_adev
+from gyrocal.analysis.allan.deviation import log_spaced_m, overlapping_adev
 
 
 def _args() -> argparse.Namespace:

@@ -89,7 +89,7 @@ def _exactness(paths: list[Path], streamed: dict) -> tuple[int, float]:
     """Streamed vs in-memory float64 on the same samples: count of unequal τ, max rel diff."""
     import pyarrow.parquet as pq
 
-    from gyrocal.reports.allan_summary import allan_curve
+    from gyrocal.analysis.allan.summary import allan_curve
 
     y = np.concatenate([pq.read_table(p, columns=["gyro"]).column("gyro").to_numpy()
                         for p in paths])

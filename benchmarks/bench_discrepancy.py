@@ -11,8 +11,8 @@ from __future__ import annotations
 import argparse
 import time
 
+from gyrocal.analysis.discrepancy.workflow import analyse
 from gyrocal.reports.discrepancy import scenarios
-from gyrocal.reports.discrepancy.workflow import analyse
 
 
 def main() -> None:

@@ -25,9 +25,9 @@ import numpy as np
 
 from gyrocal.orchestrator.plan import expand_plan
 from gyrocal.orchestrator.procedure import load_procedure
-from gyrocal.orchestrator.record.journal import sha256_file
-from gyrocal.orchestrator.record.plan_record import write_plan_record
-from gyrocal.orchestrator.record.run_folder import RunFolder
+from gyrocal.record.journal import sha256_file
+from gyrocal.record.plan_record import write_plan_record
+from gyrocal.record.run_folder import RunFolder
 
 ROOT = Path(__file__).resolve().parents[1]
 CHUNK_S = 600.0

@@ -16,7 +16,7 @@ setpoint" is the value at the chamber's condition; the chamber's error enters
 the temperature sensitivities, whose truth is exact).
 
 The analysis is the report's: dwell means with batch-means standard errors
-(reports/gum.py) and the budgets of reports/uncertainty.py. Prints the
+(metrology/gum.py) and the budgets of metrology/uncertainty.py. Prints the
 coverage table (markdown) that docs/uncertainty-coverage.md keeps.
 """
 
@@ -28,9 +28,8 @@ import time
 
 import numpy as np
 
-from gyrocal.models.noise import GaussMarkov, WhiteRateNoise
-from gyrocal.reports.gum import batch_mean_sem
-from gyrocal.reports.uncertainty import (
+from gyrocal.metrology.gum import batch_mean_sem
+from gyrocal.metrology.uncertainty import (
     MeanU,
     TypeB,
     bias_uncertainty_static,
@@ -38,6 +37,7 @@ from gyrocal.reports.uncertainty import (
     slope_uncertainty,
     sweep_uncertainty,
 )
+from gyrocal.models.noise import GaussMarkov, WhiteRateNoise
 
 FS_HZ = 200.0
 TEMPS_C = (-20.0, 25.0, 70.0)

@@ -32,9 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrocal.analysis.discrepancy.workflow import analyse
 from gyrocal.models.gyro_model import EffectSpec
 from gyrocal.reports.discrepancy import scenarios
-from gyrocal.reports.discrepancy.workflow import analyse
 
 SIZED = ["thermal_lag", "temp_rate_bias", "temp_hysteresis", "bias_temp_quadratic",
          "sf_temp_quadratic", "sf_nonlinearity_quadratic", "sf_nonlinearity_cubic",

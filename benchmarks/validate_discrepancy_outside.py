@@ -30,10 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrocal.analysis.discrepancy.segments import temperature_trend_c_per_min
+from gyrocal.analysis.discrepancy.workflow import analyse
 from gyrocal.models.gyro_model import EffectSpec
 from gyrocal.reports.discrepancy import scenarios
-from gyrocal.reports.discrepancy.segments import temperature_trend_c_per_min
-from gyrocal.reports.discrepancy.workflow import analyse
 
 BEGIN, END = "<!-- outside-catalogue:begin -->", "<!-- outside-catalogue:end -->"
 

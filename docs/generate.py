@@ -8,7 +8,7 @@ what this writes, so run it after changing a parser's keys (and languages.py).
 
 from pathlib import Path
 
-from gyrocal.orchestrator.reference_docs import write_documents
+from gyrocal.app.reference_docs import write_documents
 
 if __name__ == "__main__":
     for path in write_documents(Path(__file__).resolve().parent.parent):

@@ -18,6 +18,7 @@ import threading
 from collections.abc import Callable, Sequence
 from typing import Any, NoReturn
 
+from gyrocal import __version__
 from gyrocal.errors import (  # noqa: F401 - re-exported: the names scripts already import
     EXIT_ACCEPTANCE_FAILED,
     EXIT_BAD_INPUT,
@@ -27,6 +28,8 @@ from gyrocal.errors import (  # noqa: F401 - re-exported: the names scripts alre
     BadInput,
     RunFaultError,
 )
+from gyrocal.instruments.errors import InstrumentError
+from gyrocal.record.locks import LockBusyError
 
 #: Bad input (exit 2): our one base, which every input error subclasses, and the OS's own
 #: answers for a path that names nothing or the wrong kind of thing.
@@ -37,12 +40,10 @@ BAD_INPUT_TYPES: tuple[type[BaseException], ...] = (
 def _fault_types() -> tuple[type[BaseException], ...]:
     """Faults (exit 3): the rig was left safe, the run is resumable.
 
-    Imported here, on the error path only: ``gyrocal.orchestrator.locks`` pulls in numpy
+    Imported here, on the error path only: ``gyrocal.record.locks`` pulls in numpy
     through the instrument interfaces (``python -X importtime``: 61 ms of imports, against
     1 ms for ``gyrocal.errors``), which ``--help`` and the quick commands need not pay.
     """
-    from gyrocal.instruments.errors import InstrumentError
-    from gyrocal.orchestrator.locks import LockBusyError
 
     return (RunFaultError, InstrumentError, LockBusyError)
 
@@ -66,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--allow-outside-paths", action="store_true",
                    help="let the procedure/station name files outside their folder, project "
                         "and the working folder")
-    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_validate"))
+    p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_validate"))
 
     p = sub.add_parser("plan", help="print the expanded steps, durations and ETA")
     p.add_argument("procedure")
@@ -74,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--allow-outside-paths", action="store_true",
                    help="let the procedure/station name files outside their folder, project "
                         "and the working folder")
-    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_plan"))
+    p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_plan"))
 
     p = sub.add_parser("run", help="run a procedure on a station or against simulated instruments")
     p.add_argument("procedure")
@@ -96,30 +97,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--allow-outside-paths", action="store_true",
                    help="let the procedure/station name files outside their folder, project "
                         "and the working folder")
-    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_run"))
+    p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_run"))
 
     p = sub.add_parser("resume", help="continue a faulted or interrupted run")
     p.add_argument("run_dir")
     p.add_argument("--speed", default=None)
     p.add_argument("--signing-key", default=None, help="as for run")
-    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_resume"))
+    p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_resume"))
 
     p = sub.add_parser("status", help="where a run is (state, step n/N, ETA, last event, holder)")
     p.add_argument("run_dir")
     p.add_argument("--json", action="store_true", help="the same snapshot as JSON, for scripts")
-    p.set_defaults(func=_lazy("gyrocal.orchestrator.watch.status", "cmd_status"))
+    p.set_defaults(func=_lazy("gyrocal.app.watch.status", "cmd_status"))
 
     p = sub.add_parser("watch", help="a read-only live page for a run (from its folder)")
     p.add_argument("run_dir")
     p.add_argument("--port", type=int, default=8765, help="0: any free port")
     p.add_argument("--bind", default="127.0.0.1",
                    help="address to serve on; anything but loopback requires the printed token")
-    p.set_defaults(func=_lazy("gyrocal.orchestrator.watch.server", "cmd_watch"))
+    p.set_defaults(func=_lazy("gyrocal.app.watch.server", "cmd_watch"))
 
     p = sub.add_parser("report", help="(re)build RUN_DIR/report/")
     p.add_argument("run_dir")
     p.add_argument("--signing-key", default=None, help="seal the rebuilt report (as for run)")
-    p.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_report"))
+    p.set_defaults(func=_lazy("gyrocal.app.report_commands", "cmd_report"))
 
     p = sub.add_parser("certificate", help="RUN_DIR/report/certificate.pdf (ISO/IEC 17025 §7.8) "
                                            "from its results.json")
@@ -132,7 +133,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default=None, help="PDF path (default RUN_DIR/report/certificate.pdf)")
     p.add_argument("--signing-key", default=None,
                    help="seal the certificate's journal line (as for report)")
-    p.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_certificate"))
+    p.set_defaults(func=_lazy("gyrocal.app.report_commands", "cmd_certificate"))
 
     p = sub.add_parser("verify", help="audit: completeness, every hash, the numbers, the signature")
     p.add_argument("run_dir")
@@ -140,22 +141,22 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the station's public key (PEM): check authenticity, not only integrity")
     p.add_argument("--ledger", default=None,
                    help="the station ledger (beside its key): the run must end where it says")
-    p.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_verify"))
+    p.set_defaults(func=_lazy("gyrocal.app.report_commands", "cmd_verify"))
 
     p = sub.add_parser("ledger", help="audit the station ledger: every sealed run still there "
                        "and unchanged")
     p.add_argument("ledger", help="e.g. /secure/station-keys/station.ledger.jsonl")
-    p.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_ledger"))
+    p.set_defaults(func=_lazy("gyrocal.app.report_commands", "cmd_ledger"))
 
     p = sub.add_parser("runs", help="the lab's runs as a DuckDB database (index, list)")
     rsub = p.add_subparsers(dest="runs_command", required=True, metavar="RUNS_COMMAND")
     r = rsub.add_parser("index", help="add or update run folders (found under each DIR)")
     r.add_argument("dirs", nargs="+", metavar="DIR")
     r.add_argument("--db", default=RUNS_DB)
-    r.set_defaults(func=_lazy("gyrocal.reports.runs.commands", "cmd_runs_index"))
+    r.set_defaults(func=_lazy("gyrocal.app.runs_commands", "cmd_runs_index"))
     r = rsub.add_parser("list", help="the indexed runs")
     r.add_argument("--db", default=RUNS_DB)
-    r.set_defaults(func=_lazy("gyrocal.reports.runs.commands", "cmd_runs_list"))
+    r.set_defaults(func=_lazy("gyrocal.app.runs_commands", "cmd_runs_list"))
 
     p = sub.add_parser("history", help="one unit (serial, and model when several share it) "
                        "across its calibrations: table and trend plot")
@@ -164,26 +165,26 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the unit's model, when units of several models share the serial")
     p.add_argument("--db", default=RUNS_DB)
     p.add_argument("--plot", default=None, help="PNG path (default history-SERIAL.png)")
-    p.set_defaults(func=_lazy("gyrocal.reports.runs.commands", "cmd_history"))
+    p.set_defaults(func=_lazy("gyrocal.app.runs_commands", "cmd_history"))
 
     p = sub.add_parser("compare", help="two runs side by side, with overlay plots")
     p.add_argument("run_a", help="a run folder or an indexed run id")
     p.add_argument("run_b")
     p.add_argument("--db", default=RUNS_DB)
     p.add_argument("--plot", default=None, help="PNG path (default compare.png)")
-    p.set_defaults(func=_lazy("gyrocal.reports.runs.commands", "cmd_compare"))
+    p.set_defaults(func=_lazy("gyrocal.app.runs_commands", "cmd_compare"))
 
     p = sub.add_parser("confirm", help="tell a waiting run the operator has done what it asked "
                        "(a remount of the IMU fixture)")
     p.add_argument("run_dir")
     p.add_argument("--mounting", default=None,
                    help="the mounting done (as named in the procedure); checked by the run")
-    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_confirm"))
+    p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_confirm"))
 
     p = sub.add_parser("keys", help="generate the station's Ed25519 signing key pair")
     p.add_argument("--out", default="keys", help="folder for NAME.key (mode 0600) and NAME.pub")
     p.add_argument("--name", default="station")
-    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_keys"))
+    p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_keys"))
 
     p = sub.add_parser("analyze", help="analyse a measured log")
     asub = p.add_subparsers(dest="analysis", required=True, metavar="ANALYSIS")
@@ -209,7 +210,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the filter's time constant, s (sets its process noise q; default 1)")
     a.add_argument("--forgetting", type=float, default=0.999,
                    help="adaptive-kalman: the Sage-Husa forgetting factor b (default 0.999)")
-    a.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_analyze_allan"))
+    a.set_defaults(func=_lazy("gyrocal.app.report_commands", "cmd_analyze_allan"))
 
     a = asub.add_parser("interference", help="table-induced interference: drive powered vs off",
                         description="Compares a static logged with the rate table's drive "
@@ -225,14 +226,14 @@ def build_parser() -> argparse.ArgumentParser:
     a.add_argument("--drift-tau-s", type=float, default=1.0,
                    help="drift is the std of the records' means over this time (default 1 s)")
     a.add_argument("--json", dest="json_out")
-    a.set_defaults(func=_lazy("gyrocal.reports.commands", "cmd_analyze_interference"))
+    a.set_defaults(func=_lazy("gyrocal.app.report_commands", "cmd_analyze_interference"))
 
     p = sub.add_parser("discrepancy", help="find what the model lacks to explain the measured data")
     p.add_argument("--model", required=True)
     p.add_argument("--measured", required=True)
     p.add_argument("--out", default="discrepancy-out")
     p.add_argument("--seed", type=int, default=0)
-    p.set_defaults(func=_lazy("gyrocal.reports.discrepancy.command", "cmd_discrepancy"))
+    p.set_defaults(func=_lazy("gyrocal.app.discrepancy_command", "cmd_discrepancy"))
 
     p = sub.add_parser("decode", help="a gyro's recorded bytes as a measured log, with a summary",
                        description="Decode a raw capture from a unit (binary, or one decimal number "
@@ -252,7 +253,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "where the datagram has it, else 23 °C, stated as assumed)")
     p.add_argument("--out", default=None, help="the measured log, .parquet or .csv")
     p.add_argument("--json", default=None, help="write the summary here as JSON")
-    p.set_defaults(func=_lazy("gyrocal.orchestrator.decode_capture", "cmd_decode"))
+    p.set_defaults(func=_lazy("gyrocal.app.decode_capture", "cmd_decode"))
 
     p = sub.add_parser("station", help="a station's instruments")
     ssub = p.add_subparsers(dest="station_command", required=True, metavar="STATION_COMMAND")
@@ -261,7 +262,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("station", help="station file with the instruments' addresses")
     s.add_argument("--only", choices=("chamber", "table", "gyro", "supply"), default=None)
     s.add_argument("--json", default=None, metavar="OUT", help="write the report as JSON here")
-    s.set_defaults(func=_lazy("gyrocal.orchestrator.station_check", "cmd_station_check"))
+    s.set_defaults(func=_lazy("gyrocal.app.station_check", "cmd_station_check"))
 
     p = sub.add_parser("sim", help="simulated instruments")
     ssub = p.add_subparsers(dest="sim_command", required=True, metavar="SIM_COMMAND")
@@ -274,16 +275,15 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--replay-gyro", default=None, metavar="CAPTURE",
                    help="serve this recorded capture (binary or decimal text) as the gyro, byte "
                    "for byte at its own rate, looped")
-    s.set_defaults(func=_lazy("gyrocal.orchestrator.sim_serve", "cmd_sim_serve"))
+    s.set_defaults(func=_lazy("gyrocal.app.sim_serve", "cmd_sim_serve"))
 
     p = sub.add_parser("demo", help="the dry run against simulated instruments")
     p.add_argument("--out", default=None)
-    p.set_defaults(func=_lazy("gyrocal.orchestrator.commands", "cmd_demo"))
+    p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_demo"))
     return parser
 
 
 def _version() -> str:
-    from gyrocal import __version__
 
     return __version__
 

@@ -8,6 +8,8 @@ spec is used, so listing the drivers stays cheap.
 
 from __future__ import annotations
 
+from gyrocal.instruments.chamber.watlow_f4 import WatlowF4
+from gyrocal.instruments.chamber.watlow_f4t import WatlowF4T
 from gyrocal.instruments.driver_spec import (
     SERIAL_OR_SOCKET,
     TCP_HOST_PORT,
@@ -21,6 +23,7 @@ from gyrocal.instruments.driver_spec import (
     SettingValue,
     SimRequest,
 )
+from gyrocal.instruments.gyro.datagram import axis_index
 from gyrocal.instruments.gyro.datagram_types import (
     ACCELEROMETER_LSB_G,
     DEFAULT_ACCELEROMETER_RANGE_G,
@@ -30,13 +33,24 @@ from gyrocal.instruments.gyro.datagram_types import (
     datagram_type,
     parse_identifier,
 )
+from gyrocal.instruments.gyro.pulse_counter import CounterPulseGyro
+from gyrocal.instruments.gyro.stim300 import Stim300Gyro
+from gyrocal.instruments.gyro.truevolt import TruevoltAnalogGyro
 from gyrocal.instruments.retry import RetryPolicy
 from gyrocal.instruments.sim.chamber_server import FAULTS as CHAMBER_FAULTS
+from gyrocal.instruments.sim.chamber_server import SimulatedWatlowF4, SimulatedWatlowF4T
 from gyrocal.instruments.sim.counter_server import FAULTS as COUNTER_FAULTS
+from gyrocal.instruments.sim.counter_server import SimulatedCounter
 from gyrocal.instruments.sim.gyro_pty import FAULTS as GYRO_FAULTS
+from gyrocal.instruments.sim.gyro_pty import SimulatedGyroPort
 from gyrocal.instruments.sim.supply_server import FAULTS as SUPPLY_FAULTS
+from gyrocal.instruments.sim.supply_server import SimulatedE36300
 from gyrocal.instruments.sim.table_server import FAULTS as TABLE_FAULTS
+from gyrocal.instruments.sim.table_server import SimulatedAcutrol
 from gyrocal.instruments.sim.truevolt_server import FAULTS as DMM_FAULTS
+from gyrocal.instruments.sim.truevolt_server import SimulatedTruevolt
+from gyrocal.instruments.supply.keysight_e36300 import KeysightE36300Supply
+from gyrocal.instruments.table.acutrol import Acutrol3000Table
 from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT, DIALECTS
 
 #: Over ``socket://`` the RTU bytes cross TCP and no UART paces them; the baud rate
@@ -56,7 +70,6 @@ def _int(settings, name: str) -> int:
 
 
 def _open_f4(req: OpenRequest):
-    from gyrocal.instruments.chamber.watlow_f4 import WatlowF4
 
     s = req.settings
     baud = _SOCKET_BAUD if req.address.startswith("socket://") else _int(s, "baudrate")
@@ -69,14 +82,12 @@ def _open_f4(req: OpenRequest):
 
 
 def _sim_f4(req: SimRequest):
-    from gyrocal.instruments.sim.chamber_server import SimulatedWatlowF4
 
     assert req.chamber is not None
     return SimulatedWatlowF4(req.chamber, req.faults, unit_id=_int(req.settings, "unit_id"))
 
 
 def _open_f4t(req: OpenRequest):
-    from gyrocal.instruments.chamber.watlow_f4t import WatlowF4T
 
     s = req.settings
     return WatlowF4T(req.address, unit_id=_int(s, "unit_id"), timeout_s=req.timeout_s,
@@ -85,14 +96,12 @@ def _open_f4t(req: OpenRequest):
 
 
 def _sim_f4t(req: SimRequest):
-    from gyrocal.instruments.sim.chamber_server import SimulatedWatlowF4T
 
     assert req.chamber is not None
     return SimulatedWatlowF4T(req.chamber, req.faults, unit_id=_int(req.settings, "unit_id"))
 
 
 def _open_acutrol(req: OpenRequest):
-    from gyrocal.instruments.table.acutrol import Acutrol3000Table
 
     s = req.settings
     return Acutrol3000Table(req.address, axis=_int(s, "axis"), timeout_s=req.timeout_s,
@@ -101,7 +110,6 @@ def _open_acutrol(req: OpenRequest):
 
 
 def _sim_acutrol(req: SimRequest):
-    from gyrocal.instruments.sim.table_server import SimulatedAcutrol
 
     class _Served(SimulatedAcutrol):
         @property
@@ -113,7 +121,6 @@ def _sim_acutrol(req: SimRequest):
 
 
 def _open_stim300(req: OpenRequest):
-    from gyrocal.instruments.gyro.stim300 import Stim300Gyro
 
     s = req.settings
     rate_lsb = s["rate_lsb"]
@@ -126,8 +133,6 @@ def _open_stim300(req: OpenRequest):
 
 
 def _sim_stim300(req: SimRequest):
-    from gyrocal.instruments.gyro.datagram import axis_index
-    from gyrocal.instruments.sim.gyro_pty import SimulatedGyroPort
 
     class _Served(SimulatedGyroPort):
         @property
@@ -149,7 +154,6 @@ def _sim_stim300(req: SimRequest):
 
 
 def _open_e36300(req: OpenRequest):
-    from gyrocal.instruments.supply.keysight_e36300 import KeysightE36300Supply
 
     return KeysightE36300Supply(req.address, channel=_int(req.settings, "channel"),
                                 timeout_s=req.timeout_s, retry=RetryPolicy(attempts=req.retries),
@@ -157,13 +161,11 @@ def _open_e36300(req: OpenRequest):
 
 
 def _sim_e36300(req: SimRequest):
-    from gyrocal.instruments.sim.supply_server import SimulatedE36300
 
     return SimulatedE36300(req.faults, seed=req.seed, clock=req.clock)  # type: ignore[arg-type]
 
 
 def _open_truevolt(req: OpenRequest):
-    from gyrocal.instruments.gyro.truevolt import TruevoltAnalogGyro
 
     s = req.settings
     aperture, nplc = s.get("aperture_s"), s.get("nplc")
@@ -176,14 +178,12 @@ def _open_truevolt(req: OpenRequest):
 
 
 def _sim_truevolt(req: SimRequest):
-    from gyrocal.instruments.sim.truevolt_server import SimulatedTruevolt
 
     assert req.gyro_source is not None
     return SimulatedTruevolt(req.gyro_source, req.clock, req.faults)  # type: ignore[arg-type]
 
 
 def _open_counter(req: OpenRequest):
-    from gyrocal.instruments.gyro.pulse_counter import CounterPulseGyro
 
     s = req.settings
     assert req.sample_rate_hz is not None
@@ -194,7 +194,6 @@ def _open_counter(req: OpenRequest):
 
 
 def _sim_counter(req: SimRequest):
-    from gyrocal.instruments.sim.counter_server import SimulatedCounter
 
     assert req.gyro_source is not None
     return SimulatedCounter(req.gyro_source, req.clock,

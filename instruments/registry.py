@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from importlib import metadata
 
 from gyrocal.instruments.builtin_drivers import BUILTIN_DRIVERS
@@ -74,7 +74,6 @@ def _load(entry: metadata.EntryPoint) -> tuple[list[DriverSpec], str | None]:
 
 
 def _with_origin(spec: DriverSpec, origin: str) -> DriverSpec:
-    from dataclasses import replace
 
     return replace(spec, origin=origin)
 

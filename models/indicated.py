@@ -160,7 +160,7 @@ class InputHistory:
     A fit evaluates the equation on the same inputs dozens of times (once per
     regressor); the intervals, the integrated table angle, the hysteresis
     branch and the chamber's rate do not change between those calls, so
-    :class:`gyrocal.reports.discrepancy.signatures.DesignBuilder` computes them
+    :class:`gyrocal.analysis.discrepancy.signatures.DesignBuilder` computes them
     once (on a 10 M-sample overnight log: about half of each evaluation).
     """
 

@@ -21,9 +21,9 @@ from gyrocal.instruments.gyro.plausibility import StreamPlausibility
 from gyrocal.models.clock import RealClock, SimClock
 from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
-from gyrocal.orchestrator.record.journal import Journal, JournalEvent
-from gyrocal.orchestrator.record.run_folder import SAMPLE_FLAG_GYRO_FLAGGED, RunFolder
 from gyrocal.orchestrator.table_synthesis import Sinusoid
+from gyrocal.record.journal import Journal, JournalEvent
+from gyrocal.record.run_folder import SAMPLE_FLAG_GYRO_FLAGGED, RunFolder
 
 
 @dataclass

@@ -18,8 +18,8 @@ from gyrocal.models.clock import RealClock, SimClock
 from gyrocal.orchestrator.machine import RunStateMachine
 from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
-from gyrocal.orchestrator.record.journal import Journal, JournalEvent
 from gyrocal.orchestrator.run_errors import RunFaultError, SoakTimeoutError
+from gyrocal.record.journal import Journal, JournalEvent
 
 
 class Conditions:

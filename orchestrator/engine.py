@@ -31,9 +31,6 @@ from gyrocal.orchestrator.interrupts import GatedChamber, GatedTable, InterruptG
 from gyrocal.orchestrator.machine import RunStateMachine
 from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
-from gyrocal.orchestrator.record.journal import JournalEvent
-from gyrocal.orchestrator.record.run_folder import RunFolder
-from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.remount import FixtureOperator, RemountExecutor
 from gyrocal.orchestrator.run_errors import RunFaultError, StepQualityError
 from gyrocal.orchestrator.safe_state import SafeOutcome, SafePolicy, make_safe
@@ -45,6 +42,9 @@ from gyrocal.orchestrator.table_synthesis import (
 from gyrocal.orchestrator.turn_on import power_cycle, wait_first_frame
 from gyrocal.orchestrator.unit_power import UnitPowerPolicy, power_on
 from gyrocal.orchestrator.unit_power import check as check_power
+from gyrocal.record.journal import JournalEvent
+from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.step_kind import StepKind
 
 #: An operator creates this file in the run folder to pause before the next step.
 PAUSE_FILE = "PAUSE"
@@ -639,7 +639,6 @@ def _text(reply: Any) -> Any:
 
 
 def _now_text() -> str:
-    import time
 
     return time.strftime("%Y-%m-%dT%H:%M:%S%z")
 

@@ -20,15 +20,15 @@ from dataclasses import dataclass, field
 
 from gyrocal.instruments.driver_spec import DriverSpec, Role, Setting, SettingKind
 from gyrocal.instruments.registry import registry
+from gyrocal.metrology.metrics import METRICS, NEEDS_TEXT
 from gyrocal.models.effects import EFFECTS
 from gyrocal.models.gyro_model import OUTPUT_UNITS as MODEL_OUTPUT_UNITS
 from gyrocal.models.imu_model import AXES
 from gyrocal.models.noise_terms import NOISE_TERMS
 from gyrocal.orchestrator import procedure as proc
 from gyrocal.orchestrator import station as sta
-from gyrocal.orchestrator.metrics import METRICS, NEEDS_TEXT
 from gyrocal.orchestrator.notify import NotifyOn
-from gyrocal.orchestrator.units import (
+from gyrocal.units import (
     ACCELERATION,
     DURATION,
     FREQUENCY,
@@ -410,7 +410,7 @@ STATION_ROOT = Section(
         Key("notify", ListOf(NOTIFY, min_items=0), "notification targets", False),
         Key("uncertainty", Section("uncertainty", "uncertainty", "Type B inputs of the "
             "uncertainty budget, as ± half-widths of a rectangular distribution. A key left out "
-            "takes the default in reports/uncertainty.py and the report says it was assumed.", (
+            "takes the default in metrology/uncertainty.py and the report says it was assumed.", (
                 Key("table_rate_accuracy_ppm", _num(0.0), "rate accuracy of the table (its "
                     "calibration certificate), ppm", False),
                 Key("chamber_temp_accuracy_c", _num(0.0), "chamber sensor plus uniformity, °C",

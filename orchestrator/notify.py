@@ -26,8 +26,10 @@ from enum import Enum
 from typing import Any
 from urllib.parse import urlsplit
 
-from gyrocal.orchestrator.problems import KeyPath
-from gyrocal.orchestrator.record.journal import JournalEvent
+import apprise
+
+from gyrocal.problems import KeyPath
+from gyrocal.record.journal import JournalEvent
 
 
 class NotifyOn(str, Enum):
@@ -112,7 +114,6 @@ def _send(target: NotifyTarget, what: NotifyOn, title: str, body: str) -> str | 
                                   text=True, timeout=COMMAND_TIMEOUT_S, check=False)
             return None if done.returncode == 0 else (
                 f"exit {done.returncode}: {(done.stderr or done.stdout).strip()[:200]}")
-        import apprise
 
         sender = apprise.Apprise()
         if not sender.add(target.url):

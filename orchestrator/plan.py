@@ -34,11 +34,11 @@ from gyrocal.orchestrator.procedure import (
     TurnOnRepeatabilityTest,
     TurnOnTest,
 )
-from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.safe_state import table_safe_text
 from gyrocal.orchestrator.table_synthesis import REST_BEFORE_SYNTHESIS_S
 from gyrocal.orchestrator.turn_on import FIRST_FRAME_TIMEOUT_S
-from gyrocal.orchestrator.units import format_duration, format_hms, format_number
+from gyrocal.record.step_kind import StepKind
+from gyrocal.units import format_duration, format_hms, format_number
 
 ASSUMED_START_TEMP_C = 25.0   # chamber temperature at the start when the station does not say
 #: What the ETA allows for a remount: an operator turning the hexahedron fixture and
@@ -238,13 +238,13 @@ class _Expander:
                              duration_s=test.duration_s, settle_s=test.settle_s, **base)
                     continue
                 if isinstance(test, TableInterferenceTest):
-                    # the drive powered at zero rate, then off: reports/interference.py pairs them
+                    # the drive powered at zero rate, then off: analysis/environment/interference.py pairs them
                     for half, kind in (("powered", StepKind.STATIC), ("off", StepKind.DRIVE_OFF)):
                         self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=kind, direction="",
                                  duration_s=test.duration_s, settle_s=test.settle_s, **base)
                     continue
                 if isinstance(test, MagneticTest):
-                    # +B, 0, -B: reports/magnetic_section.py regresses the bias on the field
+                    # +B, 0, -B: reports/sections/magnetic.py regresses the bias on the field
                     for half, field_t in (("pos", test.field_t), ("zero", 0.0), ("neg", -test.field_t)):
                         self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=StepKind.MAGNETIC,
                                  direction="", duration_s=test.duration_s, settle_s=test.settle_s,
@@ -252,7 +252,7 @@ class _Expander:
                     continue
                 if isinstance(test, TiltLinearityTest):
                     # each angle point, then the zero-stability hold at 0 (the table as the
-                    # indexing head; reports/tilt_section.py fits them)
+                    # indexing head; reports/sections/tilt.py fits them)
                     for angle in test.angles_deg:
                         self.add(step_id=f"{prefix}.{tag}{suffix}.{angle:+g}deg",
                                  kind=StepKind.TILT, direction="", duration_s=test.dwell_s,

@@ -24,10 +24,11 @@ from typing import Any
 from gyrocal.inputs import YamlDocument, load_yaml, outside_reference
 from gyrocal.instruments.gyro.datagram_types import layout_of
 from gyrocal.instruments.table.acutrol_protocol import RATE_DECIMALS, commanded_rate_dps
+from gyrocal.metrology.metrics import METRICS, NEEDS_TEXT, units_match
 from gyrocal.models.imu_model import Mounting
-from gyrocal.orchestrator.metrics import METRICS, NEEDS_TEXT, units_match
-from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
-from gyrocal.orchestrator.schema import (
+from gyrocal.orchestrator.station import Station, load_station, parse_station
+from gyrocal.problems import KeyPath, ProcedureError, sort_problems
+from gyrocal.schema import (
     Context,
     Fields,
     choice,
@@ -39,8 +40,7 @@ from gyrocal.orchestrator.schema import (
     serial_number,
     text,
 )
-from gyrocal.orchestrator.station import Station, load_station, parse_station
-from gyrocal.orchestrator.units import (
+from gyrocal.units import (
     ACCELERATION,
     FREQUENCY,
     RATE,
@@ -133,7 +133,7 @@ class DataQuality:
     max_lost_frame_fraction: float   # lost + CRC-failed frames per logged step
     max_step_repeats: int            # a bad step is repeated at most this many times
     # how far a measured scale factor may lie from the nominal one before the run is
-    # INVALID rather than judged (reports/sanity.py)
+    # INVALID rather than judged (metrology/sanity.py)
     sf_tolerance_pct: float = 5.0
 
 
@@ -171,7 +171,7 @@ class StaticTest:
 @dataclass(frozen=True)
 class TableInterferenceTest:
     """Two statics at rest: the table's drive powered holding zero rate, then off (interlock
-    open); the report compares them (drift ratio, spectral lines: reports/interference.py)."""
+    open); the report compares them (drift ratio, spectral lines: analysis/environment/interference.py)."""
 
     duration_s: float
     settle_s: float
@@ -183,7 +183,7 @@ class TableInterferenceTest:
 @dataclass(frozen=True)
 class MagneticTest:
     """Static dwells at +B, 0 and -B along the station's coil axis (Helmholtz coil driven by
-    the station's supply): the bias sensitivity in deg/(h·T) (reports/magnetic.py)."""
+    the station's supply): the bias sensitivity in deg/(h·T) (analysis/environment/magnetic.py)."""
 
     field_t: float            # |B| of the +B and -B dwells, tesla
     duration_s: float
@@ -196,7 +196,7 @@ class MagneticTest:
 @dataclass(frozen=True)
 class TiltLinearityTest:
     """An inclinometer's static test with the table (axis horizontal) as the indexing head:
-    a dwell at each angle point, then a zero-stability hold at 0 (reports/tilt_linearity.py)."""
+    a dwell at each angle point, then a zero-stability hold at 0 (analysis/environment/tilt_linearity.py)."""
 
     angles_deg: tuple[float, ...]
     points: str               # the name of the angle set (TILT_POINTS) or "listed"
@@ -287,7 +287,7 @@ class FrequencyResponseTest:
 
     Each frequency turns ``settle_cycles`` periods, then logs ``cycles`` periods (at least
     ``min_duration_s``); the report fits sines to the gyro output and the table rate
-    (reports/frequency_response.py) for gain and phase, the −3 dB bandwidth and the phase
+    (analysis/rate/frequency_response.py) for gain and phase, the −3 dB bandwidth and the phase
     at ``phase_at_hz``.
     """
 
@@ -313,7 +313,7 @@ class TurnOnTest:
     """Turn-on time and warm-up (IEEE Std 952 / IEEE Std 1431): the station's supply switches
     the unit off for ``off_s``, then on (the table at rest); the gyro is logged from its first
     frame for ``duration_s``. The report gives the time from the output-on command to the
-    first valid frame, the warm-up fit (reports/warmup.py) and the time until the bias stays
+    first valid frame, the warm-up fit (analysis/thermal/warmup.py) and the time until the bias stays
     within ±``band_dph`` of its settled value."""
 
     off_s: float
@@ -329,7 +329,7 @@ class TurnOnRepeatabilityTest:
     """Turn-on-to-turn-on bias repeatability (IEEE Std 952 / IEEE Std 1431): ``cycles`` power
     cycles, each off for ``off_s`` (the cool-down), on, ``settle_s`` after the first frame,
     then ``duration_s`` logged; the repeatability is the standard deviation of the cycles'
-    biases, u from N (reports/warmup.py), the in-run bias stability beside it."""
+    biases, u from N (analysis/thermal/warmup.py), the in-run bias stability beside it."""
 
     cycles: int
     off_s: float
@@ -397,7 +397,7 @@ class AcceptanceLimit:
     max: float | None
     min: float | None
     unit: str | None
-    #: how the value's expanded uncertainty enters the decision (reports/decision.py)
+    #: how the value's expanded uncertainty enters the decision (metrology/decision.py)
     decision_rule: str = "simple"
 
     def passes(self, value: float) -> bool:

@@ -11,7 +11,9 @@ import sys
 import time
 from dataclasses import dataclass
 
-from gyrocal.orchestrator.units import format_hms
+from rich.console import Console
+
+from gyrocal.units import format_hms
 
 
 @dataclass
@@ -45,7 +47,6 @@ class Progress:
         self._min_interval_s = min_interval_s
         self._console = None
         if self.enabled:
-            from rich.console import Console
 
             self._console = Console(stderr=True)
 

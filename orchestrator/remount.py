@@ -40,9 +40,9 @@ from gyrocal.orchestrator.conditions import Conditions
 from gyrocal.orchestrator.machine import RunStateMachine
 from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
-from gyrocal.orchestrator.record.journal import Journal, JournalEvent
-from gyrocal.orchestrator.record.run_folder import RunFolder
 from gyrocal.orchestrator.run_errors import RunFaultError
+from gyrocal.record.journal import Journal, JournalEvent
+from gyrocal.record.run_folder import RunFolder
 
 CONFIRM_FILE = "CONFIRM"
 CHECK_RATE_DPS = 10.0        # the mount check's table rate

@@ -16,10 +16,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from gyrocal.orchestrator.record.journal import Journal, JournalEvent
-from gyrocal.orchestrator.record.run_folder import RunFolder
-from gyrocal.orchestrator.record.strays import report_matches_record, set_aside
-from gyrocal.orchestrator.signing import SEAL_EVENT, Signer
+from gyrocal.record.journal import Journal, JournalEvent
+from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.signing import SEAL_EVENT, Signer
+from gyrocal.record.strays import report_matches_record, set_aside
 
 #: Builds the report through the given open journal (``reports.build.build_report``).
 ReportBuilder = Callable[[RunFolder, Journal], dict[str, Any]]

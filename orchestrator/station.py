@@ -29,9 +29,11 @@ from gyrocal.instruments.registry import UnknownDriver, registry
 from gyrocal.instruments.table.acutrol_protocol import DEFAULT_DIALECT
 from gyrocal.models.drive_interference import DriveLine
 from gyrocal.models.gravity import STANDARD_GRAVITY_MPS2, local_gravity_g
+from gyrocal.models.gyro_model import ModelError
+from gyrocal.models.imu_model import load_any_model
 from gyrocal.orchestrator.notify import NotifyTarget, parse_notify
-from gyrocal.orchestrator.problems import KeyPath, ProcedureError, sort_problems
-from gyrocal.orchestrator.schema import (
+from gyrocal.problems import KeyPath, ProcedureError, sort_problems
+from gyrocal.schema import (
     Context,
     Fields,
     boolean,
@@ -45,7 +47,7 @@ from gyrocal.orchestrator.schema import (
     serial_number,
     text,
 )
-from gyrocal.orchestrator.units import (
+from gyrocal.units import (
     ACCELERATION,
     FREQUENCY,
     RATE,
@@ -77,7 +79,7 @@ class Site:
 
 
 #: ``uncertainty`` section keys: ± half-widths (rectangular) of the reference accuracies the
-#: GUM budget uses as type B inputs (reports/uncertainty.py states its defaults as assumed).
+#: GUM budget uses as type B inputs (metrology/uncertainty.py states its defaults as assumed).
 UNCERTAINTY_KEYS = ("table_rate_accuracy_ppm", "chamber_temp_accuracy_c",
                     "latitude_accuracy_deg", "axis_tilt_deg")
 
@@ -294,7 +296,7 @@ class Station:
     file: str                 # as given (for messages); "<inline in ...>" when inline
     path: Path | None         # resolved file, None when written inline in a procedure
     #: the station's Ed25519 private key (gyrocal keys), resolved against the station file;
-    #: runs are sealed with it (orchestrator/signing.py). None: unsigned unless
+    #: runs are sealed with it (record/signing.py). None: unsigned unless
     #: --signing-key or $GYROCAL_SIGNING_KEY names one.
     signing_key: Path | None = None
     #: who is told when the run finishes, faults, pauses or needs a person (notify.py)
@@ -651,8 +653,6 @@ def _check_model_file(ctx: Context, where: KeyPath, path: Path) -> None:
 
     The model's own error (file, line, key) is kept whole after the station's key.
     """
-    from gyrocal.models.gyro_model import ModelError
-    from gyrocal.models.imu_model import load_any_model
 
     try:
         load_any_model(path)

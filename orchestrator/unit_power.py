@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from gyrocal.instruments.errors import InstrumentSafetyError
 from gyrocal.instruments.interfaces import PowerSupply, SupplyReading
-from gyrocal.orchestrator.record.journal import JournalEvent
+from gyrocal.record.journal import JournalEvent
 
 #: a current at or above this fraction of the limit: the supply is limiting (over-current)
 AT_LIMIT_FRACTION = 0.98

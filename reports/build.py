@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import datetime as dt
 import hashlib
+import json
 import math
 import time
 from collections import defaultdict
@@ -38,50 +39,52 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from gyrocal.models.rate_units import output_to_dph
-from gyrocal.orchestrator.record.atomic import write_bytes_atomic
-from gyrocal.orchestrator.record.journal import Journal, JournalEvent, sha256_bytes
-from gyrocal.orchestrator.record.logged_steps import HOLD_KINDS, completed_attempts, longest_hold
-from gyrocal.orchestrator.record.plan_record import PLAN_RECORD, PlanRecord, RecordedStep
-from gyrocal.orchestrator.record.run_folder import (
-    RunFolder,
-    RunFolderError,
-    identified_instruments,
-)
-from gyrocal.orchestrator.record.step_kind import StepKind
-from gyrocal.orchestrator.record.strays import set_aside
-from gyrocal.orchestrator.signing import Signer
-from gyrocal.reports import bias as bias_mod
-from gyrocal.reports import compensation as comp
-from gyrocal.reports import frequency_section, rate_limits
-from gyrocal.reports.allan_summary import (
+from gyrocal.analysis.allan.summary import (
     allan_curve,
     curve_json,
     fit_curve,
     fit_uncertainty_json,
     identifiability_json,
 )
-from gyrocal.reports.decision import instrument_blockers, overall_verdict
-from gyrocal.reports.dwell import Dwell, SegmentDrift, dwell_mean, segment_drift
-from gyrocal.reports.gum import batch_mean_sem
-from gyrocal.reports.imu.section import imu_section
-from gyrocal.reports.interference_section import interference_section
-from gyrocal.reports.magnetic_section import magnetic_section
+from gyrocal.analysis.rate import rate_limits
+from gyrocal.analysis.rate.dwell import Dwell, SegmentDrift, dwell_mean, segment_drift
+from gyrocal.analysis.rate.scale_factor import ScaleFactorResult, analyze_scale_factor
+from gyrocal.analysis.rate.threshold import ThresholdDwell, headline_uncertainty, threshold_section
+from gyrocal.analysis.thermal import bias as bias_mod
+from gyrocal.analysis.thermal import compensation as comp
+from gyrocal.metrology.decision import instrument_blockers, overall_verdict
+from gyrocal.metrology.gum import batch_mean_sem
+from gyrocal.metrology.sanity import check_physics
+from gyrocal.metrology.uncertainty import MeanU
+from gyrocal.models.rate_units import output_to_dph
+from gyrocal.record.atomic import write_bytes_atomic
+from gyrocal.record.journal import Journal, JournalEvent, sha256_bytes
+from gyrocal.record.logged_steps import HOLD_KINDS, completed_attempts, longest_hold
+from gyrocal.record.plan_record import PLAN_RECORD, PlanRecord, RecordedStep
+from gyrocal.record.run_folder import (
+    RunFolder,
+    RunFolderError,
+    identified_instruments,
+)
+from gyrocal.record.signing import Signer
+from gyrocal.record.step_kind import StepKind
+from gyrocal.record.strays import set_aside
+from gyrocal.reports.html_report import render_html
 from gyrocal.reports.results import evaluate_acceptance, finite_or_none, results_bytes
-from gyrocal.reports.sanity import check_physics
-from gyrocal.reports.scale_factor import ScaleFactorResult, analyze_scale_factor
-from gyrocal.reports.threshold import ThresholdDwell, headline_uncertainty, threshold_section
-from gyrocal.reports.tilt_section import tilt_section
-from gyrocal.reports.turn_on_section import (
+from gyrocal.reports.sections import frequency as frequency_section
+from gyrocal.reports.sections.imu import imu_section
+from gyrocal.reports.sections.interference import interference_section
+from gyrocal.reports.sections.magnetic import magnetic_section
+from gyrocal.reports.sections.tilt import tilt_section
+from gyrocal.reports.sections.turn_on import (
     CycleRecord,
     TurnOnRecord,
     repeatability_section,
     repeatability_uncertainty,
     turn_on_section,
 )
-from gyrocal.reports.turn_on_section import headline_uncertainty as turn_on_uncertainty
-from gyrocal.reports.uncertainty import MeanU
-from gyrocal.reports.uncertainty_section import StepMean, add_uncertainties
+from gyrocal.reports.sections.turn_on import headline_uncertainty as turn_on_uncertainty
+from gyrocal.reports.sections.uncertainty import StepMean, add_uncertainties
 
 REFERENCE_TEMP_C = 25.0
 REPORT_DIR = "report"
@@ -126,7 +129,6 @@ class RunData:
 # -- reading ------------------------------------------------------------------------------
 
 def _read_plan(folder: RunFolder) -> dict[str, Any]:
-    import json
 
     path = folder.path / PLAN_RECORD
     if not path.is_file():
@@ -502,7 +504,7 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
 
 
 def measured_needs(data: RunData) -> frozenset[str]:
-    """What the completed steps measured, in the terms of ``orchestrator/metrics.py`` ``needs``.
+    """What the completed steps measured, in the terms of ``metrology/metrics.py`` ``needs``.
 
     An acceptance limit whose metric needs more is NOT EVALUATED: a report
     rebuilt on an interrupted run must not grade the noise terms on a short
@@ -550,7 +552,7 @@ def _all_done(data: RunData, kind: StepKind, sign: float | None = None) -> bool:
 
 
 def _threshold(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any] | None:
-    """Threshold and resolution from the threshold dwells, in plan order (reports/threshold.py)."""
+    """Threshold and resolution from the threshold dwells, in plan order (analysis/rate/threshold.py)."""
     order = {s.step_id: i for i, s in enumerate(data.record.steps)}
     dwells = [ThresholdDwell(s.step.step_id, s.step.setpoint_c, float(s.step.base_rate_dps or 0.0),
                              s.step.rate_dps, s.output_mean, s.output_sem,
@@ -563,7 +565,7 @@ def _threshold(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, 
 
 def _frequency_response(data: RunData, nominal_sf: float, notes: list[str]
                         ) -> dict[str, Any] | None:
-    """Gain, phase, −3 dB bandwidth from the frequency steps' samples (reports/frequency_section.py)."""
+    """Gain, phase, −3 dB bandwidth from the frequency steps' samples (reports/sections/frequency.py)."""
     done = completed_attempts(data.events)
     order = {s.step_id: i for i, s in enumerate(data.record.steps)}
     dwells = []
@@ -583,7 +585,7 @@ def _frequency_response(data: RunData, nominal_sf: float, notes: list[str]
 
 def _turn_on(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any] | None:
     """Turn-on time and warm-up from the turn_on steps' power cycles and samples
-    (reports/turn_on_section.py); a step's last power cycle is the one its data follows."""
+    (reports/sections/turn_on.py); a step's last power cycle is the one its data follows."""
     done = completed_attempts(data.events)
     cycles = {e["step_id"]: e for e in data.events
               if e.get("event") == JournalEvent.UNIT_POWER_CYCLE}
@@ -616,7 +618,7 @@ def _repeatability(data: RunData, nominal_sf: float, notes: list[str]) -> dict[s
 
 
 def _rate_limits(data: RunData, notes: list[str]) -> dict[str, Any] | None:
-    """Maximum input rate each way from the rate-limit walk (reports/rate_limits.py)."""
+    """Maximum input rate each way from the rate-limit walk (analysis/rate/rate_limits.py)."""
     dwells = [rate_limits.LimitDwell(s.step.step_id, s.step.setpoint_c, s.step.rate_dps,
                                      s.output_mean, float(s.step.linearity_tolerance_pct or 1.0),
                                      int(s.step.fit_rates or 3))
@@ -791,7 +793,6 @@ def _build(run_dir: Path, journal: Journal, signer: Signer | None) -> dict[str, 
 
 def _write_report(data: RunData, results: dict[str, Any], journal: Journal,
                   signer: Signer | None) -> None:
-    from gyrocal.reports.html_report import render_html
 
     started = next((e for e in data.events if e.get("event") == "run_started"), {})
     if signer is not None:

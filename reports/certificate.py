@@ -15,6 +15,7 @@ role, date) with the run's cryptographic signature where it was signed.
 from __future__ import annotations
 
 import datetime as dt
+import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,9 +28,13 @@ from reportlab.lib.units import mm
 from reportlab.pdfgen.canvas import Canvas
 from reportlab.platypus import Paragraph, SimpleDocTemplate, Spacer, Table, TableStyle
 
-from gyrocal.orchestrator.record.atomic import write_atomic
-from gyrocal.orchestrator.signing import Signer
-from gyrocal.reports.gum import round_to_uncertainty
+from gyrocal.metrology.gum import round_to_uncertainty
+from gyrocal.record.atomic import write_atomic
+from gyrocal.record.journal import Journal, JournalEvent, sha256_file
+from gyrocal.record.run_folder import JOURNAL, RunFolder, RunFolderError
+from gyrocal.record.signing import Signer
+from gyrocal.record.strays import set_aside
+from gyrocal.reports.build import RESULTS_FILE
 from gyrocal.reports.labels import acceptance_unit
 
 CERTIFICATE_FILE = "report/certificate.pdf"
@@ -356,12 +361,7 @@ def certify_run(run_dir: Path, *, customer: str, approval: Approval, number: str
     number, its SHA-256 and the results it was made from, sealed with ``signer`` like
     a report rebuild, so ``verify`` accounts for it. The caller holds the folder's lock.
     """
-    import json
 
-    from gyrocal.orchestrator.record.journal import Journal, JournalEvent, sha256_file
-    from gyrocal.orchestrator.record.run_folder import JOURNAL, RunFolder, RunFolderError
-    from gyrocal.orchestrator.record.strays import set_aside
-    from gyrocal.reports.build import RESULTS_FILE
 
     source = run_dir / RESULTS_FILE
     if not source.is_file():

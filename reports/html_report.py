@@ -11,8 +11,8 @@ from typing import Any
 
 import jinja2
 
-from gyrocal.orchestrator.record.event_text import describe_event
-from gyrocal.reports.gum import round_to_uncertainty
+from gyrocal.metrology.gum import round_to_uncertainty
+from gyrocal.record.event_text import describe_event
 from gyrocal.reports.labels import ALLAN_TERMS, acceptance_unit, compensation_labels
 from gyrocal.reports.plots import all_plots
 from gyrocal.reports.report_template import REPORT_TEMPLATE

@@ -12,8 +12,8 @@ import json
 import math
 from typing import Any
 
-from gyrocal.orchestrator.record.plan_record import metric_needs
-from gyrocal.reports.decision import DEFAULT_RULE, Decision, DecisionRule, decide
+from gyrocal.metrology.decision import DEFAULT_RULE, Decision, DecisionRule, decide
+from gyrocal.metrology.metrics import metric_needs
 
 #: The keys interfaces.md requires in report/results.json.
 REQUIRED_KEYS = ("unit_under_test", "scale_factor", "scale_factor_ls", "nonlinearity",
@@ -46,7 +46,7 @@ def evaluate_acceptance(results: dict[str, Any], limits: list[dict[str, Any]],
     ``limits`` are plan.json's acceptance entries ({name, metric, max|min, unit,
     decision_rule}); the rule (decision.py) uses the metric's expanded
     uncertainty from results["uncertainty"]. ``pass`` is true only for PASS.
-    ``measured`` (what the completed steps measured, ``orchestrator/metrics.py``
+    ``measured`` (what the completed steps measured, ``metrology/metrics.py``
     ``needs``): a limit whose metric needs more is NOT EVALUATED, whatever number
     some other step gave. A noise term the record cannot identify is judged by its
     95 % upper bound (PASS only if that bound is within a max limit), never as 0.

@@ -46,30 +46,31 @@ from typing import Any
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
-from gyrocal.orchestrator.ledger import LedgerError, check_against, read_ledger
-from gyrocal.orchestrator.record.journal import (
+from gyrocal.record.journal import (
     JournalError,
     JournalEvent,
     read_journal,
     sha256_bytes,
     sha256_file,
 )
-from gyrocal.orchestrator.record.plan_record import PLAN_RECORD
-from gyrocal.orchestrator.record.run_folder import (
+from gyrocal.record.ledger import LedgerError, check_against, read_ledger
+from gyrocal.record.plan_record import PLAN_RECORD
+from gyrocal.record.run_folder import (
     IDENTITY_KEYS,
     JOURNAL,
     SAMPLES,
     RunFolder,
     identified_instruments,
 )
-from gyrocal.orchestrator.record.strays import files_on_disk, unrecorded
-from gyrocal.orchestrator.signing import (
+from gyrocal.record.signing import (
     SEAL_EVENT,
     fingerprint,
     load_public_key,
     report_signature_valid,
     seal_signature_valid,
 )
+from gyrocal.record.strays import files_on_disk, unrecorded
+from gyrocal.reports.build import compute_results, read_run
 from gyrocal.reports.results import finite_or_none, results_bytes
 
 #: Events a finished run may still gain after ``run_closed``: report rebuilds, certificates,
@@ -398,7 +399,6 @@ def _report_signature(stored: dict[str, Any], path: Path, events: list[dict[str,
 
 def _recompute(folder: RunFolder, stored: dict[str, Any], results_path: Path,
                result: VerifyResult) -> None:
-    from gyrocal.reports.build import compute_results, read_run
 
     notes: list[str] = []
     fresh = json.loads(json.dumps(finite_or_none(compute_results(read_run(folder.path, notes),

@@ -15,7 +15,7 @@ def session_lock_dir(tmp_path_factory):
     """
     import os
 
-    from gyrocal.orchestrator.locks import LOCK_DIR_ENV
+    from gyrocal.record.locks import LOCK_DIR_ENV
 
     previous = os.environ.get(LOCK_DIR_ENV)
     os.environ[LOCK_DIR_ENV] = str(tmp_path_factory.mktemp("station-locks"))

@@ -22,25 +22,27 @@ from gyrocal.errors import BadInput, RunFaultError
 
 ROOT = Path(__file__).resolve().parents[1]
 #: repository folder → installed package; instruments/ is left out: its errors are faults
-FOLDERS = {"gyrocal": "gyrocal", "models": "gyrocal.models",
-           "orchestrator": "gyrocal.orchestrator", "reports": "gyrocal.reports"}
+FOLDERS = {"gyrocal": "gyrocal", "models": "gyrocal.models", "record": "gyrocal.record",
+           "analysis": "gyrocal.analysis", "metrology": "gyrocal.metrology",
+           "orchestrator": "gyrocal.orchestrator", "reports": "gyrocal.reports",
+           "app": "gyrocal.app"}
 
 #: Raised on bad input; each must reach the command line as exit 2.
 INPUT_ERRORS = {
     "gyrocal.inputs.InputError",                      # procedure, station, model, IMU files
     "gyrocal.models.gyro_model.ModelError",           # a model that breaks the contract
-    "gyrocal.reports.log_contract.LogFormatError",    # a measured log
-    "gyrocal.orchestrator.record.run_folder.RunFolderError",  # a folder that is no run
-    "gyrocal.orchestrator.signing.SigningKeyError",   # an unusable key file
+    "gyrocal.analysis.log_contract.LogFormatError",   # a measured log
+    "gyrocal.record.run_folder.RunFolderError",       # a folder that is no run
+    "gyrocal.record.signing.SigningKeyError",         # an unusable key file
 }
 
 #: Not bad input by itself, and why: a fault (exit 3), or turned into bad input where caught.
 OTHER_ERRORS = {
-    "gyrocal.orchestrator.locks.LockBusyError": "another process holds the lock (exit 3)",
+    "gyrocal.record.locks.LockBusyError": "another process holds the lock (exit 3)",
     "gyrocal.orchestrator.remount.MountCheckError": "raised again as a RunFaultError by the remount step",
-    "gyrocal.orchestrator.units.UnitError": "collected into an InputError by the schema readers",
-    "gyrocal.orchestrator.ledger.LedgerError": "reported by verify and ledger as a failed audit",
-    "gyrocal.orchestrator.record.journal.JournalError": "reported by verify as a failed audit",
+    "gyrocal.units.UnitError": "collected into an InputError by the schema readers",
+    "gyrocal.record.ledger.LedgerError": "reported by verify and ledger as a failed audit",
+    "gyrocal.record.journal.JournalError": "reported by verify as a failed audit",
     "gyrocal.reports.runs.database.RunsDatabaseError": "raised again as BadInput by the runs commands",
     "gyrocal.models.table.TableLimitError": "the simulated table's refusal, answered as an ACUTROL error",
     "gyrocal.models.table.TableInterlockError": "the simulated table's refusal, answered as an ACUTROL error",

@@ -28,8 +28,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+from gyrocal.analysis.measured_log import LogFormatError, read_measured_log
 from gyrocal.cli import EXIT_ACCEPTANCE_FAILED, EXIT_BAD_INPUT, EXIT_OK, main
-from gyrocal.reports.measured_log import LogFormatError, read_measured_log
 
 pytestmark = pytest.mark.timeout(240)
 REPO = Path(__file__).resolve().parents[1]

@@ -235,7 +235,7 @@ def test_sigterm_before_the_engine_handlers_exits_3_without_traceback(tmp_path: 
     script = textwrap.dedent(f"""
         import os, signal, sys
         from gyrocal import cli
-        from gyrocal.orchestrator import commands
+        from gyrocal.app import run_commands as commands
         original = commands.load_procedure
         def load_procedure(*args, **kwargs):
             os.kill(os.getpid(), signal.SIGTERM)

@@ -12,6 +12,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from matplotlib.figure import Figure
+
 from gyrocal.reports.runs.database import RunsDatabaseError
 from gyrocal.reports.runs.history import expanded
 from gyrocal.reports.runs.metrics import metric_values
@@ -56,7 +58,6 @@ def compare_plot(a: dict[str, Any], b: dict[str, Any], label_a: str, label_b: st
     # Imported here: matplotlib costs ~0.5 s of imports (python -X importtime), which the
     # text-only commands of this module need not pay. Figure draws without pyplot's global
     # backend, so nothing in the process has its backend changed.
-    from matplotlib.figure import Figure
 
     fig = Figure(figsize=(12, 3.4))
     axes = fig.subplots(1, 3)

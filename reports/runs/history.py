@@ -14,6 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from matplotlib.figure import Figure
+
 COVERAGE_K = 2.0
 
 #: what the table and plot show, in this order (others stay in the database)
@@ -98,7 +100,6 @@ def history_plot(serial: str, series: dict[str, list[Point]], path: Path) -> Pat
     # Imported here: matplotlib costs ~0.5 s of imports (python -X importtime), which the
     # text-only commands of this module need not pay. Figure draws without pyplot's global
     # backend, so nothing in the process has its backend changed.
-    from matplotlib.figure import Figure
 
     shown = {k: v for k, v in series.items() if v}
     fig = Figure(figsize=(8, 2.0 * max(1, len(shown))))

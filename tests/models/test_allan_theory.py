@@ -68,11 +68,11 @@ def test_the_noise_term_table_is_the_one_every_scheme_follows() -> None:
     """Model-file keys, fit keys and IEEE symbols come from models/noise_terms.py only."""
     from dataclasses import fields
 
+    from gyrocal.analysis.allan.noise_fit import NoiseFit
+    from gyrocal.metrology.metrics import METRICS
     from gyrocal.models.allan_theory import TERM_KEYS
     from gyrocal.models.gyro_model import NoiseParams
     from gyrocal.models.noise_terms import FIT_KEYS, MODEL_KEYS, NOISE_TERMS
-    from gyrocal.orchestrator.metrics import METRICS
-    from gyrocal.reports.noise_fit import NoiseFit
 
     assert set(f.name for f in fields(NoiseParams)) == set(MODEL_KEYS)
     assert TERM_KEYS == FIT_KEYS == ("Q_arcsec", "N_deg_per_rth", "B_dph", "K_dph_per_rth",

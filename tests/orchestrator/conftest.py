@@ -140,7 +140,7 @@ def when_chamber_commanded(sim: Any, setpoint_c: float, action: Callable[[], Non
 
 
 def events(run_dir: Path) -> list[dict[str, Any]]:
-    from gyrocal.orchestrator.record.run_folder import RunFolder
+    from gyrocal.record.run_folder import RunFolder
 
     return RunFolder.open(run_dir).journal_events()
 
@@ -155,7 +155,7 @@ def completed_ids(run_dir: Path) -> list[str]:
 
 def assert_chunks_intact(run_dir: Path) -> None:
     """Every chunk the journal names exists and hashes to what the journal recorded."""
-    from gyrocal.orchestrator.record.journal import sha256_file
+    from gyrocal.record.journal import sha256_file
 
     written = [e for e in events(run_dir) if e["event"] == "chunk_written"]
     assert written, "no chunk was journaled"

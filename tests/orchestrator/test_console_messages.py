@@ -20,8 +20,8 @@ import yaml
 
 from gyrocal.cli import EXIT_FAULT, main
 from gyrocal.instruments.errors import InstrumentTimeout, describe_reply
-from gyrocal.orchestrator.locks import LOCK_DIR_ENV
 from gyrocal.orchestrator.retry_console import RetryConsole
+from gyrocal.record.locks import LOCK_DIR_ENV
 
 pytestmark = pytest.mark.timeout(120)
 REPO = Path(__file__).resolve().parents[2]

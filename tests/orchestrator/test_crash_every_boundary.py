@@ -2,7 +2,7 @@
 
 Random kill points (test_run_interrupts.py) sample the run; this test walks
 all of its boundaries. The run makes itself die by SIGKILL
-(``GYROCAL_CRASH_AT``, orchestrator/record/crash.py) right before each
+(``GYROCAL_CRASH_AT``, record/crash.py) right before each
 journal line K is written, right after each is fsynced, and inside each
 atomic file write (temporary file complete, not renamed). After each kill:
 ``gyrocal resume`` must exit 0, ``gyrocal verify --key`` must pass, every
@@ -28,9 +28,9 @@ import numpy as np
 import pytest
 
 from gyrocal.cli import EXIT_BAD_INPUT, EXIT_OK, main
-from gyrocal.orchestrator.record.crash import CRASH_AT_ENV
-from gyrocal.orchestrator.record.run_folder import RunFolder
-from gyrocal.orchestrator.signing import generate_key_pair
+from gyrocal.record.crash import CRASH_AT_ENV
+from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.signing import generate_key_pair
 from gyrocal.reports.verify import verify_run_folder
 from tests.support.fork_server import ForkServer
 from tests.support.short_run import SHORT_PLAN, short_procedure
@@ -70,7 +70,7 @@ def boundaries(reference: Path) -> list[str]:
 
 def reference_run(procedure: Path, out: Path) -> None:
     """The uninterrupted run, counting its atomic writes (the tmp: kill points)."""
-    import gyrocal.orchestrator.record.atomic as atomic
+    import gyrocal.record.atomic as atomic
 
     calls = []
     original = atomic.at_atomic_write

@@ -22,7 +22,7 @@ from typing import Any
 import pytest
 
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
-from gyrocal.orchestrator.record.journal import read_journal
+from gyrocal.record.journal import read_journal
 
 pytestmark = pytest.mark.timeout(120)
 

@@ -6,9 +6,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from gyrocal.analysis.measured_log import read_run_folder_log
 from gyrocal.cli import EXIT_OK, main
 from gyrocal.models.gyro_model import load_model
-from gyrocal.reports.measured_log import read_run_folder_log
 
 REPO = Path(__file__).resolve().parents[2]
 

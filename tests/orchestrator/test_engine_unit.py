@@ -22,9 +22,9 @@ from gyrocal.models.clock import SimClock
 from gyrocal.models.imu_model import Mounting
 from gyrocal.orchestrator.engine import EnginePolicy, RunEngine
 from gyrocal.orchestrator.plan import PlanStep
-from gyrocal.orchestrator.record.run_folder import RunFolder
-from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.run_errors import RunFaultError
+from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.step_kind import StepKind
 
 FS_HZ = 100.0
 

@@ -3,7 +3,7 @@ import json
 
 import pytest
 
-from gyrocal.orchestrator.record.journal import GENESIS_SHA256, Journal, JournalError, read_journal
+from gyrocal.record.journal import GENESIS_SHA256, Journal, JournalError, read_journal
 
 
 def test_events_chain_by_the_hash_of_the_previous_line(tmp_path):

@@ -16,8 +16,8 @@ import textwrap
 import numpy as np
 import pytest
 
-from gyrocal.orchestrator.record.journal import Journal, read_journal
-from gyrocal.orchestrator.record.run_folder import SAMPLE_COLUMNS, RunFolder
+from gyrocal.record.journal import Journal, read_journal
+from gyrocal.record.run_folder import SAMPLE_COLUMNS, RunFolder
 
 
 @pytest.fixture
@@ -68,7 +68,7 @@ def test_a_dry_run_journal_killed_with_sigkill_keeps_every_line_it_wrote(tmp_pat
     path = tmp_path / "journal.jsonl"
     child = textwrap.dedent(f"""
         import os, signal
-        from gyrocal.orchestrator.record.journal import Journal
+        from gyrocal.record.journal import Journal
         journal = Journal({str(path)!r}, durable=False)
         for i in range(200):
             journal.append("tick", i=i)

@@ -23,11 +23,11 @@ import jsonschema
 import pytest
 import yaml
 
+from gyrocal.app import reference_docs
 from gyrocal.cli import main
 from gyrocal.inputs import format_key_path, load_yaml
 from gyrocal.models.gyro_model import ModelError
 from gyrocal.models.imu_model import load_any_model
-from gyrocal.orchestrator import reference_docs
 from gyrocal.orchestrator.languages import (
     LANGUAGES,
     MODEL,
@@ -41,9 +41,9 @@ from gyrocal.orchestrator.languages import (
     Variants,
     choose,
 )
-from gyrocal.orchestrator.problems import ProcedureError
 from gyrocal.orchestrator.procedure import load_procedure
 from gyrocal.orchestrator.station import load_station
+from gyrocal.problems import ProcedureError
 
 REPO = Path(__file__).resolve().parents[2]
 FOLDERS = {PROCEDURE.name: "procedures", STATION.name: "stations", MODEL.name: "gyro-models"}

@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
-from gyrocal.orchestrator.locks import (
+from gyrocal.record.locks import (
     LOCK_DIR_ENV,
     FileLock,
     LockBusyError,
@@ -54,7 +54,7 @@ def test_second_lock_is_refused_naming_the_holder_and_released_lock_is_free(tmp_
 
 
 def test_a_killed_holder_leaves_a_stale_record_not_a_blocking_lock(tmp_path: Path) -> None:
-    script = ("import sys, time; from gyrocal.orchestrator.locks import run_folder_lock; "
+    script = ("import sys, time; from gyrocal.record.locks import run_folder_lock; "
               f"run_folder_lock({str(tmp_path)!r}).acquire(); print('held', flush=True); time.sleep(60)")
     child = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
     try:

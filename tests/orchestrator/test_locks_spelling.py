@@ -21,8 +21,8 @@ import pytest
 import yaml
 
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
-from gyrocal.orchestrator.instrument_address import instrument_keys
-from gyrocal.orchestrator.locks import LOCK_DIR_ENV
+from gyrocal.instruments.address import instrument_keys
+from gyrocal.record.locks import LOCK_DIR_ENV
 from tests.orchestrator.test_locks import wait_for, write_live_procedure
 from tests.support.sim_serve import served_station, stop
 from tests.support.tcp_proxy import ExchangeProxy

@@ -12,8 +12,8 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from gyrocal.orchestrator.plan import expand_plan, format_plan
-from gyrocal.orchestrator.problems import ProcedureError
 from gyrocal.orchestrator.procedure import load_procedure
+from gyrocal.problems import ProcedureError
 
 pytestmark = pytest.mark.timeout(120)
 

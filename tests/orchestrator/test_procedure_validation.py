@@ -7,8 +7,8 @@ import pytest
 import yaml
 
 from gyrocal.orchestrator.plan import expand_plan
-from gyrocal.orchestrator.problems import ProcedureError
 from gyrocal.orchestrator.procedure import load_procedure
+from gyrocal.problems import ProcedureError
 
 pytestmark = pytest.mark.timeout(30)
 

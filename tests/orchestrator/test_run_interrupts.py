@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
-from gyrocal.orchestrator.record.journal import read_journal
-from gyrocal.orchestrator.record.run_folder import RunFolder
+from gyrocal.record.journal import read_journal
+from gyrocal.record.run_folder import RunFolder
 
 pytestmark = pytest.mark.timeout(90)
 

@@ -1,7 +1,7 @@
 """The ends of a run: signals at every phase, the safe state after the last step, resume's rules.
 
 Signals are delivered by the run to itself at a chosen record boundary
-(``GYROCAL_CRASH_AT`` with ``GYROCAL_CRASH_SIGNAL``, orchestrator/record/crash.py),
+(``GYROCAL_CRASH_AT`` with ``GYROCAL_CRASH_SIGNAL``, record/crash.py),
 so every phase — connecting, each step, the safe return, the report being
 written, after ``run_completed``, after ``run_closed``, after the seal — is hit
 exactly, not by timing luck. Each ends in exit 3 with no traceback, and
@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from gyrocal.cli import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_OK, main
-from gyrocal.orchestrator.record.crash import CRASH_AT_ENV, CRASH_SIGNAL_ENV
+from gyrocal.record.crash import CRASH_AT_ENV, CRASH_SIGNAL_ENV
 from gyrocal.reports.verify import verify_run_folder
 from tests.support.fork_server import ForkServer
 from tests.support.short_run import SHORT_PLAN, short_procedure

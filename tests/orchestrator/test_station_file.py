@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from gyrocal.orchestrator.problems import ProcedureError
 from gyrocal.orchestrator.station import load_station
+from gyrocal.problems import ProcedureError
 
 pytestmark = pytest.mark.timeout(30)
 

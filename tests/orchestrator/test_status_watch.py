@@ -13,10 +13,10 @@ from typing import Any
 
 import pytest
 
+from gyrocal.app.watch.server import WatchServer
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
-from gyrocal.orchestrator.locks import run_folder_lock
-from gyrocal.orchestrator.record.journal import Journal
-from gyrocal.orchestrator.watch.server import WatchServer
+from gyrocal.record.journal import Journal
+from gyrocal.record.locks import run_folder_lock
 
 
 def _faulted(h: Any, tmp_path: Path) -> Path:

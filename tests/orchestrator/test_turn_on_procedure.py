@@ -8,8 +8,8 @@ import pytest
 
 from gyrocal.orchestrator.plan import expand_plan
 from gyrocal.orchestrator.procedure import TurnOnTest, load_procedure
-from gyrocal.orchestrator.record.step_kind import StepKind
 from gyrocal.orchestrator.turn_on import FIRST_FRAME_TIMEOUT_S
+from gyrocal.record.step_kind import StepKind
 from tests.orchestrator.test_procedure_validation import (
     REPO,
     edit,

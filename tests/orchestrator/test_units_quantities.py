@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from gyrocal.orchestrator.units import (
+from gyrocal.units import (
     ACCELERATION,
     RATE,
     TEMPERATURE,

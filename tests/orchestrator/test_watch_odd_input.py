@@ -133,7 +133,7 @@ def test_status_and_watch_describe_a_damaged_folder_naming_the_file(
         err = capsys.readouterr().err
         assert named in err and "Traceback" not in err and "internal error" not in err, err
 
-    from gyrocal.orchestrator.watch.server import WatchServer
+    from gyrocal.app.watch.server import WatchServer
 
     if case == "manifest a folder":   # refused at start, as status refuses it
         assert main(["watch", str(run), "--port", "0"]) == EXIT_BAD_INPUT

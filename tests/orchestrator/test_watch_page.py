@@ -20,8 +20,8 @@ from typing import Any
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
+from gyrocal.app.watch.server import WatchServer
 from gyrocal.cli import EXIT_FAULT, main
-from gyrocal.orchestrator.watch.server import WatchServer
 from tests.support.browser import headless_chromium
 
 PATIENCE_S = 120   # an upper bound for a loaded CI machine, not a speed claim

@@ -9,9 +9,9 @@ import allantools
 import numpy as np
 import pytest
 
-from gyrocal.reports.allan import overlapping_adev
-from gyrocal.reports.allan_edf import ONE_SIGMA_CONFIDENCE, chi2_interval, edf_greenhall
-from gyrocal.reports.noise_id import identify_alpha_from_averages
+from gyrocal.analysis.allan.deviation import overlapping_adev
+from gyrocal.analysis.allan.edf import ONE_SIGMA_CONFIDENCE, chi2_interval, edf_greenhall
+from gyrocal.analysis.allan.noise_id import identify_alpha_from_averages
 
 pytestmark = pytest.mark.timeout(120)
 

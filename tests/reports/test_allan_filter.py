@@ -1,7 +1,7 @@
 """`analyze allan --filter`: the filters against truths derived by hand from their equations.
 
 For white rate noise of per-sample variance s², the steady-state Kalman filter
-of reports/allan_filter.py is the first-order smoother x_k = (1 − g)·x_k−1 +
+of analysis/allan/filtering.py is the first-order smoother x_k = (1 − g)·x_k−1 +
 g·y_k with g = 1/(τ_f·fs); its output has variance s²·g/(2 − g) and lag-one
 correlation 1 − g, so its Allan variance at τ = 1/fs is s²·g²/(2 − g), while
 at τ ≫ τ_f it is the input's (the filter keeps what changes slowly).
@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gyrocal.analysis.allan import filtering as af
 from gyrocal.cli import main
-from gyrocal.reports import allan_filter as af
 
 pytestmark = pytest.mark.timeout(120)
 FS_HZ = 100.0

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from gyrocal.reports import allan_kernel
-from gyrocal.reports.allan import overlapping_adev
+from gyrocal.analysis.allan import kernel as allan_kernel
+from gyrocal.analysis.allan.deviation import overlapping_adev
 
 
 def test_numba_is_installed_so_the_fast_path_is_what_runs():

@@ -4,7 +4,7 @@ import allantools
 import numpy as np
 import pytest
 
-from gyrocal.reports.allan import log_spaced_m, overlapping_adev
+from gyrocal.analysis.allan.deviation import log_spaced_m, overlapping_adev
 
 pytestmark = pytest.mark.timeout(60)
 

@@ -13,11 +13,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from gyrocal.reports.allan import adev_from_blocks, log_spaced_m, overlapping_adev
-from gyrocal.reports.allan_kernel import TILE
-from gyrocal.reports.allan_sources import open_record
-from gyrocal.reports.allan_stream import FilePhase, MemoryPhase, rechunk, record_stats, write_phase
-from gyrocal.reports.measured_log import LogFormatError
+from gyrocal.analysis.allan.deviation import adev_from_blocks, log_spaced_m, overlapping_adev
+from gyrocal.analysis.allan.kernel import TILE
+from gyrocal.analysis.allan.sources import open_record
+from gyrocal.analysis.allan.stream import FilePhase, MemoryPhase, rechunk, record_stats, write_phase
+from gyrocal.analysis.measured_log import LogFormatError
 
 pytestmark = pytest.mark.timeout(120)
 

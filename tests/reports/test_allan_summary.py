@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from gyrocal.reports import allan_summary
-from gyrocal.reports.allan import overlapping_adev
+from gyrocal.analysis.allan import summary as allan_summary
+from gyrocal.analysis.allan.deviation import overlapping_adev
 
 
 def test_long_records_get_the_exact_curve_not_an_approximation():

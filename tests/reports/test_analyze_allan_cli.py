@@ -89,7 +89,7 @@ def test_unknown_column_and_time_gap_are_bad_input(tmp_path, capsys):
 
 
 def test_run_folder_uses_its_longest_hold(tmp_path, smoke_run, capsys):
-    from gyrocal.orchestrator.record.run_folder import RunFolder
+    from gyrocal.record.run_folder import RunFolder
 
     run_dir = smoke_run
     capsys.readouterr()

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from gyrocal.cli import main
-from gyrocal.orchestrator.record.journal import read_journal
+from gyrocal.record.journal import read_journal
 from gyrocal.reports.results import REQUIRED_KEYS, evaluate_acceptance, lookup_metric
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -176,7 +176,7 @@ def test_allan_terms_carry_u_big_u_k_and_a_budget(smoke_run):
     import json
     import math
 
-    from gyrocal.reports.gum import coverage_factor
+    from gyrocal.metrology.gum import coverage_factor
 
     results = json.loads((smoke_run / "report" / "results.json").read_text())
     allan = results["allan"]

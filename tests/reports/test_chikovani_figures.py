@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gyrocal.analysis.allan.noise_fit import fit_noise_terms, markov_avar_unit
+from gyrocal.analysis.allan.summary import allan_curve, fit_curve
 from gyrocal.models.gyro_model import load_model
 from gyrocal.models.gyro_sim import simulate
-from gyrocal.reports.allan_summary import allan_curve, fit_curve
-from gyrocal.reports.noise_fit import fit_noise_terms, markov_avar_unit
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.timeout(60)

@@ -12,16 +12,16 @@ import shutil
 
 import pytest
 
-from gyrocal.reports.build import build_report
-from gyrocal.reports.decision import (
+from gyrocal.metrology.decision import (
     Decision,
     DecisionRule,
     decide,
     instrument_blockers,
     overall_verdict,
 )
+from gyrocal.metrology.sanity import SanityCheck
+from gyrocal.reports.build import build_report
 from gyrocal.reports.results import evaluate_acceptance
-from gyrocal.reports.sanity import SanityCheck
 
 OK = [SanityCheck("scale factor near nominal", True, "fine")]
 

@@ -1,8 +1,8 @@
-"""A dwell's worst tenth against the rest (reports/dwell.py ``segment_drift``), worked by hand."""
+"""A dwell's worst tenth against the rest (analysis/rate/dwell.py ``segment_drift``), worked by hand."""
 
 import numpy as np
 
-from gyrocal.reports.dwell import segment_drift
+from gyrocal.analysis.rate.dwell import segment_drift
 
 
 def test_ramp_samples_at_the_start_of_a_dwell_stand_out_in_its_first_tenth():

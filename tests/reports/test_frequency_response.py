@@ -11,15 +11,15 @@ import math
 import numpy as np
 import pytest
 
-from gyrocal.models.gyro_model import EffectSpec, GyroModel, NoiseParams
-from gyrocal.models.gyro_sim import simulate
-from gyrocal.reports.frequency_response import (
+from gyrocal.analysis.rate.frequency_response import (
     ResponsePoint,
     bandwidth_3db,
     fit_sine,
     phase_at,
     response_point,
 )
+from gyrocal.models.gyro_model import EffectSpec, GyroModel, NoiseParams
+from gyrocal.models.gyro_sim import simulate
 
 pytestmark = pytest.mark.timeout(60)
 FS_HZ = 2000.0

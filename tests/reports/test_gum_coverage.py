@@ -1,7 +1,7 @@
 """The coverage factor of a budget with a rectangular input, against closed forms.
 
 For Σ c_i·X_i the 95 % point is known exactly in three cases, which the
-convolution in ``reports/gum.py`` must reproduce: one rectangular input
+convolution in ``metrology/gum.py`` must reproduce: one rectangular input
 (P(|X| <= y) = y / a), two equal rectangular inputs (a triangular sum,
 P(|Y| <= y) = 1 - (1 - y / 2a)²), and a rectangular plus a normal input
 (the uniform mixture of normal CDFs, integrated in closed form); the
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy import optimize, stats
 
-from gyrocal.reports.gum import Contribution, EvalType, linear_coverage_factor
+from gyrocal.metrology.gum import Contribution, EvalType, linear_coverage_factor
 
 P = 0.95
 
@@ -72,10 +72,10 @@ def test_type_a_inputs_are_scaled_t_as_in_a_large_monte_carlo_draw(dof):
 
 @pytest.mark.parametrize("dof_main", [1.0, 3.0, 9.0])
 def test_a_long_budget_on_the_short_window_equals_the_full_convolution(monkeypatch, dof_main):
-    """121 type A terms and a rectangular (a compensation table's budget, reports/uncertainty_section.py):
+    """121 type A terms and a rectangular (a compensation table's budget, reports/sections/uncertainty.py):
     the convolution kept over four reaches gives the k of the full n-reach one. A dominant
     low-dof term puts the most mass in the folded end cells, the case the window could miss."""
-    import gyrocal.reports.gum as gum
+    import gyrocal.metrology.gum as gum
 
     rng = np.random.default_rng(30)
     parts = [part(float(u), dof=9.0) for u in rng.uniform(0.01, 0.1, 120)]

@@ -76,7 +76,7 @@ def test_overdue_calibration_and_failed_limit_are_flagged(evil_run):
 def test_values_carry_their_expanded_uncertainty_and_the_decision(smoke_run):
     """Issue 11: SF, bias and acceptance values are printed as value ± U with the digits U
     supports (GUM 7.2.6), with k and the decision rule; a CONDITIONAL decision is shown."""
-    from gyrocal.reports.gum import round_to_uncertainty
+    from gyrocal.metrology.gum import round_to_uncertainty
     from gyrocal.reports.html_report import render_html
 
     results = json.loads((smoke_run / "report" / "results.json").read_text())

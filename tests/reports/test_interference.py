@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
+from gyrocal.analysis.environment.interference import compare, drift_dph, sine_amplitude
 from gyrocal.cli import main
-from gyrocal.reports.interference import compare, drift_dph, sine_amplitude
 
 FS_HZ = 250.0
 N = 150_000                         # 600 s

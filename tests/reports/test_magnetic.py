@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from gyrocal.reports.magnetic import field_t, sensitivity
+from gyrocal.analysis.environment.magnetic import field_t, sensitivity
 
 
 def test_slope_and_uncertainty_by_hand():

@@ -3,7 +3,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from gyrocal.reports.measured_log import LogFormatError, read_measured_log
+from gyrocal.analysis.measured_log import LogFormatError, read_measured_log
 
 HEADER = "t_s,table_rate_dps,chamber_temp_c,gyro,sensor_temp_c\n"
 

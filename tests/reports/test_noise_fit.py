@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from gyrocal.reports.allan import overlapping_adev
-from gyrocal.reports.noise_fit import (
+from gyrocal.analysis.allan.deviation import overlapping_adev
+from gyrocal.analysis.allan.noise_fit import (
     MARKOV_PEAK_RATIO,
     TERM_NAMES,
     fit_noise_terms,

@@ -1,4 +1,4 @@
-"""Input-rate limits analysis (reports/rate_limits.py) on hand-typed dwell means."""
+"""Input-rate limits analysis (analysis/rate/rate_limits.py) on hand-typed dwell means."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from gyrocal.reports.rate_limits import LimitDwell, rate_limits_section
+from gyrocal.analysis.rate.rate_limits import LimitDwell, rate_limits_section
 
 
 def walk(outputs: dict[float, float], tolerance_pct: float = 1.0, fit: int = 2) -> list[LimitDwell]:
@@ -46,7 +46,7 @@ def test_an_unreached_limit_is_a_lower_bound_with_no_uncertainty_and_a_note():
 
 
 def test_a_walk_on_a_line_far_from_the_nominal_sf_makes_the_run_invalid():
-    from gyrocal.reports.sanity import check_physics, verdict
+    from gyrocal.metrology.sanity import check_physics, verdict
 
     section = rate_limits_section(walk({50.0: -50.0, 100.0: -100.0, 150.0: -150.0}), [])
     results = {"unit_under_test": {"nominal_scale_factor": 1.0}, "rate_limits": section}

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from gyrocal.cli import EXIT_ACCEPTANCE_FAILED, main
+from gyrocal.metrology.sanity import check_physics, verdict
 from gyrocal.reports.results import evaluate_acceptance
-from gyrocal.reports.sanity import check_physics, verdict
 
 
 def results(sf: float = 1.0002, nonlinearity: float = 0.001, mean: float = 10.0,

@@ -5,15 +5,15 @@ import math
 import numpy as np
 import pytest
 
-from gyrocal.reports.bias import (
+from gyrocal.analysis.rate.dwell import Dwell, dwell_from_samples, dwell_mean
+from gyrocal.analysis.rate.scale_factor import analyze_by_temperature, analyze_scale_factor
+from gyrocal.analysis.thermal.bias import (
     bias_by_temperature,
     bias_sensitivity_dph_per_c,
     earth_rate_vertical_dph,
     sf_temperature,
 )
-from gyrocal.reports.compensation import piecewise_linear, polynomial
-from gyrocal.reports.dwell import Dwell, dwell_from_samples, dwell_mean
-from gyrocal.reports.scale_factor import analyze_by_temperature, analyze_scale_factor
+from gyrocal.analysis.thermal.compensation import piecewise_linear, polynomial
 
 pytestmark = pytest.mark.timeout(60)
 

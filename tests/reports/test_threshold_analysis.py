@@ -1,4 +1,4 @@
-"""Threshold and resolution analysis (reports/threshold.py) on hand-typed dwell means."""
+"""Threshold and resolution analysis (analysis/rate/threshold.py) on hand-typed dwell means."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from gyrocal.reports.threshold import ThresholdDwell, bracket, increments, threshold_section
+from gyrocal.analysis.rate.threshold import ThresholdDwell, bracket, increments, threshold_section
 
 
 def dwells(base_dps: float, pairs: list[tuple[float, float]], ref_means: list[float],

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from gyrocal.reports.tilt_linearity import (
+from gyrocal.analysis.environment.tilt_linearity import (
     POINTS_30_DEG,
     POINTS_90_DEG,
     lateral_sensitivity_pct,

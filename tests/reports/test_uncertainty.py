@@ -16,15 +16,15 @@ import numpy as np
 import pytest
 from scipy.optimize import curve_fit
 
-from gyrocal.reports import bias as bias_mod
-from gyrocal.reports.gum import (
+from gyrocal.analysis.rate.scale_factor import analyze_scale_factor
+from gyrocal.analysis.thermal import bias as bias_mod
+from gyrocal.metrology.gum import (
     batch_mean_sem,
     coverage_factor,
     monte_carlo,
     welch_satterthwaite,
 )
-from gyrocal.reports.scale_factor import analyze_scale_factor
-from gyrocal.reports.uncertainty import (
+from gyrocal.metrology.uncertainty import (
     MeanU,
     TypeB,
     mean_inputs,
@@ -134,7 +134,7 @@ def test_batch_means_sem_sees_correlated_noise():
 def test_a_dominant_rectangular_input_gets_its_own_95_percent_point() -> None:
     """One rectangular input alone: 95 % of a uniform ±a lies within 0.95·a = 1.645 u
     (GUM G.2.3), not t(∞)·u = 1.96 u; a dominant normal input keeps k ≈ 1.96."""
-    from gyrocal.reports.gum import Contribution, EvalType, combine
+    from gyrocal.metrology.gum import Contribution, EvalType, combine
 
     rect = Contribution("rate", "station", EvalType.B, "rectangular", 1.0, 1.0, 1.0, math.inf)
     alone = combine(0.0, [rect])
@@ -146,8 +146,8 @@ def test_a_dominant_rectangular_input_gets_its_own_95_percent_point() -> None:
 
 def test_nonlinearity_noise_draws_are_what_the_analysis_gives() -> None:
     """The vectorised maps against analyze_scale_factor itself on the same sampled means."""
-    from gyrocal.reports.dwell import Dwell
-    from gyrocal.reports.uncertainty import NOISE_BOUND_SEED, nonlinearity_noise_draws
+    from gyrocal.analysis.rate.dwell import Dwell
+    from gyrocal.metrology.uncertainty import NOISE_BOUND_SEED, nonlinearity_noise_draws
 
     rates = (10.0, -10.0, 50.0, -50.0, 100.0, -100.0, 200.0, -200.0)
     means = [MeanU(25.0, r, 0.999 * r + 0.003, 2e-5 * (1 + abs(r) / 50), 9.0, f"s{r}")
@@ -168,8 +168,8 @@ def test_compensation_entries_carry_the_points_budgets_through_the_table() -> No
     """Piecewise entries are the points (same u); polynomial entries agree with a Monte Carlo
     of numpy's polyfit over the points drawn from their budgets, a common rate-scale line
     moving all points together (fully correlated) and each point's own noise apart."""
-    from gyrocal.reports import compensation as comp
-    from gyrocal.reports.uncertainty_section import table_entry_uncertainty
+    from gyrocal.analysis.thermal import compensation as comp
+    from gyrocal.reports.sections.uncertainty import table_entry_uncertainty
 
     temps = [-40.0, -10.0, 25.0, 50.0, 75.0]
     values = [0.99990, 0.99995, 1.0, 1.00004, 1.00009]

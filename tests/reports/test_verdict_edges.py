@@ -16,10 +16,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from gyrocal.analysis.allan.summary import allan_curve, fit_curve, identifiability_json
+from gyrocal.app.run_commands import verdict_line
 from gyrocal.cli import EXIT_ACCEPTANCE_FAILED, EXIT_FAULT, main
-from gyrocal.orchestrator.commands import verdict_line
-from gyrocal.reports.allan_summary import allan_curve, fit_curve, identifiability_json
-from gyrocal.reports.decision import overall_verdict
+from gyrocal.metrology.decision import overall_verdict
 from gyrocal.reports.results import evaluate_acceptance
 from tests.orchestrator.conftest import write_station
 

@@ -30,7 +30,7 @@ from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
 from gyrocal.cli import main
-from gyrocal.orchestrator.signing import SIGNED_FIELDS, fingerprint, generate_key_pair
+from gyrocal.record.signing import SIGNED_FIELDS, fingerprint, generate_key_pair
 from gyrocal.reports.verify import verify_run_folder
 
 pytestmark = pytest.mark.timeout(300)

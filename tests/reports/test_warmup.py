@@ -1,4 +1,4 @@
-"""Warm-up fit and turn-on repeatability (reports/warmup.py) against the simulator's
+"""Warm-up fit and turn-on repeatability (analysis/thermal/warmup.py) against the simulator's
 ``warmup_transient`` (models/effects.py) with a hand-typed truth: A = 30 deg/h, τ = 60 s
 on a bias of 2 deg/h; the time to a ±1 deg/h band is 60·ln 30 = 204.1 s."""
 
@@ -9,14 +9,14 @@ import math
 import numpy as np
 import pytest
 
-from gyrocal.models.gyro_model import EffectSpec, GyroModel, NoiseParams
-from gyrocal.models.gyro_sim import simulate
-from gyrocal.reports.warmup import (
+from gyrocal.analysis.thermal.warmup import (
     COVERAGE_K,
     fit_warmup,
     measured_time_to_band_s,
     turn_on_repeatability,
 )
+from gyrocal.models.gyro_model import EffectSpec, GyroModel, NoiseParams
+from gyrocal.models.gyro_sim import simulate
 
 pytestmark = pytest.mark.timeout(120)
 FS_HZ = 100.0

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gyrocal.orchestrator.record.journal import Journal, JournalEvent
-from gyrocal.orchestrator.record.run_folder import RunFolder
+from gyrocal.record.journal import Journal, JournalEvent
+from gyrocal.record.run_folder import RunFolder
 
 FS_HZ = 50.0
 LATITUDE = 50.46

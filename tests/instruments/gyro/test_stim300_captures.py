@@ -17,12 +17,12 @@ import numpy as np
 import pytest
 from ubc_captures import FAST, FRAME, SLOW, struct_reader
 
+from gyrocal.analysis.measured_log import read_measured_log
 from gyrocal.cli import EXIT_BAD_INPUT, EXIT_OK, main
 from gyrocal.inputs import InputError
 from gyrocal.instruments.gyro.capture import read_capture
 from gyrocal.instruments.gyro.datagram import FrameDecoder
 from gyrocal.instruments.gyro.survey import survey_stream
-from gyrocal.reports.measured_log import read_measured_log
 
 
 @pytest.mark.parametrize("path, frames, rate_hz, step", [(FAST, 400, 2000.0, 1), (SLOW, 300, 125.0, 16)])

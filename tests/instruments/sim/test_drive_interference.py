@@ -16,12 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gyrocal.analysis.environment.interference import compare
 from gyrocal.instruments.gyro.stim300 import Stim300Gyro
 from gyrocal.instruments.sim.station_sim import SimulatedStation
 from gyrocal.instruments.table.acutrol import Acutrol3000Table
 from gyrocal.models.clock import SimClock
 from gyrocal.orchestrator.station import load_station
-from gyrocal.reports.interference import compare
 
 REPO = Path(__file__).resolve().parents[3]
 FS_HZ = 250.0

@@ -4,7 +4,7 @@ Through the real transports: the Keysight E36300 driver over SCPI/TCP to the sup
 simulator, the STIM300 driver over a pty. With ``simulation.gyro_startup_s`` the unit
 sends nothing while the output is off, its first frame comes that start-up delay after
 the output-on, and its warm-up transient (the catalogue's ``warmup_transient``) restarts
-at every power-on: the fit of reports/warmup.py recovers the hand-typed τ and amplitude
+at every power-on: the fit of analysis/thermal/warmup.py recovers the hand-typed τ and amplitude
 after a first and after a second power cycle.
 """
 
@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 import yaml
 
+from gyrocal.analysis.thermal.warmup import fit_warmup
 from gyrocal.instruments.errors import InstrumentTimeout
 from gyrocal.instruments.gyro.stim300 import Stim300Gyro
 from gyrocal.instruments.sim.station_sim import SimulatedStation
 from gyrocal.instruments.supply.keysight_e36300 import KeysightE36300Supply
 from gyrocal.models.clock import SimClock
 from gyrocal.orchestrator.station import load_station
-from gyrocal.reports.warmup import fit_warmup
 
 REPO = Path(__file__).resolve().parents[3]
 FS_HZ = 250.0

@@ -6,15 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gyrocal.models.gyro_model import EffectSpec
-from gyrocal.reports.discrepancy import scenarios, signatures
-from gyrocal.reports.discrepancy.segments import make_bins
-from gyrocal.reports.discrepancy.signatures import (
+from gyrocal.analysis.discrepancy.segments import make_bins
+from gyrocal.analysis.discrepancy.signatures import (
     DesignBuilder,
     model_columns,
     unit_model,
     zero_linear,
 )
+from gyrocal.models.gyro_model import EffectSpec
+from gyrocal.reports.discrepancy import scenarios, signatures
 
 
 @pytest.mark.parametrize("parallel", [False, True])

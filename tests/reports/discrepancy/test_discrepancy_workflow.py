@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from gyrocal.analysis.discrepancy.noise_model import NoiseModel
+from gyrocal.analysis.discrepancy.periodic import max_exponential_score
+from gyrocal.analysis.discrepancy.scoring import score_from_delta
+from gyrocal.analysis.measured_log import LogFormatError
 from gyrocal.models.gyro_model import ModelError, dump_model, load_model
 from gyrocal.models.noise import GaussMarkov
 from gyrocal.reports.discrepancy import scenarios
-from gyrocal.reports.discrepancy.noise_model import NoiseModel
-from gyrocal.reports.discrepancy.periodic import max_exponential_score
-from gyrocal.reports.discrepancy.scoring import score_from_delta
-from gyrocal.reports.measured_log import LogFormatError
 
 PROFILE = scenarios.procedure_profile(3600.0, 5.0)
 
@@ -102,7 +102,7 @@ def _rewrite(src: Path, dst: Path, edit) -> Path:
 
 
 def test_bad_logs_name_the_row_and_column(files):
-    from gyrocal.reports.discrepancy.command import run_discrepancy
+    from gyrocal.app.discrepancy_command import run_discrepancy
 
     log, model = files / "log.csv", files / "nominal.yaml"
     missing = _rewrite(log, files / "missing.csv",
@@ -130,7 +130,7 @@ def test_bad_logs_name_the_row_and_column(files):
 
 
 def test_unknown_effect_in_the_model_names_the_key(files):
-    from gyrocal.reports.discrepancy.command import run_discrepancy
+    from gyrocal.app.discrepancy_command import run_discrepancy
 
     bad = files / "bad-model.yaml"
     bad.write_text((files / "nominal.yaml").read_text().replace("effects: []", "effects:\n- name: shupe_magic\n"))
@@ -177,7 +177,7 @@ def _check_the_story_reads_right(html: str, document: dict) -> None:
     import io
     import re
 
-    from gyrocal.reports.discrepancy.html import METRIC_LABELS
+    from gyrocal.reports.discrepancy_story import METRIC_LABELS
 
     text = re.sub(r"<[^>]+>", " ", re.sub(r'src="data:[^"]+"', "", html))
     text = " ".join(text.split())

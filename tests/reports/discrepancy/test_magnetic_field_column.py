@@ -11,13 +11,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from gyrocal.analysis.discrepancy.signatures import searched_effects
+from gyrocal.analysis.discrepancy.workflow import analyse
+from gyrocal.analysis.measured_log import MeasuredLog
 from gyrocal.models.gyro_model import EffectSpec
 from gyrocal.models.gyro_sim import simulate
 from gyrocal.models.indicated import ModelInputs
 from gyrocal.reports.discrepancy import scenarios
-from gyrocal.reports.discrepancy.signatures import searched_effects
-from gyrocal.reports.discrepancy.workflow import analyse
-from gyrocal.reports.measured_log import MeasuredLog
 
 K_DPH_PER_T = 2000.0
 
@@ -53,7 +53,7 @@ def test_without_the_field_column_the_effect_is_not_searched():
 
 
 def test_a_csv_log_with_field_t_is_read_and_an_impossible_field_named(tmp_path):
-    from gyrocal.reports.measured_log import LogFormatError, read_measured_log
+    from gyrocal.analysis.measured_log import LogFormatError, read_measured_log
 
     good = tmp_path / "log.csv"
     good.write_text("t_s,table_rate_dps,chamber_temp_c,gyro,field_t\n"

@@ -19,11 +19,11 @@ import functools
 import numpy as np
 import pytest
 
+from gyrocal.analysis.discrepancy.noise_model import NoiseModel
+from gyrocal.analysis.discrepancy.segments import make_bins
+from gyrocal.analysis.discrepancy.stochastic import WhittleTest, stationarity_test
 from gyrocal.models.gyro_model import EffectSpec
 from gyrocal.reports.discrepancy import scenarios, workflow
-from gyrocal.reports.discrepancy.noise_model import NoiseModel
-from gyrocal.reports.discrepancy.segments import make_bins
-from gyrocal.reports.discrepancy.stochastic import WhittleTest, stationarity_test
 
 MAX_BINS = 1000
 

@@ -9,9 +9,9 @@ spurious 13.8 Hz and a 0.5″ pulse crashed the noise fit (OverflowError).
 import numpy as np
 import pytest
 
+from gyrocal.analysis.discrepancy.quantization import detect_pulse, line_within_quantization
 from gyrocal.models.gyro_model import EffectSpec
 from gyrocal.reports.discrepancy import scenarios
-from gyrocal.reports.discrepancy.quantization import detect_pulse, line_within_quantization
 
 pytestmark = pytest.mark.timeout(300)
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from gyrocal.reports.discrepancy.segments import derive_segments
+from gyrocal.analysis.discrepancy.segments import derive_segments
 
 
 def _quiet_seconds(segments, fs: float) -> float:
@@ -29,7 +29,7 @@ def test_the_workflow_runs_its_linear_algebra_on_one_blas_thread(monkeypatch) ->
     """Issue 15: threadpoolctl, not hand-written ctypes, limits BLAS inside the analysis."""
     from threadpoolctl import threadpool_info
 
-    from gyrocal.reports.discrepancy import workflow
+    from gyrocal.analysis.discrepancy import workflow
 
     seen = []
     monkeypatch.setattr(workflow, "_analyse", lambda *a, **k: seen.append(

@@ -5,9 +5,9 @@ from pathlib import Path
 import pytest
 import yaml
 
+from gyrocal.analysis.discrepancy.lookalikes import separating_experiment
 from gyrocal.orchestrator.plan import expand_plan
 from gyrocal.orchestrator.procedure import load_procedure
-from gyrocal.reports.discrepancy.lookalikes import separating_experiment
 
 REPO = Path(__file__).resolve().parents[3]
 

@@ -1,4 +1,4 @@
-"""The whole-record Markov test (reports/discrepancy/stochastic.py).
+"""The whole-record Markov test (analysis/discrepancy/stochastic.py).
 
 Its likelihood is Whittle's, in the frequency domain; the oracle is the exact
 Gaussian likelihood of the same bin means in the time domain, from the noise
@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
 
+from gyrocal.analysis.discrepancy.noise_model import NoiseModel
+from gyrocal.analysis.discrepancy.segments import make_bins
+from gyrocal.analysis.discrepancy.stochastic import WhittleTest, gm_bin_spectrum
 from gyrocal.reports.discrepancy import scenarios
-from gyrocal.reports.discrepancy.noise_model import NoiseModel
-from gyrocal.reports.discrepancy.segments import make_bins
-from gyrocal.reports.discrepancy.stochastic import WhittleTest, gm_bin_spectrum
 
 FS_HZ = 5.0
 WHITE = NoiseModel(arw_deg_per_rth=0.01)

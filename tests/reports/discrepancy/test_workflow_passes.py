@@ -10,14 +10,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gyrocal.reports.discrepancy import scenarios
-from gyrocal.reports.discrepancy.workflow import (
+from gyrocal.analysis.discrepancy.workflow import (
     _Analysis,
     _gap_pass,
     _noise_pass,
     _Search,
     _search_pass,
 )
+from gyrocal.reports.discrepancy import scenarios
 
 PROFILE = scenarios.procedure_profile(3600.0, 5.0)
 pytestmark = pytest.mark.timeout(120)

@@ -1,12 +1,12 @@
-"""Six-position accelerometer calibration (reports/imu/accel.py) against truths typed here."""
+"""Six-position accelerometer calibration (analysis/imu/accel.py) against truths typed here."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from gyrocal.analysis.imu.accel import AccStatic, compensate_force, fit_accelerometers, static_mean
 from gyrocal.models.imu_model import Mounting
-from gyrocal.reports.imu.accel import AccStatic, compensate_force, fit_accelerometers, static_mean
 
 POSITIONS = ("+x", "+y", "+z", "-x", "-y", "-z")
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from gyrocal.analysis.imu.matrix import ImuDwell, compensate, fit_temperature
 from gyrocal.models.imu_model import Mounting, vertical_earth_rate_dps
-from gyrocal.reports.imu.matrix import ImuDwell, compensate, fit_temperature
 
 LATITUDE = 50.46
 # A made-up IMU: scale factors 1 ± a few hundred ppm, cross terms of a few hundred µrad.

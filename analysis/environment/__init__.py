@@ -1,0 +1,1 @@
+"""The vendor notes' environment tests: drive interference, magnetic sensitivity, tilt linearity."""

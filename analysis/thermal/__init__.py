@@ -1,0 +1,1 @@
+"""Temperature effects: bias and scale-factor sensitivity, warm-up, compensation tables."""

@@ -1,0 +1,139 @@
+"""Decision rules and the run's overall verdict: the one owner of PASS / FAIL / CONDITIONAL.
+
+A calibration lab states how it decides conformity when a measured value has
+an uncertainty (ISO/IEC 17025 §7.8.6, ILAC-G8:09/2019, JCGM 106:2012):
+
+* ``simple`` (the default, as before this module existed): the value alone
+  is compared with the limit; the measurement uncertainty is stated beside it
+  and the risk of a false accept may be up to 50 % at the limit;
+* ``guarded`` (ILAC-G8 guarded acceptance with guard band w = U, ISO 14253-1):
+  PASS only if the whole interval value ± U is inside the limit, FAIL only if it
+  is wholly outside, otherwise CONDITIONAL ("conformity indeterminate").
+
+The overall verdict, in order of precedence: INVALID (physics checks:
+sanity.py) > FAIL (any limit failed) > BLOCKED (a reference instrument whose
+calibration was due before the run, unless the station waives it with a
+reason; or an identity the instrument reported that differs from the
+station's declared one) > INCOMPLETE (a limit NOT EVALUATED: the step its
+metric needs never completed, or a noise term the record cannot identify) >
+CONDITIONAL (any guarded limit indeterminate) > PASS. Only PASS exits 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import Enum
+from typing import Any, Protocol
+
+from gyrocal.instruments.identity import reported_serial
+
+
+class Check(Protocol):
+    """A physics check's outcome (sanity.SanityCheck; sanity.py imports this module)."""
+
+    name: str
+    ok: bool
+    detail: str
+
+
+class DecisionRule(str, Enum):
+    SIMPLE = "simple"
+    GUARDED = "guarded"
+
+
+class Decision(str, Enum):
+    PASS = "PASS"
+    FAIL = "FAIL"
+    CONDITIONAL = "CONDITIONAL"
+    #: the step the metric needs was not completed (an interrupted run's rebuilt report),
+    #: or the metric is a noise term this record cannot identify and its upper bound
+    #: does not settle the limit: nothing was measured to judge
+    NOT_EVALUATED = "NOT EVALUATED"
+
+
+DEFAULT_RULE = DecisionRule.SIMPLE
+
+
+def decide(value: float, expanded_u: float | None, limit: float, kind: str,
+           rule: DecisionRule) -> tuple[Decision, float]:
+    """One limit's decision and the guard band used (0 under the simple rule).
+
+    ``kind`` is "max" (value ≤ limit conforms) or "min" (value ≥ limit).
+    Under the guarded rule a missing U cannot be guarded: CONDITIONAL.
+    """
+    if kind not in ("max", "min"):
+        raise ValueError(f"limit kind must be max or min, got {kind!r}")
+    sign = 1.0 if kind == "max" else -1.0
+    margin = sign * (limit - value)          # > 0: inside the limit
+    if rule is DecisionRule.SIMPLE:
+        return (Decision.PASS if margin >= 0 else Decision.FAIL), 0.0
+    if expanded_u is None:
+        return Decision.CONDITIONAL, float("nan")
+    guard = abs(expanded_u)
+    if margin >= guard:
+        return Decision.PASS, guard
+    if margin < -guard:
+        return Decision.FAIL, guard
+    return Decision.CONDITIONAL, guard
+
+
+@dataclass(frozen=True)
+class Blocker:
+    """Why a run whose limits all pass still cannot be called PASS."""
+
+    role: str
+    reason: str
+
+
+def instrument_blockers(instruments: dict[str, Any]) -> list[Blocker]:
+    """Overdue reference calibrations (unless waived) and declared-vs-reported serial mismatches.
+
+    ``instruments`` is results.json's ``instruments`` section; each entry gets
+    ``reported_serial`` and ``identity_mismatch`` added.
+    """
+    blockers = []
+    for role, entry in sorted(instruments.items()):
+        if entry.get("calibration_overdue"):
+            waiver = entry.get("calibration_waiver")
+            if waiver:
+                entry["waived"] = f"calibration overdue, waived by the station: {waiver}"
+            else:
+                blockers.append(Blocker(role, "reference instrument out of calibration "
+                                              f"(due {entry.get('calibration_due')})"))
+        reported = reported_serial(entry.get("description")) if role != "gyro" else None
+        entry["reported_serial"] = reported
+        declared = entry.get("serial")
+        mismatch = bool(reported and declared and reported.strip().upper()
+                        != str(declared).strip().upper())
+        entry["identity_mismatch"] = mismatch
+        if mismatch:
+            blockers.append(Blocker(role, f"identity mismatch: the station declares serial "
+                                          f"{declared!r}, the instrument reported {reported!r}"))
+    return blockers
+
+
+def overall_verdict(checks: Sequence[Check], acceptance: list[dict[str, Any]],
+                    blockers: list[Blocker]) -> dict[str, Any]:
+    """INVALID > FAIL > BLOCKED > CONDITIONAL > PASS, with every reason named."""
+    failed = [c for c in checks if not c.ok]
+    decisions = {a.get("decision") or ("PASS" if a.get("pass") else "FAIL") for a in acceptance}
+    if failed:
+        overall = "INVALID"
+    elif Decision.FAIL.value in decisions:
+        overall = "FAIL"
+    elif blockers:
+        overall = "BLOCKED"
+    elif Decision.NOT_EVALUATED.value in decisions:
+        overall = "INCOMPLETE"
+    elif Decision.CONDITIONAL.value in decisions:
+        overall = "CONDITIONAL"
+    else:
+        overall = "PASS"
+    return {"overall": overall, "invalid_because": [f"{c.name}: {c.detail}" for c in failed],
+            "blocked_because": [f"{b.role}: {b.reason}" for b in blockers],
+            "conditional": sorted(a["name"] for a in acceptance
+                                  if a.get("decision") == Decision.CONDITIONAL.value),
+            "not_evaluated": sorted(a["name"] for a in acceptance
+                                    if a.get("decision") == Decision.NOT_EVALUATED.value),
+            "sanity": [{"name": c.name, "ok": c.ok, "detail": c.detail} for c in checks]}

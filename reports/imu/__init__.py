@@ -1,1 +1,0 @@
-"""Multi-axis IMU calibration: the matrix per temperature and its report section."""

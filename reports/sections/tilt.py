@@ -1,0 +1,90 @@
+"""The ``tilt_linearity`` block of results.json: an inclinometer's static test, fitted.
+
+A ``tilt_linearity`` test plans one step per angle point (``….tilt.+15deg``) and
+a zero-stability hold at 0 (``….tilt.zero``), the table (axis horizontal) held
+at each angle as the indexing head. Per point the mean of the sensitive
+inclinometer channel (``incl_x_g``) and of the one across it (``incl_y_g``) is
+taken; ``tilt_linearity.py`` fits the sensitivity and linearity by least squares
+against g·sin θ (g: the station's local gravity in g), the lateral sensitivity
+from the y channel's slope, and the zero stability as the standard deviation of
+the 1-s means of the zero hold over its stated duration, in g of input.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow.parquet as pq
+
+from gyrocal.analysis.environment.tilt_linearity import (
+    lateral_sensitivity_pct,
+    linearity,
+    zero_stability,
+)
+from gyrocal.record.logged_steps import completed_attempts
+from gyrocal.record.plan_record import PlanRecord
+from gyrocal.record.step_kind import StepKind
+
+SENSITIVE, LATERAL = "incl_x_g", "incl_y_g"
+
+
+def _columns(run_dir: Path, event: dict[str, Any]) -> dict[str, np.ndarray]:
+    parts: dict[str, list[np.ndarray]] = {SENSITIVE: [], LATERAL: []}
+    for rel in event["chunks"]:
+        table = pq.read_table(Path(run_dir) / rel)
+        if SENSITIVE not in table.column_names:
+            raise ValueError(f"{rel} has no {SENSITIVE} column (the gyro datagram carries no "
+                             "inclinometers)")
+        good = table.column("status").to_numpy() == 0
+        for name in parts:
+            parts[name].append(table.column(name).to_numpy()[good])
+    return {name: np.concatenate(values) for name, values in parts.items()}
+
+
+def tilt_section(run_dir: Path, plan: dict[str, Any], events: list[dict[str, Any]],
+                 gravity_g: float, notes: list[str]) -> list[dict[str, Any]] | None:
+    """One entry per tilt_linearity test, or None when the plan has none."""
+    record = PlanRecord.of(plan)
+    done = completed_attempts(events)
+    groups: dict[str, list] = {}
+    for step in record.steps:
+        if step.kind == StepKind.TILT:
+            groups.setdefault(step.step_id.rpartition(".")[0], []).append(step)
+    out = []
+    for head, steps in groups.items():
+        missing = [s.step_id for s in steps if s.step_id not in done]
+        if missing:
+            notes.append(f"tilt linearity {head}: not completed: {', '.join(missing)}")
+            continue
+        try:
+            out.append(_entry(run_dir, head, steps, done, record.sample_rate_hz, gravity_g))
+        except ValueError as exc:
+            notes.append(f"tilt linearity {head}: {exc}")
+    return out or None
+
+
+def _entry(run_dir: Path, head: str, steps, done, fs_hz: float, gravity_g: float) -> dict:
+    points = [s for s in steps if not s.step_id.endswith(".zero")]
+    zero = next(s for s in steps if s.step_id.endswith(".zero"))
+    means = [{k: float(np.mean(v)) for k, v in _columns(run_dir, done[s.step_id]).items()}
+             for s in points]
+    angles = [float(s.angle_deg) for s in points]
+    fit = linearity(angles, [m[SENSITIVE] for m in means], gravity_g)
+    lateral = lateral_sensitivity_pct(angles, [m[LATERAL] for m in means], fit.sensitivity,
+                                      gravity_g)
+    held = _columns(run_dir, done[zero.step_id])[SENSITIVE]
+    per_s = max(1, int(round(fs_hz)))
+    seconds = held[: held.size // per_s * per_s].reshape(-1, per_s).mean(axis=1)
+    return {"test": head, "angles_deg": angles,
+            "output_g": [m[SENSITIVE] for m in means],
+            "lateral_output_g": [m[LATERAL] for m in means],
+            "gravity_g": gravity_g,
+            "sensitivity": fit.sensitivity, "u_sensitivity": fit.u_sensitivity,
+            "zero_output_g": fit.zero_output, "linearity_pct_fs": fit.linearity_pct_fs,
+            "residuals_g": [float(r) for r in fit.residuals],
+            "lateral_sensitivity_pct": lateral,
+            "zero_stability_g": zero_stability(seconds, fit.sensitivity),
+            "zero_stability_over_s": zero.duration_s,
+            "zero_stability_definition": "std of the 1-s means of the zero hold / sensitivity"}

@@ -1,0 +1,165 @@
+"""Turn-on time and warm-up (IEEE Std 952 / IEEE Std 1431 turn-on and warm-up tests).
+
+Each turn_on step is one power cycle (orchestrator/turn_on.py): the journal's
+``unit_power_cycle`` event gives the output-on command's clock time and the poll interval
+the first valid frame came in; the step's samples (clock ``t_s``) are the record from that
+frame. Reported per step:
+
+* time to first valid data: the middle of that interval after the output-on, with a
+  rectangular u of half its width (u = poll/√12);
+* the warm-up fit b∞ + A·e^(−t/τ) of analysis/thermal/warmup.py on t from the output-on, with the
+  fit's type A u of τ and A;
+* the time until the bias stays within ±band of its settled value: from the fit, with its
+  u propagated, and the measured one (the last 1-s bin outside the band) beside it.
+
+The bias is the output over the nominal scale factor, deg/h (Earth rate and the settled
+bias are in b∞, which the band is taken about).
+
+Turn-on-to-turn-on repeatability: the turn_on_cycle steps of one test, each logged after
+its settling time; the bias of each is its record's mean, the repeatability their standard
+deviation with u = s/√(2(N−1)); the in-run bias stability beside it is the pooled standard
+deviation of the 1-s means within the cycles' records.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from gyrocal.analysis.thermal.warmup import (
+    COVERAGE_K,
+    bin_means,
+    fit_warmup,
+    measured_time_to_band_s,
+    turn_on_repeatability,
+)
+
+#: bin of the warm-up fit (the record's white noise averages down in it)
+BIN_S = 1.0
+
+
+@dataclass(frozen=True)
+class TurnOnRecord:
+    step_id: str
+    temp_c: float
+    band_dph: float
+    on_clock_s: float
+    first_frame_after_s: float
+    poll_s: float
+    t_s: np.ndarray           # clock time of each sample
+    bias_dph: np.ndarray      # output / nominal SF, deg/h
+
+
+def _one(record: TurnOnRecord, notes: list[str]) -> dict[str, Any]:
+    since_on_s = record.t_s - record.on_clock_s
+    u_first_s = record.poll_s / math.sqrt(12.0)
+    out: dict[str, Any] = {
+        "step_id": record.step_id, "temp_c": record.temp_c, "band_dph": record.band_dph,
+        "time_to_first_data_s": record.first_frame_after_s, "u_time_to_first_data_s": u_first_s,
+        "U_time_to_first_data_s": COVERAGE_K * u_first_s,
+    }
+    try:
+        fit = fit_warmup(since_on_s, record.bias_dph, BIN_S)
+    except (ValueError, RuntimeError) as exc:
+        notes.append(f"turn_on {record.step_id}: no warm-up fit ({exc})")
+        return out
+    t_band, u_band = fit.time_to_band_s(record.band_dph)
+    out.update({
+        "settled_bias_dph": fit.settled_dph, "u_settled_bias_dph": fit.u_settled_dph,
+        "warmup_tau_s": fit.tau_s, "u_warmup_tau_s": fit.u_tau_s,
+        "U_warmup_tau_s": COVERAGE_K * fit.u_tau_s,
+        "warmup_amplitude_dph": fit.amplitude_dph, "u_warmup_amplitude_dph": fit.u_amplitude_dph,
+        "U_warmup_amplitude_dph": COVERAGE_K * fit.u_amplitude_dph,
+        "time_to_band_s": t_band, "u_time_to_band_s": u_band,
+        "U_time_to_band_s": COVERAGE_K * u_band,
+        "measured_time_to_band_s": measured_time_to_band_s(
+            since_on_s, record.bias_dph, fit.settled_dph, record.band_dph, BIN_S),
+    })
+    if not (0.0 < fit.tau_s < 10.0 * float(since_on_s[-1])):
+        notes.append(f"turn_on {record.step_id}: the fitted τ {fit.tau_s:.4g} s is not "
+                     "determined by the record's length")
+    return out
+
+
+def turn_on_section(records: list[TurnOnRecord], notes: list[str]) -> dict[str, Any] | None:
+    """results.json ``turn_on``: one entry per power cycle; the headline numbers are the
+    first cycle's (a procedure runs one turn_on per temperature)."""
+    if not records:
+        return None
+    tests = [_one(r, notes) for r in records]
+    first = tests[0]
+    return {"tests": tests, "k": COVERAGE_K, "band_dph": first["band_dph"],
+            **{key: first.get(key) for key in (
+                "time_to_first_data_s", "warmup_tau_s", "warmup_amplitude_dph",
+                "time_to_band_s", "settled_bias_dph")}}
+
+
+_HEADLINES = (("time_to_first_data_s", "s", "rectangular over the first-frame poll interval"),
+              ("warmup_tau_s", "s", "type A of the least-squares warm-up fit (1-s bin means)"),
+              ("warmup_amplitude_dph", "deg/h", "type A of the least-squares warm-up fit"),
+              ("time_to_band_s", "s", "τ·ln(|A|/band), propagated from the fit's covariance"))
+
+
+def headline_uncertainty(section: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
+    """``uncertainty`` entries for the turn_on headline numbers (the first power cycle's)."""
+    out: dict[str, dict[str, Any]] = {}
+    if section is None:
+        return out
+    first = section["tests"][0]
+    for key, unit, method in _HEADLINES:
+        if first.get(key) is not None:
+            out[f"turn_on.{key}"] = {"value": first[key], "u": first[f"u_{key}"],
+                                     "U": first[f"U_{key}"], "k": COVERAGE_K, "unit": unit,
+                                     "method": method}
+    return out
+
+
+@dataclass(frozen=True)
+class CycleRecord:
+    step_id: str              # ``<test>.c<n>``
+    temp_c: float
+    t_s: np.ndarray
+    bias_dph: np.ndarray
+
+
+def _test_of(step_id: str) -> str:
+    return step_id.rsplit(".c", 1)[0]
+
+
+def _group(cycles: list[CycleRecord], notes: list[str]) -> dict[str, Any] | None:
+    if len(cycles) < 2:
+        notes.append(f"turn_on_repeatability {_test_of(cycles[0].step_id)}: one completed "
+                     "cycle; the repeatability needs two")
+        return None
+    rep = turn_on_repeatability([float(np.mean(c.bias_dph)) for c in cycles])
+    variances = [float(np.var(bin_means(c.t_s, c.bias_dph, BIN_S)[1], ddof=1)) for c in cycles]
+    return {"test": _test_of(cycles[0].step_id), "temp_c": cycles[0].temp_c, "cycles": rep.n,
+            "biases_dph": list(rep.biases_dph), "std_dph": rep.std_dph, "u_std_dph": rep.u_std_dph,
+            "U_std_dph": COVERAGE_K * rep.u_std_dph,
+            "in_run_std_dph": math.sqrt(float(np.mean(variances)))}
+
+
+def repeatability_section(cycles: list[CycleRecord], notes: list[str]) -> dict[str, Any] | None:
+    """results.json ``turn_on_repeatability``: one entry per test; the headline the first's."""
+    groups: dict[str, list[CycleRecord]] = {}
+    for cycle in cycles:
+        groups.setdefault(_test_of(cycle.step_id), []).append(cycle)
+    tests = [t for t in (_group(g, notes) for g in groups.values()) if t is not None]
+    if not tests:
+        return None
+    first = tests[0]
+    return {"tests": tests, "k": COVERAGE_K, "std_dph": first["std_dph"],
+            "in_run_std_dph": first["in_run_std_dph"]}
+
+
+def repeatability_uncertainty(section: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
+    if section is None:
+        return {}
+    first = section["tests"][0]
+    return {"turn_on_repeatability.std_dph": {
+        "value": first["std_dph"], "u": first["u_std_dph"], "U": first["U_std_dph"],
+        "k": COVERAGE_K, "unit": "deg/h",
+        "method": "s/√(2(N−1)) of the standard deviation of N normal biases"}}
