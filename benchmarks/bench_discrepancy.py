@@ -8,11 +8,17 @@ target is <= 120 s on a 2-core machine. Run:
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# the synthetic scenarios are test material (tests/support), shared with the benchmarks
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "support"))
 import argparse
 import time
 
+import discrepancy_scenarios as scenarios  # noqa: E402
+
 from gyrocal.analysis.discrepancy.workflow import analyse
-from gyrocal.reports.discrepancy import scenarios
 
 
 def main() -> None:

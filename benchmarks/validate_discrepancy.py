@@ -22,19 +22,23 @@ probabilities.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# the synthetic scenarios are test material (tests/support), shared with the benchmarks
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "support"))
 import argparse
 import re
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import cache
-from pathlib import Path
 
+import discrepancy_scenarios as scenarios  # noqa: E402
 import numpy as np
 
 from gyrocal.analysis.discrepancy.workflow import analyse
 from gyrocal.models.gyro_model import EffectSpec
-from gyrocal.reports.discrepancy import scenarios
 
 SIZED = ["thermal_lag", "temp_rate_bias", "temp_hysteresis", "bias_temp_quadratic",
          "sf_temp_quadratic", "sf_nonlinearity_quadratic", "sf_nonlinearity_cubic",

@@ -20,20 +20,24 @@ Writes its section into docs/discrepancy-validation.md between the markers
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+# the synthetic scenarios are test material (tests/support), shared with the benchmarks
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "support"))
 import argparse
 import re
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from functools import cache
-from pathlib import Path
 
+import discrepancy_scenarios as scenarios  # noqa: E402
 import numpy as np
 
 from gyrocal.analysis.discrepancy.segments import temperature_trend_c_per_min
 from gyrocal.analysis.discrepancy.workflow import analyse
 from gyrocal.models.gyro_model import EffectSpec
-from gyrocal.reports.discrepancy import scenarios
 
 BEGIN, END = "<!-- outside-catalogue:begin -->", "<!-- outside-catalogue:end -->"
 

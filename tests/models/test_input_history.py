@@ -1,11 +1,11 @@
 """The precomputed input history changes nothing: the equation gives the same bits with it."""
 
+import discrepancy_scenarios as scenarios
 import numpy as np
 import pytest
 
 from gyrocal.models.gyro_model import EffectSpec
 from gyrocal.models.indicated import indicated_rate, input_history
-from gyrocal.reports.discrepancy import scenarios
 
 
 @pytest.mark.parametrize("effect", [

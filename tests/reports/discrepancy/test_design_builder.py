@@ -3,9 +3,11 @@ as evaluating each unit model and the zeroed model at full rate and binning thei
 
 from __future__ import annotations
 
+import discrepancy_scenarios as scenarios
 import numpy as np
 import pytest
 
+from gyrocal.analysis.discrepancy import signatures
 from gyrocal.analysis.discrepancy.segments import make_bins
 from gyrocal.analysis.discrepancy.signatures import (
     DesignBuilder,
@@ -14,7 +16,6 @@ from gyrocal.analysis.discrepancy.signatures import (
     zero_linear,
 )
 from gyrocal.models.gyro_model import EffectSpec
-from gyrocal.reports.discrepancy import scenarios, signatures
 
 
 @pytest.mark.parametrize("parallel", [False, True])

@@ -12,10 +12,10 @@ from __future__ import annotations
 import functools
 import math
 
+import discrepancy_scenarios as scenarios
 import pytest
 
 from gyrocal.models.gyro_model import EffectSpec
-from gyrocal.reports.discrepancy import scenarios
 
 MAX_BINS = 1000
 

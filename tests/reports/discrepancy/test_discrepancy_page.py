@@ -14,12 +14,12 @@ import os
 import re
 from pathlib import Path
 
+import discrepancy_scenarios as scenarios
 import pytest
 from selenium.webdriver.common.by import By
 
 from gyrocal.cli import main
 from gyrocal.models.gyro_model import dump_model
-from gyrocal.reports.discrepancy import scenarios
 from tests.support.browser import headless_chromium
 
 PROFILE = scenarios.procedure_profile(3600.0, 5.0)

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import discrepancy_scenarios as scenarios
 import numpy as np
 import pytest
 from scipy import stats
@@ -19,7 +20,6 @@ from gyrocal.analysis.discrepancy.scoring import score_from_delta
 from gyrocal.analysis.measured_log import LogFormatError
 from gyrocal.models.gyro_model import ModelError, dump_model, load_model
 from gyrocal.models.noise import GaussMarkov
-from gyrocal.reports.discrepancy import scenarios
 
 PROFILE = scenarios.procedure_profile(3600.0, 5.0)
 

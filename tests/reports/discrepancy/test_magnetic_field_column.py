@@ -8,6 +8,7 @@ searched at all (its signature would be zero).
 
 from __future__ import annotations
 
+import discrepancy_scenarios as scenarios
 import numpy as np
 import pytest
 
@@ -17,7 +18,6 @@ from gyrocal.analysis.measured_log import MeasuredLog
 from gyrocal.models.gyro_model import EffectSpec
 from gyrocal.models.gyro_sim import simulate
 from gyrocal.models.indicated import ModelInputs
-from gyrocal.reports.discrepancy import scenarios
 
 K_DPH_PER_T = 2000.0
 

@@ -16,14 +16,15 @@ from __future__ import annotations
 
 import functools
 
+import discrepancy_scenarios as scenarios
 import numpy as np
 import pytest
 
+from gyrocal.analysis.discrepancy import workflow
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.analysis.discrepancy.segments import make_bins
 from gyrocal.analysis.discrepancy.stochastic import WhittleTest, stationarity_test
 from gyrocal.models.gyro_model import EffectSpec
-from gyrocal.reports.discrepancy import scenarios, workflow
 
 MAX_BINS = 1000
 

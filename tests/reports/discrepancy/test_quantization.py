@@ -6,12 +6,12 @@ module a 1″ pulse at 200 Hz was reported as periodic_interference at a
 spurious 13.8 Hz and a 0.5″ pulse crashed the noise fit (OverflowError).
 """
 
+import discrepancy_scenarios as scenarios
 import numpy as np
 import pytest
 
 from gyrocal.analysis.discrepancy.quantization import detect_pulse, line_within_quantization
 from gyrocal.models.gyro_model import EffectSpec
-from gyrocal.reports.discrepancy import scenarios
 
 pytestmark = pytest.mark.timeout(300)
 

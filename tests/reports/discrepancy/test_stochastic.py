@@ -9,6 +9,7 @@ dense multivariate normal: two independent routes to the same number.
 
 from __future__ import annotations
 
+import discrepancy_scenarios as scenarios
 import numpy as np
 import pytest
 from scipy.stats import multivariate_normal
@@ -16,7 +17,6 @@ from scipy.stats import multivariate_normal
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.analysis.discrepancy.segments import make_bins
 from gyrocal.analysis.discrepancy.stochastic import WhittleTest, gm_bin_spectrum
-from gyrocal.reports.discrepancy import scenarios
 
 FS_HZ = 5.0
 WHITE = NoiseModel(arw_deg_per_rth=0.01)

@@ -7,6 +7,7 @@ simulated hour with a known hidden effect and check what each hands on.
 
 from __future__ import annotations
 
+import discrepancy_scenarios as scenarios
 import numpy as np
 import pytest
 
@@ -17,7 +18,6 @@ from gyrocal.analysis.discrepancy.workflow import (
     _Search,
     _search_pass,
 )
-from gyrocal.reports.discrepancy import scenarios
 
 PROFILE = scenarios.procedure_profile(3600.0, 5.0)
 pytestmark = pytest.mark.timeout(120)
