@@ -213,7 +213,6 @@ def _configuration_figures(config, capture: DecodedCapture) -> dict:
 
 
 def write_log(columns: dict[str, np.ndarray], out: Path) -> None:
-
     table = pa.table({name: pa.array(np.asarray(values)) for name, values in columns.items()})
     suffix = out.suffix.lower()
     if suffix in (".parquet", ".pq"):

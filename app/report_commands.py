@@ -20,7 +20,8 @@ from gyrocal.analysis.allan.sources import open_record
 from gyrocal.analysis.allan.summary import allan_curve_streamed, curve_json, fit_curve
 from gyrocal.analysis.environment.interference import compare
 from gyrocal.analysis.measured_log import LogFormatError
-from gyrocal.app.run_commands import print_verdict, report_signer
+from gyrocal.app.keys import report_signer
+from gyrocal.app.verdict import print_verdict
 from gyrocal.errors import EXIT_ACCEPTANCE_FAILED, EXIT_OK, BadInput
 from gyrocal.models.noise_terms import FIT_KEYS
 from gyrocal.models.rate_units import output_to_dph
@@ -69,7 +70,6 @@ def cmd_certificate(args: argparse.Namespace) -> int:
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
-
     result = verify_run_folder(Path(args.run_dir), public_key=args.key, ledger=args.ledger)
     if not result.ok:
         print(f"gyrocal verify: FAILED: {result.failure}", file=sys.stderr)
@@ -99,7 +99,6 @@ def cmd_ledger(args: argparse.Namespace) -> int:
 
 
 def cmd_analyze_allan(args: argparse.Namespace) -> int:
-
     if not (args.scale_factor > 0 and math.isfinite(args.scale_factor)):
         raise BadInput(f"--scale-factor: must be a positive number, got {args.scale_factor!r}")
     if args.rate_hz is not None and not (args.rate_hz > 0 and math.isfinite(args.rate_hz)):

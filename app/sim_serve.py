@@ -24,7 +24,7 @@ from pathlib import Path
 
 import yaml
 
-from gyrocal.app.run_commands import quiet_library_logs
+from gyrocal.app.library_logs import quiet_library_logs
 from gyrocal.errors import EXIT_OK, BadInput, RunFaultError
 from gyrocal.instruments.gyro.capture import read_capture
 from gyrocal.instruments.sim.replay_pty import ReplayGyroPort
@@ -60,7 +60,6 @@ def resolved_station_text(station_path: Path, addresses: SimAddresses,
 
 
 def cmd_sim_serve(args: argparse.Namespace) -> int:
-
     quiet_library_logs(getattr(args, "debug", False))
     station_path = Path(args.station) if args.station else DEFAULT_STATION
     station = load_station(station_path)

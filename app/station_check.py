@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from gyrocal.app.run_commands import quiet_library_logs
+from gyrocal.app.library_logs import quiet_library_logs
 from gyrocal.errors import EXIT_FAULT, EXIT_OK, BadInput
 from gyrocal.instruments.errors import InstrumentConnectionError, InstrumentError, InstrumentTimeout
 from gyrocal.instruments.factory import open_chamber, open_gyro, open_supply, open_table
@@ -218,7 +218,6 @@ def _print(results: list[RoleCheck]) -> None:
 
 
 def cmd_station_check(args: argparse.Namespace) -> int:
-
     quiet_library_logs(getattr(args, "debug", False))
     station = load_station(args.station)
     roles = (args.only,) if args.only else ROLES

@@ -37,15 +37,8 @@ BAD_INPUT_TYPES: tuple[type[BaseException], ...] = (
     BadInput, FileNotFoundError, IsADirectoryError, NotADirectoryError)
 
 
-def _fault_types() -> tuple[type[BaseException], ...]:
-    """Faults (exit 3): the rig was left safe, the run is resumable.
-
-    Imported here, on the error path only: ``gyrocal.record.locks`` pulls in numpy
-    through the instrument interfaces (``python -X importtime``: 61 ms of imports, against
-    1 ms for ``gyrocal.errors``), which ``--help`` and the quick commands need not pay.
-    """
-
-    return (RunFaultError, InstrumentError, LockBusyError)
+#: Faults (exit 3): the rig was left safe, the run is resumable.
+FAULT_TYPES: tuple[type[BaseException], ...] = (RunFaultError, InstrumentError, LockBusyError)
 
 
 #: The lab's runs database, in the working folder unless ``--db`` names another.
@@ -57,7 +50,16 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show tracebacks")
     parser.add_argument("--version", action="version", version=f"gyrocal {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_run_commands(sub)
+    _add_report_commands(sub)
+    _add_runs_commands(sub)
+    _add_analyze_commands(sub)
+    _add_instrument_commands(sub)
+    return parser
 
+
+def _add_run_commands(sub: argparse._SubParsersAction) -> None:
+    """Validate, plan, run, resume, status, watch, confirm: running a procedure."""
     p = sub.add_parser("validate", help="validate a procedure (and station) before anything moves")
     p.add_argument("procedure")
     group = p.add_mutually_exclusive_group()
@@ -117,6 +119,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="address to serve on; anything but loopback requires the printed token")
     p.set_defaults(func=_lazy("gyrocal.app.watch.server", "cmd_watch"))
 
+    p = sub.add_parser("confirm", help="tell a waiting run the operator has done what it asked "
+                       "(a remount of the IMU fixture)")
+    p.add_argument("run_dir")
+    p.add_argument("--mounting", default=None,
+                   help="the mounting done (as named in the procedure); checked by the run")
+    p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_confirm"))
+
+
+def _add_report_commands(sub: argparse._SubParsersAction) -> None:
+    """Report, certificate, verify, ledger, keys: the report and its audit."""
     p = sub.add_parser("report", help="(re)build RUN_DIR/report/")
     p.add_argument("run_dir")
     p.add_argument("--signing-key", default=None, help="seal the rebuilt report (as for run)")
@@ -148,6 +160,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("ledger", help="e.g. /secure/station-keys/station.ledger.jsonl")
     p.set_defaults(func=_lazy("gyrocal.app.report_commands", "cmd_ledger"))
 
+    p = sub.add_parser("keys", help="generate the station's Ed25519 signing key pair")
+    p.add_argument("--out", default="keys", help="folder for NAME.key (mode 0600) and NAME.pub")
+    p.add_argument("--name", default="station")
+    p.set_defaults(func=_lazy("gyrocal.app.keys", "cmd_keys"))
+
+
+def _add_runs_commands(sub: argparse._SubParsersAction) -> None:
+    """Runs, history, compare: every run of a gyro as a database."""
     p = sub.add_parser("runs", help="the lab's runs as a DuckDB database (index, list)")
     rsub = p.add_subparsers(dest="runs_command", required=True, metavar="RUNS_COMMAND")
     r = rsub.add_parser("index", help="add or update run folders (found under each DIR)")
@@ -174,18 +194,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", default=None, help="PNG path (default compare.png)")
     p.set_defaults(func=_lazy("gyrocal.app.runs_commands", "cmd_compare"))
 
-    p = sub.add_parser("confirm", help="tell a waiting run the operator has done what it asked "
-                       "(a remount of the IMU fixture)")
-    p.add_argument("run_dir")
-    p.add_argument("--mounting", default=None,
-                   help="the mounting done (as named in the procedure); checked by the run")
-    p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_confirm"))
 
-    p = sub.add_parser("keys", help="generate the station's Ed25519 signing key pair")
-    p.add_argument("--out", default="keys", help="folder for NAME.key (mode 0600) and NAME.pub")
-    p.add_argument("--name", default="station")
-    p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_keys"))
-
+def _add_analyze_commands(sub: argparse._SubParsersAction) -> None:
+    """Analyze allan | interference, discrepancy: analyses of measured logs."""
     p = sub.add_parser("analyze", help="analyse a measured log")
     asub = p.add_subparsers(dest="analysis", required=True, metavar="ANALYSIS")
     a = asub.add_parser("allan", help="Allan deviation and noise terms of a log",
@@ -235,6 +246,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.set_defaults(func=_lazy("gyrocal.app.discrepancy_command", "cmd_discrepancy"))
 
+
+def _add_instrument_commands(sub: argparse._SubParsersAction) -> None:
+    """Decode, station check, sim serve, demo: instruments and captures."""
     p = sub.add_parser("decode", help="a gyro's recorded bytes as a measured log, with a summary",
                        description="Decode a raw capture from a unit (binary, or one decimal number "
                        "per byte): the datagram type and sample rate are read from the bytes.")
@@ -279,12 +293,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demo", help="the dry run against simulated instruments")
     p.add_argument("--out", default=None)
-    p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_demo"))
-    return parser
+    p.set_defaults(func=_lazy("gyrocal.app.demo", "cmd_demo"))
 
 
 def _version() -> str:
-
     return __version__
 
 
@@ -344,7 +356,7 @@ def _dispatch(args: argparse.Namespace) -> int:
         if isinstance(exc, BAD_INPUT_TYPES):
             print(f"gyrocal: error: {exc}", file=sys.stderr)
             return EXIT_BAD_INPUT
-        if isinstance(exc, _fault_types()):
+        if isinstance(exc, FAULT_TYPES):
             print(f"gyrocal: fault: {exc}", file=sys.stderr)
             return EXIT_FAULT
         # Never a traceback: a bug still ends with a clear line and the fault code.

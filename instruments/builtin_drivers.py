@@ -2,8 +2,8 @@
 
 Adding a driver to gyrocal itself is one spec here; adding one from outside
 is the same spec published through the ``gyrocal.drivers`` entry point
-(README "Add your instrument"). Drivers and simulators are imported when a
-spec is used, so listing the drivers stays cheap.
+(README "Add your instrument"). Each spec names its driver and simulator
+classes directly, so the layer check (tests/test_layout.py) sees every import.
 """
 
 from __future__ import annotations
@@ -70,7 +70,6 @@ def _int(settings, name: str) -> int:
 
 
 def _open_f4(req: OpenRequest):
-
     s = req.settings
     baud = _SOCKET_BAUD if req.address.startswith("socket://") else _int(s, "baudrate")
     limit_input = s["limit_input"]
@@ -82,13 +81,11 @@ def _open_f4(req: OpenRequest):
 
 
 def _sim_f4(req: SimRequest):
-
     assert req.chamber is not None
     return SimulatedWatlowF4(req.chamber, req.faults, unit_id=_int(req.settings, "unit_id"))
 
 
 def _open_f4t(req: OpenRequest):
-
     s = req.settings
     return WatlowF4T(req.address, unit_id=_int(s, "unit_id"), timeout_s=req.timeout_s,
                      retry=RetryPolicy(attempts=req.retries), word_order=str(s["word_order"]),
@@ -96,13 +93,11 @@ def _open_f4t(req: OpenRequest):
 
 
 def _sim_f4t(req: SimRequest):
-
     assert req.chamber is not None
     return SimulatedWatlowF4T(req.chamber, req.faults, unit_id=_int(req.settings, "unit_id"))
 
 
 def _open_acutrol(req: OpenRequest):
-
     s = req.settings
     return Acutrol3000Table(req.address, axis=_int(s, "axis"), timeout_s=req.timeout_s,
                             retry=RetryPolicy(attempts=req.retries), on_retry=req.on_retry,
@@ -110,7 +105,6 @@ def _open_acutrol(req: OpenRequest):
 
 
 def _sim_acutrol(req: SimRequest):
-
     class _Served(SimulatedAcutrol):
         @property
         def address(self) -> str:
@@ -121,7 +115,6 @@ def _sim_acutrol(req: SimRequest):
 
 
 def _open_stim300(req: OpenRequest):
-
     s = req.settings
     rate_lsb = s["rate_lsb"]
     assert isinstance(rate_lsb, float) and req.sample_rate_hz is not None
@@ -133,7 +126,6 @@ def _open_stim300(req: OpenRequest):
 
 
 def _sim_stim300(req: SimRequest):
-
     class _Served(SimulatedGyroPort):
         @property
         def address(self) -> str:
@@ -154,19 +146,16 @@ def _sim_stim300(req: SimRequest):
 
 
 def _open_e36300(req: OpenRequest):
-
     return KeysightE36300Supply(req.address, channel=_int(req.settings, "channel"),
                                 timeout_s=req.timeout_s, retry=RetryPolicy(attempts=req.retries),
                                 on_retry=req.on_retry)
 
 
 def _sim_e36300(req: SimRequest):
-
     return SimulatedE36300(req.faults, seed=req.seed, clock=req.clock)  # type: ignore[arg-type]
 
 
 def _open_truevolt(req: OpenRequest):
-
     s = req.settings
     aperture, nplc = s.get("aperture_s"), s.get("nplc")
     assert req.sample_rate_hz is not None
@@ -178,13 +167,11 @@ def _open_truevolt(req: OpenRequest):
 
 
 def _sim_truevolt(req: SimRequest):
-
     assert req.gyro_source is not None
     return SimulatedTruevolt(req.gyro_source, req.clock, req.faults)  # type: ignore[arg-type]
 
 
 def _open_counter(req: OpenRequest):
-
     s = req.settings
     assert req.sample_rate_hz is not None
     return CounterPulseGyro(req.address, req.sample_rate_hz,
@@ -194,7 +181,6 @@ def _open_counter(req: OpenRequest):
 
 
 def _sim_counter(req: SimRequest):
-
     assert req.gyro_source is not None
     return SimulatedCounter(req.gyro_source, req.clock,
                             float(req.settings["pulse_weight_arcsec"]), req.faults)  # type: ignore[arg-type]

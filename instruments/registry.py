@@ -74,7 +74,6 @@ def _load(entry: metadata.EntryPoint) -> tuple[list[DriverSpec], str | None]:
 
 
 def _with_origin(spec: DriverSpec, origin: str) -> DriverSpec:
-
     return replace(spec, origin=origin)
 
 

@@ -639,6 +639,5 @@ def _text(reply: Any) -> Any:
 
 
 def _now_text() -> str:
-
     return time.strftime("%Y-%m-%dT%H:%M:%S%z")
 

@@ -129,7 +129,6 @@ class RunData:
 # -- reading ------------------------------------------------------------------------------
 
 def _read_plan(folder: RunFolder) -> dict[str, Any]:
-
     path = folder.path / PLAN_RECORD
     if not path.is_file():
         raise RunFolderError(f"{path}: missing; the report needs the plan record the run wrote")
@@ -793,7 +792,6 @@ def _build(run_dir: Path, journal: Journal, signer: Signer | None) -> dict[str, 
 
 def _write_report(data: RunData, results: dict[str, Any], journal: Journal,
                   signer: Signer | None) -> None:
-
     started = next((e for e in data.events if e.get("event") == "run_started"), {})
     if signer is not None:
         unsigned = sha256_bytes(results_bytes(results))

@@ -399,7 +399,6 @@ def _report_signature(stored: dict[str, Any], path: Path, events: list[dict[str,
 
 def _recompute(folder: RunFolder, stored: dict[str, Any], results_path: Path,
                result: VerifyResult) -> None:
-
     notes: list[str] = []
     fresh = json.loads(json.dumps(finite_or_none(compute_results(read_run(folder.path, notes),
                                                                  notes))))

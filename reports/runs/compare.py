@@ -12,8 +12,6 @@ import math
 from pathlib import Path
 from typing import Any
 
-from matplotlib.figure import Figure
-
 from gyrocal.reports.runs.database import RunsDatabaseError
 from gyrocal.reports.runs.history import expanded
 from gyrocal.reports.runs.metrics import metric_values
@@ -55,10 +53,9 @@ def compare_table(a: dict[str, Any], b: dict[str, Any], label_a: str, label_b: s
 
 def compare_plot(a: dict[str, Any], b: dict[str, Any], label_a: str, label_b: str,
                  path: Path) -> Path:
-    # Imported here: matplotlib costs ~0.5 s of imports (python -X importtime), which the
-    # text-only commands of this module need not pay. Figure draws without pyplot's global
-    # backend, so nothing in the process has its backend changed.
-
+    # Figure draws without pyplot's global backend: nothing in the process has its backend
+    # changed. The text-only runs commands need not pay for matplotlib's imports.
+    from matplotlib.figure import Figure  # lazy: ~0.5 s of imports (python -X importtime)
     fig = Figure(figsize=(12, 3.4))
     axes = fig.subplots(1, 3)
     for results, label, color in ((a, label_a, "#36c"), (b, label_b, "#c33")):

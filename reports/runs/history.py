@@ -14,8 +14,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from matplotlib.figure import Figure
-
 COVERAGE_K = 2.0
 
 #: what the table and plot show, in this order (others stay in the database)
@@ -97,10 +95,9 @@ def history_table(serial: str, series: dict[str, list[Point]]) -> str:
 
 
 def history_plot(serial: str, series: dict[str, list[Point]], path: Path) -> Path:
-    # Imported here: matplotlib costs ~0.5 s of imports (python -X importtime), which the
-    # text-only commands of this module need not pay. Figure draws without pyplot's global
-    # backend, so nothing in the process has its backend changed.
-
+    # Figure draws without pyplot's global backend: nothing in the process has its backend
+    # changed. The text-only runs commands need not pay for matplotlib's imports.
+    from matplotlib.figure import Figure  # lazy: ~0.5 s of imports (python -X importtime)
     shown = {k: v for k, v in series.items() if v}
     fig = Figure(figsize=(8, 2.0 * max(1, len(shown))))
     axes = fig.subplots(len(shown), 1, sharex=True, squeeze=False)

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from gyrocal.analysis.allan.summary import allan_curve, fit_curve, identifiability_json
-from gyrocal.app.run_commands import verdict_line
+from gyrocal.app.verdict import verdict_line
 from gyrocal.cli import EXIT_ACCEPTANCE_FAILED, EXIT_FAULT, main
 from gyrocal.metrology.decision import overall_verdict
 from gyrocal.reports.results import evaluate_acceptance

@@ -19,7 +19,7 @@ from pathlib import Path
 
 _SERVER = r"""
 import json, os, sys
-import gyrocal.cli, gyrocal.app.run_commands, gyrocal.orchestrator.engine  # noqa: warm
+import gyrocal.cli, gyrocal.app.run_commands, gyrocal.app.demo, gyrocal.orchestrator.engine  # noqa: warm
 import gyrocal.instruments.sim.station_sim, gyrocal.reports.build  # noqa: warm
 from gyrocal.cli import main
 for line in sys.stdin:
