@@ -19,8 +19,8 @@ from gyrocal.orchestrator.procedure.envelope import (
     MIN_TEMP,
     Envelope,
 )
-from gyrocal.orchestrator.schema import Context
 from gyrocal.orchestrator.station import load_station
+from gyrocal.schema import Context
 
 pytestmark = pytest.mark.timeout(30)
 
