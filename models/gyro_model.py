@@ -20,9 +20,9 @@ import yaml
 from gyrocal.errors import BadInput
 from gyrocal.inputs import InputError, KeyPath, Location, YamlDocument, load_yaml
 from gyrocal.models.effects import EFFECTS, ParamDef
-from gyrocal.orchestrator.problems import sort_problems
-from gyrocal.orchestrator.schema import Context, Fields
-from gyrocal.orchestrator.units import UnitError
+from gyrocal.problems import sort_problems
+from gyrocal.schema import Context, Fields
+from gyrocal.units import UnitError
 
 SUPPORTED_VERSIONS = (1,)
 OUTPUT_UNITS = ("deg/s", "deg/h", "rad/s", "V", "LSB")

@@ -36,7 +36,7 @@ import numpy as np
 from gyrocal.inputs import KeyPath
 from gyrocal.models.gravity import STANDARD_GRAVITY_MPS2
 from gyrocal.models.gyro_model import model_number, non_negative
-from gyrocal.orchestrator.schema import Context, Fields
+from gyrocal.schema import Context, Fields
 
 AXES = ("x", "y", "z")
 PAIRS = tuple(f"{a}{b}" for a in AXES for b in AXES if a != b)

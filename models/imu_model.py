@@ -52,8 +52,8 @@ from gyrocal.models.gyro_model import (
     read_model,
 )
 from gyrocal.models.imu_accel import AccelerometerModel, read_accelerometers, read_pair_matrix
-from gyrocal.orchestrator.schema import Context, Fields
-from gyrocal.orchestrator.units import UnitError
+from gyrocal.schema import Context, Fields
+from gyrocal.units import UnitError
 
 AXES = ("x", "y", "z")
 EARTH_RATE_DPH = 15.041067          # sidereal rotation, deg/h (gyro-model.md)
