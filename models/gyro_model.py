@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -360,9 +360,9 @@ def model_to_dict(model: GyroModel) -> dict:
         "output_units": model.output_units,
         "scale_factor": model.scale_factor,
     }
-    for key in _NUMBER_KEYS:
-        data[key] = getattr(model, key)
-    data["noise"] = {key: getattr(model.noise, key) for key in _NOISE_KEYS}
+    values = asdict(model)      # typed fields by name: the file's keys are the field names
+    data.update({key: values[key] for key in _NUMBER_KEYS})
+    data["noise"] = asdict(model.noise)
     data["effects"] = [
         {"name": e.name, **{k: e.params[k] for k in EFFECTS[e.name].keys}} for e in model.effects
     ]
