@@ -10,16 +10,19 @@ than surfacing hours into an overnight run.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass, field, fields, replace
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
 import yaml
 
 from gyrocal.errors import BadInput
-from gyrocal.inputs import InputError, format_key_path, load_yaml
-from gyrocal.models.effects import EFFECTS
+from gyrocal.inputs import InputError, KeyPath, Location, YamlDocument, load_yaml
+from gyrocal.models.effects import EFFECTS, ParamDef
+from gyrocal.problems import sort_problems
+from gyrocal.schema import Context, Fields
+from gyrocal.units import UnitError
 
 SUPPORTED_VERSIONS = (1,)
 OUTPUT_UNITS = ("deg/s", "deg/h", "rad/s", "V", "LSB")
@@ -97,34 +100,16 @@ _NUMBER_KEYS = (
     "sf_tempco_ppm_per_c",
     "earth_rate_dph",
 )
-_TOP_KEYS = ("version", "name", "output_units", "scale_factor", *_NUMBER_KEYS, "noise", "effects")
 _NOISE_KEYS = tuple(f.name for f in fields(NoiseParams))
 
 
 # --------------------------------------------------------------------------- parsing
-
-
-class _Where:
-    """Builds ``file:line: key.path: message`` using the line numbers yaml recorded."""
-
-    def __init__(self, source: str, lines: dict[tuple, int] | None = None,
-                 prefix: tuple = ()) -> None:
-        self.source = source
-        self.lines = lines or {}
-        self.prefix = prefix    # where this model sits in a larger file (an IMU axis: axes.x)
-
-    def error(self, path: tuple, message: str) -> ModelError:
-        path = (*self.prefix, *path)
-        line = None
-        probe = path
-        while line is None and probe:
-            line = self.lines.get(probe)
-            probe = probe[:-1]
-        if line is None:
-            line = self.lines.get(())
-        where = f"{self.source}:{line}" if line is not None else self.source
-        key = format_key_path(path)
-        return ModelError(f"{where}: {key}: {message}" if key else f"{where}: {message}")
+#
+# Read with the one schema reader of the input languages (``Context`` collects every
+# problem at its file, line and key path; ``Fields`` takes a mapping key by key and
+# names unknown keys), as procedures and stations are. The converters below are the
+# model language's own rules: finite numbers within ±MAX_MAGNITUDE, effect parameters
+# checked against the catalogue.
 
 
 #: Bound on every number of a model file. Beyond it nothing is physical (an ARW of
@@ -133,78 +118,197 @@ class _Where:
 MAX_MAGNITUDE = 1e9
 
 
-def _number(value: Any, path: tuple, where: _Where) -> float:
+class _DataDocument(YamlDocument):
+    """A model given as data (by code, or by a caller that kept only some line numbers):
+    a path without a recorded line is shown without one rather than as line 1."""
+
+    def where(self, path: KeyPath) -> Location:
+        for end in range(len(path), -1, -1):
+            found = self.locations.get(tuple(path[:end]))
+            if found is not None:
+                return found
+        return Location(self.file, None)  # type: ignore[arg-type]
+
+
+def data_context(source: str, lines: Mapping[tuple, int] | None = None) -> Context:
+    """A reading context for plain data named ``source``, with the line of each key path."""
+    locations = {tuple(key): Location(source, line) for key, line in (lines or {}).items()}
+    return Context(_DataDocument(file=source, path=Path(source), data=None, locations=locations))
+
+
+def raise_problems(ctx: Context, before: int = 0) -> None:
+    """One :class:`ModelError` listing every problem found since ``before``, in file order."""
+    found = ctx.problems[before:]
+    if found:
+        raise ModelError("\n".join(str(p) for p in sort_problems(found)))
+
+
+def model_number(value: object) -> float:
+    """A finite number within ±MAX_MAGNITUDE; YAML ``true`` is not 1."""
     # bool is an int subclass: `true` in YAML must not silently become 1.0.
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise where.error(path, f"must be a number, got {type(value).__name__} {value!r}")
+        raise UnitError(f"must be a number, got {type(value).__name__} {value!r}")
     try:
         number = float(value)
     except OverflowError:          # a YAML integer beyond float range
-        raise where.error(path, f"must be a finite number, got {value!r}") from None
+        raise UnitError(f"must be a finite number, got {value!r}") from None
     if not math.isfinite(number):
-        raise where.error(path, f"must be a finite number, got {value!r}")
+        raise UnitError(f"must be a finite number, got {value!r}")
     if abs(number) > MAX_MAGNITUDE:
-        raise where.error(path, f"{number:g} is beyond ±{MAX_MAGNITUDE:g}: no gyro quantity in a "
-                                "model file is that large (a unit or exponent slip?)")
+        raise UnitError(f"{number:g} is beyond ±{MAX_MAGNITUDE:g}: no gyro quantity in a "
+                        "model file is that large (a unit or exponent slip?)")
     return number
 
 
-def _mapping(value: Any, path: tuple, where: _Where) -> Mapping:
-    if not isinstance(value, Mapping):
-        raise where.error(path, f"must be a mapping, got {type(value).__name__}")
+def non_negative(value: object) -> float:
+    number = model_number(value)
+    if number < 0:
+        raise UnitError(f"must be >= 0, got {number:g}")
+    return number
+
+
+def _version(single_axis: bool) -> Callable[[object], int]:
+    def convert(value: object) -> int:
+        if value == 2 and single_axis:
+            raise UnitError("unsupported version 2 for a single-axis model: version 2 is a "
+                            "three-axis IMU model (axes:, misalignment_urad:); this use takes a "
+                            "version 1 model")
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise UnitError(f"must be an integer, got {value!r}")
+        if value not in SUPPORTED_VERSIONS:
+            raise UnitError(f"unsupported version {value}; supported: {SUPPORTED_VERSIONS}")
+        return value
+    return convert
+
+
+def _scale_factor(value: object) -> float:
+    number = model_number(value)
+    if number == 0:
+        raise UnitError("must be non-zero")
+    return number
+
+
+def _name(value: object) -> str:
+    if value is None:
+        return ""
+    if not isinstance(value, str):
+        raise UnitError(f"must be a string, got {type(value).__name__}")
     return value
 
 
-def _reject_unknown(data: Mapping, known: tuple[str, ...], path: tuple, where: _Where) -> None:
-    for key in data:
-        if key not in known:
-            raise where.error((*path, key), f"unknown key; known keys: {', '.join(known)}")
+def output_units(value: object) -> str:
+    if value not in OUTPUT_UNITS:
+        raise UnitError(f"must be one of {', '.join(OUTPUT_UNITS)}, got {value!r}")
+    return str(value)
 
 
-def _parse_noise(data: Any, where: _Where) -> NoiseParams:
-    if data is None:
+def _effect_name(value: object) -> str:
+    if not isinstance(value, str) or value not in EFFECTS:
+        raise UnitError(f"unknown effect {value!r}; known effects: {', '.join(EFFECTS)}")
+    return value
+
+
+def read_noise(ctx: Context, parent: Fields) -> NoiseParams | None:
+    present, raw = parent.raw("noise")
+    if not present or raw is None:
         return NoiseParams()
-    noise = _mapping(data, ("noise",), where)
-    _reject_unknown(noise, _NOISE_KEYS, ("noise",), where)
-    values = {}
-    for key, raw in noise.items():
-        number = _number(raw, ("noise", key), where)
-        if number < 0:
-            raise where.error(("noise", key), f"must be >= 0, got {number:g}")
-        values[key] = number
+    noise = Fields(ctx, parent.child("noise"), raw, "noise")
+    values = {key: noise.take(key, non_negative, required=False, default=0.0)
+              for key in _NOISE_KEYS}
+    noise.finish()
+    if not noise.valid or None in values.values():
+        return None
     return NoiseParams(**values)
 
 
-def _parse_effect(raw: Any, index: int, where: _Where) -> EffectSpec:
-    path: tuple = ("effects", index)
-    entry = _mapping(raw, path, where)
-    if "name" not in entry:
-        raise where.error(path, "missing key 'name'")
-    name = entry["name"]
-    if not isinstance(name, str) or name not in EFFECTS:
-        raise where.error(
-            (*path, "name"), f"unknown effect {name!r}; known effects: {', '.join(EFFECTS)}"
-        )
+def read_effect(ctx: Context, path: KeyPath, raw: object) -> EffectSpec | None:
+    """One catalogue effect with every parameter of its definition, each within its bounds."""
+    entry = Fields(ctx, path, raw, "an effect")
+    if not entry.valid:
+        return None
+    name = entry.take("name", _effect_name)
+    if name is None:
+        entry.used.update(entry.data)   # unknown effect: its keys cannot be judged
+        return None
     definition = EFFECTS[name]
-    _reject_unknown(entry, ("name", *definition.keys), path, where)
-    params: dict[str, float] = {}
+    params: dict[str, float | None] = {}
     for p in definition.params:
-        if p.key not in entry:
-            raise where.error(
-                (*path, p.key), f"missing parameter of effect {name!r} ({p.unit}, {p.constraint})"
-            )
-        number = _number(entry[p.key], (*path, p.key), where)
-        problem = p.check(number)
-        if problem:
-            raise where.error((*path, p.key), problem)
-        params[p.key] = number
-    return EffectSpec(name, params)
+        if not entry.has(p.key):
+            entry.used.add(p.key)
+            ctx.report(entry.child(p.key), f"missing parameter of effect {name!r} "
+                       f"({p.unit}, {p.constraint})")
+            params[p.key] = None
+            continue
+
+        def checked(value: object, param: ParamDef = p) -> float:
+            number = model_number(value)
+            problem = param.check(number)
+            if problem:
+                raise UnitError(problem)
+            return number
+        params[p.key] = entry.take(p.key, checked)
+    entry.finish()
+    if None in params.values():
+        return None
+    return EffectSpec(name, params)  # type: ignore[arg-type]
+
+
+def read_effects(ctx: Context, parent: Fields) -> tuple[EffectSpec, ...] | None:
+    """The ``effects`` list: catalogue effects, each at most once."""
+    present, raw = parent.raw("effects")
+    if not present or raw is None:
+        return ()
+    if not isinstance(raw, list):
+        ctx.report(parent.child("effects"), f"must be a list, got {type(raw).__name__}")
+        return None
+    effects: list[EffectSpec] = []
+    seen: dict[str, int] = {}
+    complete = True
+    for index, item in enumerate(raw):
+        spec = read_effect(ctx, (*parent.child("effects"), index), item)
+        if spec is None:
+            complete = False
+        elif spec.name in seen:
+            ctx.report((*parent.child("effects"), index, "name"),
+                       f"effect {spec.name!r} given twice (also effects[{seen[spec.name]}])")
+            complete = False
+        else:
+            seen[spec.name] = index
+            effects.append(spec)
+    return tuple(effects) if complete else None
+
+
+def read_model(ctx: Context, path: KeyPath, data: object) -> GyroModel | None:
+    """A single-axis model at ``path`` of the document (``()``, or one axis of an IMU file);
+    None when anything was wrong (every problem is in ``ctx``)."""
+    if data is None:
+        ctx.report(path, "empty model (version and scale_factor are required)")
+        return None
+    top = Fields(ctx, path, data, "a model")
+    if not top.valid:
+        return None
+    before = len(ctx.problems)
+    version = top.take("version", _version(single_axis=not path))
+    scale_factor = top.take("scale_factor", _scale_factor)
+    name = top.take("name", _name, required=False, default="")
+    units = top.take("output_units", output_units, required=False, default="deg/s")
+    numbers = {k: top.take(k, model_number, required=False, default=0.0) for k in _NUMBER_KEYS}
+    noise = read_noise(ctx, top)
+    effects = read_effects(ctx, top)
+    top.finish()
+    if len(ctx.problems) > before or None in (noise, effects):
+        return None
+    return GyroModel(version=version, scale_factor=scale_factor, name=name, output_units=units,
+                     noise=noise, effects=effects, **numbers)
 
 
 def _check_effect_spec(effect: EffectSpec) -> EffectSpec:
     """Validate an EffectSpec built in code (the workflow adds effects this way)."""
-    data = {"name": effect.name, **effect.params}
-    return _parse_effect(data, 0, _Where(f"effect {effect.name!r}"))
+    ctx = data_context(f"effect {effect.name!r}")
+    spec = read_effect(ctx, ("effects", 0), {"name": effect.name, **effect.params})
+    raise_problems(ctx)
+    assert spec is not None
+    return spec
 
 
 def parse_model(data: Any, source: str = "<model>", lines: dict[tuple, int] | None = None,
@@ -212,84 +316,37 @@ def parse_model(data: Any, source: str = "<model>", lines: dict[tuple, int] | No
     """Validate a model given as plain data (as ``yaml.safe_load`` returns it).
 
     ``source`` names the origin in messages; ``lines`` maps key paths to line
-    numbers (``load_model`` supplies it from the yaml node marks);
+    numbers (``load_model`` supplies them from the yaml node marks);
     ``key_prefix`` is where the model sits inside a larger file (one axis of a
     three-axis model, ``models/imu_model.py``), so messages name the full path.
     """
-    where = _Where(source, lines, key_prefix)
-    if data is None:
-        raise where.error((), "empty model (version and scale_factor are required)")
-    top = _mapping(data, (), where)
-    if top.get("version") == 2 and not key_prefix:
-        raise where.error(("version",), "unsupported version 2 for a single-axis model: "
-                          "version 2 is a three-axis IMU model (axes:, misalignment_urad:); "
-                          "this use takes a version 1 model")
-    _reject_unknown(top, _TOP_KEYS, (), where)
-    for required in ("version", "scale_factor"):
-        if required not in top:
-            raise where.error((required,), "missing required key")
-
-    version = top["version"]
-    if isinstance(version, bool) or not isinstance(version, int):
-        raise where.error(("version",), f"must be an integer, got {version!r}")
-    if version not in SUPPORTED_VERSIONS:
-        raise where.error(("version",), f"unsupported version {version}; supported: {SUPPORTED_VERSIONS}")
-
-    scale_factor = _number(top["scale_factor"], ("scale_factor",), where)
-    if scale_factor == 0:
-        raise where.error(("scale_factor",), "must be non-zero")
-
-    name = top.get("name", "")
-    if name is None:
-        name = ""
-    if not isinstance(name, str):
-        raise where.error(("name",), f"must be a string, got {type(name).__name__}")
-    units = top.get("output_units", "deg/s")
-    if units not in OUTPUT_UNITS:
-        raise where.error(("output_units",), f"must be one of {', '.join(OUTPUT_UNITS)}, got {units!r}")
-
-    numbers = {k: _number(top[k], (k,), where) for k in _NUMBER_KEYS if k in top}
-
-    raw_effects = top.get("effects") or []
-    if not isinstance(raw_effects, list):
-        raise where.error(("effects",), f"must be a list, got {type(raw_effects).__name__}")
-    effects: list[EffectSpec] = []
-    seen: dict[str, int] = {}
-    for i, raw in enumerate(raw_effects):
-        spec = _parse_effect(raw, i, where)
-        if spec.name in seen:
-            raise where.error(
-                ("effects", i, "name"), f"effect {spec.name!r} given twice (also effects[{seen[spec.name]}])"
-            )
-        seen[spec.name] = i
-        effects.append(spec)
-
-    return GyroModel(
-        version=version,
-        scale_factor=scale_factor,
-        name=name,
-        output_units=units,
-        noise=_parse_noise(top.get("noise"), where),
-        effects=tuple(effects),
-        **numbers,
-    )
+    ctx = data_context(source, lines)
+    model = read_model(ctx, key_prefix, data)
+    raise_problems(ctx)
+    assert model is not None
+    return model
 
 
-def load_model(path: str | Path) -> GyroModel:
-    """Read and validate a model file; every error names the file, line and key path.
-
-    Read through the one input layer (``gyrocal.inputs``): regular files only,
-    size and nesting limits, alias bombs and duplicate keys refused.
-    """
+def read_document(path: str | Path) -> YamlDocument:
+    """The model file through the one input layer: regular files only, size and nesting
+    limits, alias bombs and duplicate keys refused; a file that cannot be read at all
+    says so in the model's words."""
     try:
-        document = load_yaml(path)
+        return load_yaml(path)
     except InputError as exc:
-        # A file that cannot be read at all (no line) says so in the model's words.
         raise ModelError("\n".join(
             f"{p.file}: cannot read model file: {p.message}" if p.line is None and not p.path
             else str(p) for p in exc.problems)) from None
-    lines = {key: location.line for key, location in document.locations.items()}
-    return parse_model(document.data, document.file, lines)
+
+
+def load_model(path: str | Path) -> GyroModel:
+    """Read and validate a model file; every error names the file, line and key path."""
+    document = read_document(path)
+    ctx = Context(document)
+    model = read_model(ctx, (), document.data)
+    raise_problems(ctx)
+    assert model is not None
+    return model
 
 
 # --------------------------------------------------------------------------- writing
@@ -303,9 +360,9 @@ def model_to_dict(model: GyroModel) -> dict:
         "output_units": model.output_units,
         "scale_factor": model.scale_factor,
     }
-    for key in _NUMBER_KEYS:
-        data[key] = getattr(model, key)
-    data["noise"] = {key: getattr(model.noise, key) for key in _NOISE_KEYS}
+    values = asdict(model)      # typed fields by name: the file's keys are the field names
+    data.update({key: values[key] for key in _NUMBER_KEYS})
+    data["noise"] = asdict(model.noise)
     data["effects"] = [
         {"name": e.name, **{k: e.params[k] for k in EFFECTS[e.name].keys}} for e in model.effects
     ]

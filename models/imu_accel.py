@@ -30,18 +30,18 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
+from gyrocal.inputs import KeyPath
 from gyrocal.models.gravity import STANDARD_GRAVITY_MPS2
-from gyrocal.models.gyro_model import _mapping, _number, _reject_unknown, _Where
+from gyrocal.models.gyro_model import model_number, non_negative
+from gyrocal.schema import Context, Fields
 
 AXES = ("x", "y", "z")
-_PAIRS = tuple(f"{a}{b}" for a in AXES for b in AXES if a != b)
+PAIRS = tuple(f"{a}{b}" for a in AXES for b in AXES if a != b)
 AXIS_KEYS = ("bias_mg", "bias_tempco_mg_per_c", "sf_error_ppm", "sf_tempco_ppm_per_c",
              "vrw_mps_per_rth")
-SECTION_KEYS = ("axes", "misalignment_urad", "misalignment_tempco_urad_per_c")
 
 
 @dataclass(frozen=True)
@@ -86,42 +86,69 @@ class AccelerometerModel:
         return out + rng.standard_normal(force_g.shape) * self.noise_sigma_g(fs_hz)
 
 
-def _pairs(data: Any, path: tuple, where: _Where) -> np.ndarray:
+def read_pair_matrix(ctx: Context, path: KeyPath, raw: object) -> np.ndarray | None:
+    """A misalignment mapping ``{xy: 150, ...}`` as a 3 × 3 matrix (zero diagonal); the row
+    axis senses the column axis. None when an element was wrong (reported)."""
     out = np.zeros((3, 3))
-    if data is None:
+    if raw is None:
         return out
-    for pair, raw in _mapping(data, path, where).items():
-        if pair not in _PAIRS:
-            raise where.error((*path, pair), f"unknown element; elements are {', '.join(_PAIRS)} "
-                              "(row axis senses column axis)")
-        out[AXES.index(pair[0]), AXES.index(pair[1])] = _number(raw, (*path, pair), where)
-    return out
+    entries = Fields(ctx, path, raw, str(path[-1]))
+    complete = entries.valid
+    for pair in list(entries.data):
+        if pair not in PAIRS:
+            entries.used.add(pair)
+            ctx.report((*path, pair), f"unknown element; elements are {', '.join(PAIRS)} "
+                       "(row axis senses column axis)")
+            complete = False
+            continue
+        value = entries.take(pair, model_number)
+        if value is None:
+            complete = False
+        else:
+            out[AXES.index(pair[0]), AXES.index(pair[1])] = value
+    return out if complete else None
 
 
-def parse_accelerometers(data: Any, reference_temp_c: float, where: _Where) -> AccelerometerModel:
-    """The ``accelerometers`` section; errors name file, line and key path."""
-    top = ("accelerometers",)
-    section = _mapping(data, top, where)
-    _reject_unknown(section, SECTION_KEYS, top, where)
-    if "axes" not in section:
-        raise where.error((*top, "axes"), "missing required key (x, y and z accelerometers)")
-    axes = _mapping(section["axes"], (*top, "axes"), where)
-    _reject_unknown(axes, AXES, (*top, "axes"), where)
+def _read_axes(ctx: Context, path: KeyPath, raw: object) -> dict[str, np.ndarray] | None:
+    axes = Fields(ctx, path, raw, "axes")
     values = {key: np.zeros(3) for key in AXIS_KEYS}
+    complete = axes.valid
     for i, name in enumerate(AXES):
-        path = (*top, "axes", name)
-        if name not in axes:
-            raise where.error(path, "missing axis")
-        raw = _mapping(axes[name], path, where)
-        _reject_unknown(raw, AXIS_KEYS, path, where)
-        for key, value in raw.items():
-            number = _number(value, (*path, key), where)
-            if key == "vrw_mps_per_rth" and number < 0:
-                raise where.error((*path, key), f"must be >= 0, got {number:g}")
-            values[key][i] = number
-    return AccelerometerModel(
-        **values,
-        misalignment_urad=_pairs(section.get("misalignment_urad"), (*top, "misalignment_urad"), where),
-        misalignment_tempco_urad_per_c=_pairs(section.get("misalignment_tempco_urad_per_c"),
-                                              (*top, "misalignment_tempco_urad_per_c"), where),
-        reference_temp_c=reference_temp_c)
+        present, axis_raw = axes.raw(name)
+        if not present:
+            if axes.valid:
+                ctx.report((*path, name), "missing axis")
+            complete = False
+            continue
+        axis = Fields(ctx, (*path, name), axis_raw, "an accelerometer axis")
+        for key in AXIS_KEYS:
+            convert = non_negative if key == "vrw_mps_per_rth" else model_number
+            value = axis.take(key, convert, required=False, default=0.0)
+            if value is None:
+                complete = False
+            else:
+                values[key][i] = value
+        axis.finish()
+        complete = complete and axis.valid
+    axes.finish()
+    return values if complete else None
+
+
+def read_accelerometers(ctx: Context, raw: object,
+                        reference_temp_c: float) -> AccelerometerModel | None:
+    """The ``accelerometers`` section; None when anything in it was wrong (reported)."""
+    top: KeyPath = ("accelerometers",)
+    section = Fields(ctx, top, raw, "accelerometers")
+    if not section.valid:
+        return None
+    before = len(ctx.problems)
+    present, axes_raw = section.raw("axes")
+    if not present:
+        ctx.report((*top, "axes"), "required key is missing (x, y and z accelerometers)")
+    values = _read_axes(ctx, (*top, "axes"), axes_raw) if present else None
+    matrices = {key: read_pair_matrix(ctx, (*top, key), section.raw(key)[1])
+                for key in ("misalignment_urad", "misalignment_tempco_urad_per_c")}
+    section.finish()
+    if len(ctx.problems) > before or values is None or any(m is None for m in matrices.values()):
+        return None
+    return AccelerometerModel(**values, **matrices, reference_temp_c=reference_temp_c)

@@ -41,16 +41,22 @@ from typing import Any
 
 import numpy as np
 
-from gyrocal.inputs import InputError, load_yaml
-from gyrocal.models.gyro_model import GyroModel, ModelError, _mapping, _number, _Where, parse_model
-from gyrocal.models.imu_accel import AccelerometerModel, parse_accelerometers
+from gyrocal.inputs import KeyPath
+from gyrocal.models.gyro_model import (
+    GyroModel,
+    data_context,
+    model_number,
+    output_units,
+    raise_problems,
+    read_document,
+    read_model,
+)
+from gyrocal.models.imu_accel import AccelerometerModel, read_accelerometers, read_pair_matrix
+from gyrocal.schema import Context, Fields
+from gyrocal.units import UnitError
 
 AXES = ("x", "y", "z")
 EARTH_RATE_DPH = 15.041067          # sidereal rotation, deg/h (gyro-model.md)
-_PAIRS = tuple(f"{a}{b}" for a in AXES for b in AXES if a != b)
-_TOP_KEYS = ("version", "name", "output_units", "reference_temp_c", "axes",
-             "misalignment_urad", "misalignment_tempco_urad_per_c", "accelerometers")
-_AXIS_INHERITED = ("output_units", "reference_temp_c")
 
 
 def axis_index(name: str) -> int:
@@ -180,69 +186,88 @@ def vertical_earth_rate_dps(latitude_deg: float) -> float:
 # --------------------------------------------------------------------------- file
 
 
-def _matrix(data: Any, key: str, where: _Where) -> np.ndarray:
-    out = np.zeros((3, 3))
-    if data is None:
-        return out
-    entries = _mapping(data, (key,), where)
-    for pair, raw in entries.items():
-        if pair not in _PAIRS:
-            raise where.error((key, pair), f"unknown element; elements are {', '.join(_PAIRS)} "
-                              "(row axis senses column axis)")
-        out[axis_index(pair[0]), axis_index(pair[1])] = _number(raw, (key, pair), where)
-    return out
+def _axis_models(ctx: Context, raw: object,
+                 inherited: dict[str, object]) -> list[GyroModel | None] | None:
+    """Each of x, y, z as a single-axis model, with the file's inherited keys."""
+    path: KeyPath = ("axes",)
+    axes = Fields(ctx, path, raw, "axes")
+    if not axes.valid:
+        return None
+    models: list[GyroModel | None] = []
+    for name in AXES:
+        present, axis_raw = axes.raw(name)
+        if not present:
+            ctx.report((*path, name), "missing axis")
+            models.append(None)
+            continue
+        if isinstance(axis_raw, Mapping) and "earth_rate_dph" in axis_raw:
+            ctx.report((*path, name, "earth_rate_dph"),
+                       "an IMU's Earth rate is a vector set by the mounting and the station "
+                       "latitude; leave it out of the axes")
+        data = {"version": 1, **inherited, **axis_raw} if isinstance(axis_raw, Mapping) else axis_raw
+        models.append(read_model(ctx, (*path, name), data))
+    for name in axes.data:
+        if name not in AXES:
+            axes.used.add(name)
+            ctx.report((*path, name), "unknown axis; axes are x, y, z")
+    return models
+
+
+def _imu_version(value: object) -> int:
+    if value != 2 or isinstance(value, bool):
+        raise UnitError(f"a three-axis model is version 2, got {value!r}")
+    return 2
+
+
+def read_imu_model(ctx: Context, data: object) -> ImuModel | None:
+    """A version-2 model; None when anything was wrong (every problem is in ``ctx``)."""
+    top = Fields(ctx, (), data if data is not None else {}, "a model")
+    if not top.valid:
+        return None
+    before = len(ctx.problems)
+    top.take("version", _imu_version)
+    name = top.take("name", lambda value: str(value or ""), required=False, default="")
+    units = top.take("output_units", output_units, required=False)
+    reference = top.take("reference_temp_c", model_number, required=False)
+    # the axes inherit the file's units and reference temperature (reported once, here)
+    inherited = {key: value for key, value in (("output_units", units),
+                                               ("reference_temp_c", reference)) if value is not None}
+    present, axes_raw = top.raw("axes")
+    if not present:
+        ctx.report(("axes",), "required key is missing (x, y and z single-axis models)")
+    models = _axis_models(ctx, axes_raw, inherited) if present else None
+    matrices = {key: read_pair_matrix(ctx, (key,), top.raw(key)[1])
+                for key in ("misalignment_urad", "misalignment_tempco_urad_per_c")}
+    reference_c = reference if reference is not None else 0.0
+    present, acc_raw = top.raw("accelerometers")
+    accelerometers = None if acc_raw is None else read_accelerometers(ctx, acc_raw, reference_c)
+    top.finish()
+    if len(ctx.problems) > before or models is None or None in models:
+        return None
+    return ImuModel(axes=(models[0], models[1], models[2]), **matrices,  # type: ignore[arg-type]
+                    reference_temp_c=reference_c, name=name, output_units=models[0].output_units,
+                    accelerometers=accelerometers)
 
 
 def parse_imu_model(data: Any, source: str = "<model>",
                     lines: dict[tuple, int] | None = None) -> ImuModel:
     """Validate a version-2 model given as plain data; errors name file, line and key path."""
-    where = _Where(source, lines)
-    top = _mapping(data if data is not None else {}, (), where)
-    for key in top:
-        if key not in _TOP_KEYS:
-            raise where.error((key,), f"unknown key; known keys: {', '.join(_TOP_KEYS)}")
-    if top.get("version") != 2:
-        raise where.error(("version",), f"a three-axis model is version 2, got {top.get('version')!r}")
-    if "axes" not in top:
-        raise where.error(("axes",), "missing required key (x, y and z single-axis models)")
-    axes_data = _mapping(top["axes"], ("axes",), where)
-    inherited = {k: top[k] for k in _AXIS_INHERITED if k in top}
-    models = []
-    for name in AXES:
-        if name not in axes_data:
-            raise where.error(("axes", name), "missing axis")
-        raw = _mapping(axes_data[name], ("axes", name), where)
-        if "earth_rate_dph" in raw:
-            raise where.error(("axes", name, "earth_rate_dph"),
-                              "an IMU's Earth rate is a vector set by the mounting and the station "
-                              "latitude; leave it out of the axes")
-        models.append(parse_model({"version": 1, **inherited, **raw}, source, lines,
-                                  key_prefix=("axes", name)))
-    for name in axes_data:
-        if name not in AXES:
-            raise where.error(("axes", name), "unknown axis; axes are x, y, z")
-    reference = _number(top.get("reference_temp_c", 0.0), ("reference_temp_c",), where)
-    return ImuModel(
-        axes=(models[0], models[1], models[2]),
-        misalignment_urad=_matrix(top.get("misalignment_urad"), "misalignment_urad", where),
-        misalignment_tempco_urad_per_c=_matrix(top.get("misalignment_tempco_urad_per_c"),
-                                               "misalignment_tempco_urad_per_c", where),
-        reference_temp_c=reference,
-        name=str(top.get("name") or ""),
-        output_units=models[0].output_units,
-        accelerometers=(None if top.get("accelerometers") is None else
-                        parse_accelerometers(top["accelerometers"], reference, where)),
-    )
+    ctx = data_context(source, lines)
+    model = read_imu_model(ctx, data)
+    raise_problems(ctx)
+    assert model is not None
+    return model
 
 
 def load_any_model(path: str | Path) -> GyroModel | ImuModel:
     """A model file of either version: 1 → single axis (unchanged), 2 → three-axis IMU."""
-    try:
-        document = load_yaml(path)
-    except InputError as exc:
-        raise ModelError("\n".join(str(p) for p in exc.problems)) from None
-    lines = {key: location.line for key, location in document.locations.items()}
+    document = read_document(path)
+    ctx = Context(document)
     data = document.data
     if isinstance(data, Mapping) and data.get("version") == 2:
-        return parse_imu_model(data, document.file, lines)
-    return parse_model(data, document.file, lines)
+        model: GyroModel | ImuModel | None = read_imu_model(ctx, data)
+    else:
+        model = read_model(ctx, (), data)
+    raise_problems(ctx)
+    assert model is not None
+    return model

@@ -20,6 +20,7 @@ from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.run_errors import RunFaultError, SoakTimeoutError
 from gyrocal.record.journal import Journal, JournalEvent
+from gyrocal.record.step_kind import StepKind
 
 
 class Conditions:
@@ -54,7 +55,7 @@ class Conditions:
         every step. Without a ramp rate the setpoint is commanded at once.
         """
         ramp_c_per_min = step.ramp_c_per_min
-        self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind="ramp",
+        self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind=StepKind.RAMP,
                             setpoint_c=step.setpoint_c, ramp_c_per_min=ramp_c_per_min, attempt=1)
         self.set_table_rate(0.0)
         self.machine.ramp()
@@ -82,7 +83,7 @@ class Conditions:
     def soak(self, step: PlanStep, journal_done: bool = True) -> None:
         """Wait until the chamber stays within ±tolerance for the hold time, or fault."""
         self.machine.ramp()
-        self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind="soak",
+        self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind=StepKind.SOAK,
                             setpoint_c=step.setpoint_c, attempt=1)
         self.machine.soak()
         t_start = self.clock.now_s()

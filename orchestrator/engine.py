@@ -76,14 +76,14 @@ class EnginePolicy:
 
 def completed_steps(events: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """step_id → its ``step_completed`` event, from the journal."""
-    return {e["step_id"]: e for e in events if e.get("event") == "step_completed"}
+    return {e["step_id"]: e for e in events if e.get("event") == JournalEvent.STEP_COMPLETED}
 
 
 def attempts_started(events: list[dict[str, Any]]) -> dict[str, int]:
     """step_id → the highest attempt number any ``step_started`` event gave it."""
     last: dict[str, int] = {}
     for event in events:
-        if event.get("event") == "step_started" and "step_id" in event:
+        if event.get("event") == JournalEvent.STEP_STARTED and "step_id" in event:
             step_id = event["step_id"]
             last[step_id] = max(last.get(step_id, 0), int(event.get("attempt", 1)))
     return last
@@ -313,19 +313,19 @@ class RunEngine:
             # A restarted dry run has a new simulated fixture, and a real one may have
             # been touched while the run was down: the mounting is checked again.
             self._remount_executor().ensure(step)
-        if setpoint is None or step.kind == "ramp" or self._ramp_follows(step):
+        if setpoint is None or step.kind == StepKind.RAMP or self._ramp_follows(step):
             return
         self.journal.append(JournalEvent.RESTORE_CONDITIONS, step_id=step.step_id, setpoint_c=setpoint)
         self.conditions.ramp(step, journal_done=False)
-        if step.kind != "soak":
+        if step.kind != StepKind.SOAK:
             self.conditions.soak(step, journal_done=False)
 
     def _ramp_follows(self, step: PlanStep) -> bool:
         """A remount right before a ramp needs no temperature of its own."""
-        if step.kind != "remount":
+        if step.kind != StepKind.REMOUNT:
             return False
         later = self.steps[self.steps.index(step) + 1:]
-        return bool(later) and later[0].kind == "ramp"
+        return bool(later) and later[0].kind == StepKind.RAMP
 
     # -- remount (multi-axis IMU) --------------------------------------------------------------
     def _elapsed(self) -> float:

@@ -1,6 +1,6 @@
 """The three YAML languages (procedure, station, gyro model) described once, as data.
 
-The parsers (``procedure.py``, ``station.py``, ``models/gyro_model.py``) check
+The parsers (``procedure/``, ``station.py``, ``models/gyro_model.py``) check
 files key by key in code; users need the same facts written down: every key,
 whether it is required, its default, the units it accepts and what it means.
 This module is that description. ``reference_docs.py`` renders it to the

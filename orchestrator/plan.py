@@ -29,6 +29,7 @@ from gyrocal.orchestrator.procedure import (
     SweepTest,
     TableInterferenceTest,
     TemperatureStep,
+    TestKind,
     ThresholdTest,
     TiltLinearityTest,
     TurnOnRepeatabilityTest,
@@ -129,10 +130,11 @@ def _rate_tag(rate_dps: float) -> str:
 
 def _test_tags(step: TemperatureStep) -> list[str]:
     """``sf``, ``static``, ``allan``; numbered (``sf1``, ``sf2``) when a kind repeats in a step."""
-    base = {"sf_sweep": "sf", "static": "static", "allan": "allan",
-            "table_interference": "interference", "threshold": "thr", "rate_limit": "lim",
-            "frequency_response": "freq", "magnetic": "mag", "tilt_linearity": "tilt",
-            "turn_on": "turnon", "turn_on_repeatability": "rep"}
+    base = {TestKind.SF_SWEEP: "sf", TestKind.STATIC: "static", TestKind.ALLAN: "allan",
+            TestKind.TABLE_INTERFERENCE: "interference", TestKind.THRESHOLD: "thr",
+            TestKind.RATE_LIMIT: "lim", TestKind.FREQUENCY_RESPONSE: "freq",
+            TestKind.MAGNETIC: "mag", TestKind.TILT_LINEARITY: "tilt", TestKind.TURN_ON: "turnon",
+            TestKind.TURN_ON_REPEATABILITY: "rep"}
     kinds = [base[test.kind] for test in step.tests]
     seen: dict[str, int] = {}
     tags = []
@@ -428,7 +430,7 @@ def _check_eta(procedure: Procedure, eta_s: float) -> None:
 
 def _remount_line(plan: Plan) -> list[str]:
     """How often the operator must come to the table: each remount waits for `gyrocal confirm`."""
-    remounts = [s for s in plan.steps if s.kind == "remount"]
+    remounts = [s for s in plan.steps if s.kind == StepKind.REMOUNT]
     if not remounts:
         return []
     names = list(dict.fromkeys(s.mounting for s in remounts))
@@ -442,17 +444,17 @@ def format_plan(plan: Plan) -> str:
               "starts at")
     rows = []
     for number, step in enumerate(plan.steps, start=1):
-        if step.kind == "ramp":
+        if step.kind == StepKind.RAMP:
             move = f"{format_number(step.ramp_c_per_min)} °C/min"
             logged = "-"
         else:
             move = format_duration(step.transition_s + step.settle_s)
             logged = format_duration(step.duration_s)
-        if step.kind == "remount":
+        if step.kind == StepKind.REMOUNT:
             move, logged = "operator", "-"
-        rate = "-" if step.kind in ("ramp", "soak", "remount") else (
+        rate = "-" if step.kind in (StepKind.RAMP, StepKind.SOAK, StepKind.REMOUNT) else (
             f"{step.rate_dps:+g} deg/s" if step.rate_dps else "0 deg/s")
-        if step.kind == "dwell" and step.revolutions is not None:
+        if step.kind == StepKind.DWELL and step.revolutions is not None:
             rate += f" ({step.revolutions:.3g} rev)"
         if step.kind == StepKind.MAGNETIC and step.field_t is not None:
             rate += f" (coil {step.field_t * 1e3:+g} mT)"

@@ -43,6 +43,7 @@ from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.run_errors import RunFaultError
 from gyrocal.record.journal import Journal, JournalEvent
 from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.step_kind import StepKind
 
 CONFIRM_FILE = "CONFIRM"
 CHECK_RATE_DPS = 10.0        # the mount check's table rate
@@ -190,7 +191,7 @@ class RemountExecutor:
         """Hand the table to the operator, wait for the confirmation, check the mounting."""
         mounting = self.mounting_of(step)
         attempt = self.attempts_before(step.step_id) + 1
-        self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind="remount",
+        self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind=StepKind.REMOUNT,
                             mounting=step.mounting, attempt=attempt)
         self.conditions.set_table_rate(0.0)
         reading = self.inst.table.read_rate_dps()

@@ -28,6 +28,6 @@ def compensation_labels(results: dict[str, Any]) -> dict[str, tuple[str, str]]:
 
 def acceptance_unit(entry: dict[str, Any]) -> str:
     """The unit an acceptance value and limit are in. The procedure parser fills in the
-    metric's unit when a limit names none (orchestrator/procedure.py), so it is in every
+    metric's unit when a limit names none (orchestrator/procedure/acceptance.py), so it is in every
     plan; a run recorded before that shows none rather than a guess."""
     return str(entry.get("unit") or "")

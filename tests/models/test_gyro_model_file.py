@@ -162,12 +162,12 @@ def test_effect_parameter_type_and_finiteness(tmp_path):
 @pytest.mark.parametrize(
     ("text", "expected"),
     [
-        ("scale_factor: 1\n", "version: missing required key"),
-        ("version: 1\n", "scale_factor: missing required key"),
+        ("scale_factor: 1\n", "version: required key is missing"),
+        ("version: 1\n", "scale_factor: required key is missing"),
         ("version: 2\nscale_factor: 1\n", ":1: version: unsupported version 2"),
         ("version: 1.0\nscale_factor: 1\n", ":1: version: must be an integer, got 1.0"),
         ("version: 1\nscale_factor: 0\n", ":2: scale_factor: must be non-zero"),
-        ("- 1\n- 2\n", "must be a mapping, got list"),
+        ("- 1\n- 2\n", "a model must be a mapping of keys, got a list of 2 entries"),
         ("", "empty model"),
     ],
 )
@@ -258,3 +258,29 @@ def test_any_valid_model_round_trips(tmp_path_factory, scale, bias, tempco, arw,
     out = tmp_path_factory.mktemp("rt") / "m.yaml"
     dump_model(model, out)
     assert load_model(out) == model
+
+
+def test_every_problem_of_a_model_file_is_reported_in_one_pass(tmp_path):
+    # read with the common schema reader: like a procedure, a model file lists all its
+    # mistakes (in file order), so one edit round fixes them all
+    message = load_error(
+        tmp_path,
+        """
+        version: 1
+        scale_factor: 0
+        bias_dps: 3
+        noise: {arw_deg_per_rth: -1}
+        effects:
+          - name: thermal_lag
+            tau_s: -5
+        """,
+    )
+    path = tmp_path / "x.yaml"
+    assert message.splitlines() == [
+        f"{path}:2: scale_factor: must be non-zero",
+        f"{path}:3: bias_dps: unknown key 'bias_dps'; did you mean 'bias_dph'? (allowed here: "
+        "bias_dph, bias_tempco_dph_per_c, earth_rate_dph, effects, name, noise, output_units, "
+        "reference_temp_c, scale_factor, sf_error_ppm, sf_tempco_ppm_per_c, version)",
+        f"{path}:4: noise.arw_deg_per_rth: must be >= 0, got -1",
+        f"{path}:7: effects[0].tau_s: must be > 0, got -5",
+    ]

@@ -118,9 +118,13 @@ def parser_allowed_keys(language: Language, file: Path, path: tuple) -> set[str]
         else:
             load_procedure(file)
     except ModelError as error:
-        message = str(error)
-        assert f": {where}: " in message, message
-        listed = re.search(r"(?:known keys|elements are|axes are):? ([\w, ]+)", message)
+        lines = [line for line in str(error).splitlines() if f": {where}: " in line]
+        assert lines, str(error)
+        message = lines[0]
+        # unknown keys as the common schema reader lists them, matrix elements and axes
+        # as the model reader does
+        listed = (re.search(r"(?:elements are|axes are):? ([\w, ]+)", message)
+                  or re.search(r"\((?:allowed here: )?([\w, ]+)\)$", message))
     except ProcedureError as error:
         messages = [p.message for p in error.problems if p.path == where]
         assert messages, f"{where} not reported: {error}"
