@@ -235,60 +235,59 @@ class _Expander:
                 suffix = f".r{repeat}" if test.repeats > 1 else ""
                 base = dict(common, source=f"{source}.tests[{test_index}]",
                             test_index=test_index, repeat=repeat, label=test.label or step.label)
-                if isinstance(test, StaticTest | AllanTest):
-                    self.add(step_id=f"{prefix}.{tag}{suffix}", kind=StepKind(test.kind), direction="",
-                             duration_s=test.duration_s, settle_s=test.settle_s, **base)
-                    continue
-                if isinstance(test, TableInterferenceTest):
-                    # the drive powered at zero rate, then off: analysis/environment/interference.py pairs them
-                    for half, kind in (("powered", StepKind.STATIC), ("off", StepKind.DRIVE_OFF)):
-                        self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=kind, direction="",
-                                 duration_s=test.duration_s, settle_s=test.settle_s, **base)
-                    continue
-                if isinstance(test, MagneticTest):
-                    # +B, 0, -B: reports/sections/magnetic.py regresses the bias on the field
-                    for half, field_t in (("pos", test.field_t), ("zero", 0.0), ("neg", -test.field_t)):
-                        self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=StepKind.MAGNETIC,
-                                 direction="", duration_s=test.duration_s, settle_s=test.settle_s,
-                                 field_t=field_t, **base)
-                    continue
-                if isinstance(test, TiltLinearityTest):
-                    # each angle point, then the zero-stability hold at 0 (the table as the
-                    # indexing head; reports/sections/tilt.py fits them)
-                    for angle in test.angles_deg:
-                        self.add(step_id=f"{prefix}.{tag}{suffix}.{angle:+g}deg",
-                                 kind=StepKind.TILT, direction="", duration_s=test.dwell_s,
-                                 settle_s=test.settle_s, angle_deg=angle, **base)
-                    self.add(step_id=f"{prefix}.{tag}{suffix}.zero", kind=StepKind.TILT,
-                             direction="", duration_s=test.zero_stability_s,
-                             settle_s=test.settle_s, angle_deg=0.0, **base)
-                    continue
-                if isinstance(test, TurnOnTest):
-                    # settle: the time the unit is off before the output-on (the ETA adds it)
-                    self.add(step_id=f"{prefix}.{tag}{suffix}", kind=StepKind.TURN_ON,
-                             direction="", duration_s=test.duration_s, settle_s=test.off_s,
-                             max_duration_s=test.duration_s + FIRST_FRAME_TIMEOUT_S,
-                             band_dph=test.band_dph, **base)
-                    continue
-                if isinstance(test, TurnOnRepeatabilityTest):
-                    # each cycle: off, on, settle after the first frame, log
-                    for cycle in range(1, test.cycles + 1):
-                        self.add(step_id=f"{prefix}.{tag}{suffix}.c{cycle}",
-                                 kind=StepKind.TURN_ON_CYCLE, direction="",
-                                 duration_s=test.duration_s,
-                                 settle_s=test.off_s + test.settle_s, off_s=test.off_s,
-                                 max_duration_s=test.duration_s + FIRST_FRAME_TIMEOUT_S, **base)
-                    continue
-                if isinstance(test, ThresholdTest):
-                    self.threshold(prefix, tag, suffix, test, base)
-                    continue
-                if isinstance(test, RateLimitTest):
-                    self.rate_limit(prefix, tag, suffix, test, base)
-                    continue
-                if isinstance(test, FrequencyResponseTest):
-                    self.frequency_response(prefix, tag, suffix, test, base)
-                    continue
-                self.sweep(prefix, tag, suffix, test, base)
+                expand = next((_EXPANDERS[cls] for cls in type(test).__mro__
+                               if cls in _EXPANDERS), _Expander.sweep)
+                expand(self, prefix, tag, suffix, test, base)
+
+    def held(self, prefix: str, tag: str, suffix: str, test: StaticTest | AllanTest,
+             base: dict) -> None:
+        self.add(step_id=f"{prefix}.{tag}{suffix}", kind=StepKind(test.kind), direction="",
+                 duration_s=test.duration_s, settle_s=test.settle_s, **base)
+
+    def interference(self, prefix: str, tag: str, suffix: str, test: TableInterferenceTest,
+                     base: dict) -> None:
+        # the drive powered at zero rate, then off: analysis/environment/interference.py pairs them
+        for half, kind in (("powered", StepKind.STATIC), ("off", StepKind.DRIVE_OFF)):
+            self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=kind, direction="",
+                     duration_s=test.duration_s, settle_s=test.settle_s, **base)
+
+    def magnetic(self, prefix: str, tag: str, suffix: str, test: MagneticTest,
+                 base: dict) -> None:
+        # +B, 0, -B: reports/sections/magnetic.py regresses the bias on the field
+        for half, field_t in (("pos", test.field_t), ("zero", 0.0), ("neg", -test.field_t)):
+            self.add(step_id=f"{prefix}.{tag}{suffix}.{half}", kind=StepKind.MAGNETIC,
+                     direction="", duration_s=test.duration_s, settle_s=test.settle_s,
+                     field_t=field_t, **base)
+
+    def tilt(self, prefix: str, tag: str, suffix: str, test: TiltLinearityTest,
+             base: dict) -> None:
+        # each angle point, then the zero-stability hold at 0 (the table as the
+        # indexing head; reports/sections/tilt.py fits them)
+        for angle in test.angles_deg:
+            self.add(step_id=f"{prefix}.{tag}{suffix}.{angle:+g}deg",
+                     kind=StepKind.TILT, direction="", duration_s=test.dwell_s,
+                     settle_s=test.settle_s, angle_deg=angle, **base)
+        self.add(step_id=f"{prefix}.{tag}{suffix}.zero", kind=StepKind.TILT,
+                 direction="", duration_s=test.zero_stability_s,
+                 settle_s=test.settle_s, angle_deg=0.0, **base)
+
+    def turn_on(self, prefix: str, tag: str, suffix: str, test: TurnOnTest,
+                base: dict) -> None:
+        # settle: the time the unit is off before the output-on (the ETA adds it)
+        self.add(step_id=f"{prefix}.{tag}{suffix}", kind=StepKind.TURN_ON,
+                 direction="", duration_s=test.duration_s, settle_s=test.off_s,
+                 max_duration_s=test.duration_s + FIRST_FRAME_TIMEOUT_S,
+                 band_dph=test.band_dph, **base)
+
+    def turn_on_cycles(self, prefix: str, tag: str, suffix: str,
+                       test: TurnOnRepeatabilityTest, base: dict) -> None:
+        # each cycle: off, on, settle after the first frame, log
+        for cycle in range(1, test.cycles + 1):
+            self.add(step_id=f"{prefix}.{tag}{suffix}.c{cycle}",
+                     kind=StepKind.TURN_ON_CYCLE, direction="",
+                     duration_s=test.duration_s,
+                     settle_s=test.off_s + test.settle_s, off_s=test.off_s,
+                     max_duration_s=test.duration_s + FIRST_FRAME_TIMEOUT_S, **base)
 
     def remount(self, step_id: str, spec: MountingSpec, index: int, step: TemperatureStep) -> None:
         """An operator step: table stopped, the fixture turned to ``spec``, then checked."""
@@ -365,6 +364,21 @@ class _Expander:
             return stop_s
         ramp = proc.defaults.ramp_c_per_min or proc.safety.chamber.max_ramp_c_per_min
         return stop_s + abs(safe.setpoint_c - self.chamber_c) / ramp * 60.0
+
+
+#: How each kind of test in a temperature step becomes plan steps (a sweep when not listed).
+_EXPANDERS = {
+    StaticTest: _Expander.held,
+    AllanTest: _Expander.held,
+    TableInterferenceTest: _Expander.interference,
+    MagneticTest: _Expander.magnetic,
+    TiltLinearityTest: _Expander.tilt,
+    TurnOnTest: _Expander.turn_on,
+    TurnOnRepeatabilityTest: _Expander.turn_on_cycles,
+    ThresholdTest: _Expander.threshold,
+    RateLimitTest: _Expander.rate_limit,
+    FrequencyResponseTest: _Expander.frequency_response,
+}
 
 
 def expand_plan(procedure: Procedure, start_temp_c: float | None = None) -> Plan:
