@@ -420,21 +420,7 @@ class _Builder:
             return None
 
         if isinstance(node, ScalarNode):
-            if node.tag == INCLUDE_TAG:
-                return self.include(node, display, path, key_path, document, stack)
-            if node.tag not in _STANDARD_SCALAR_TAGS:
-                self.problems.append(
-                    Problem(display, line, format_path(key_path), f"unsupported YAML tag {node.tag}")
-                )
-                return None
-            try:
-                return loader.construct_object(node, deep=True)
-            except (ValueError, OverflowError) as error:   # e.g. the date 2027-13-45
-                self.problems.append(
-                    Problem(display, line, format_path(key_path),
-                            f"cannot read {node.value!r}: {error}")
-                )
-                return None
+            return self.build_scalar(node, loader, display, path, key_path, document, stack)
 
         active = active | {id(node)}
         if isinstance(node, SequenceNode):
@@ -458,6 +444,26 @@ class _Builder:
 
         self.problems.append(Problem(display, line, format_path(key_path), "unsupported YAML node"))
         return None
+
+    def build_scalar(self, node: ScalarNode, loader: _LimitedLoader, display: str, path: Path,
+                     key_path: KeyPath, document: YamlDocument, stack: tuple[Path, ...]) -> Any:
+        """A scalar: an ``!include``, or a value of a standard tag (anything else is refused)."""
+        line = node.start_mark.line + 1
+        if node.tag == INCLUDE_TAG:
+            return self.include(node, display, path, key_path, document, stack)
+        if node.tag not in _STANDARD_SCALAR_TAGS:
+            self.problems.append(
+                Problem(display, line, format_path(key_path), f"unsupported YAML tag {node.tag}")
+            )
+            return None
+        try:
+            return loader.construct_object(node, deep=True)
+        except (ValueError, OverflowError) as error:   # e.g. the date 2027-13-45
+            self.problems.append(
+                Problem(display, line, format_path(key_path),
+                        f"cannot read {node.value!r}: {error}")
+            )
+            return None
 
     def build_mapping(
         self,

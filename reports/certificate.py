@@ -167,20 +167,41 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
     styles = getSampleStyleSheet()
     body = styles["BodyText"]
     body.fontSize, body.leading = 8.5, 10.5
-    h2 = styles["Heading2"]
+    simulated = is_simulated(results)
+    story = [*_front_matter(results, number, customer, approval, styles),
+             *_measurement_sections(results, styles["Heading2"], body),
+             *_closing_sections(results, approval, styles["Heading2"], body)]
+    title = f"{SIMULATED_TITLE}: {number}" if simulated else f"Calibration certificate {number}"
+
+    def render(target: Path) -> None:
+        doc = SimpleDocTemplate(str(target), pagesize=A4, title=title,
+                                leftMargin=18 * mm, rightMargin=18 * mm, topMargin=15 * mm,
+                                bottomMargin=15 * mm)
+        decorate = _watermark if simulated else _no_decoration
+        doc.build(story, onFirstPage=decorate, onLaterPages=decorate,
+                  canvasmaker=_numbered_canvas(number))
+
+    # Atomic: a kill mid-render leaves a temporary file (set aside later), never half a PDF.
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, render, mode=0o644)
+    return path
+
+
+def _front_matter(results: dict[str, Any], number: str, customer: str, approval: Approval,
+                  styles: Any) -> list[Any]:
+    """Title (SIMULATED for a dry run), number, who, what, when and by which method."""
+    body = styles["BodyText"]
     run = results.get("run") or {}
     site = (results.get("station") or {}).get("site") or {}
     uut = results.get("unit_under_test") or {}
     procedure = results.get("procedure") or {}
-    verdict = results.get("verdict") or {}
     inputs = results.get("inputs") or {}
-    simulated = is_simulated(results)
     heading = ([Paragraph(SIMULATED_TITLE, styles["Title"]),
                 Paragraph("Calibration certificate layout, from a dry run against simulated "
                           "instruments: no instrument was calibrated and no value below "
                           "describes a real unit.", body)]
-               if simulated else [Paragraph("Calibration Certificate", styles["Title"])])
-    story: list[Any] = [
+               if is_simulated(results) else [Paragraph("Calibration Certificate", styles["Title"])])
+    return [
         *heading,
         Paragraph(f"Certificate number <b>{_esc(number)}</b>; every page carries it and its "
                   "page number; this certificate may not be reproduced other than in full.",
@@ -198,6 +219,12 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
                         f"{(inputs.get('procedure') or {}).get('sha256', '—')}); software "
                         f"{_software(run.get('software'))}; run {run.get('run_id')}"),
              ], body),
+    ]
+
+
+def _measurement_sections(results: dict[str, Any], h2: Any, body: Any) -> list[Any]:
+    """Conditions, results with U and how U was stated, and traceability."""
+    return [
         Paragraph("Conditions during the calibration", h2),
         _grid([["Setpoint (°C)", "Chamber measured (°C)", "Sensor measured (°C)"]] +
               [[f"{e['temp_c']:g}", _num(e.get("chamber_temp_c"), 2),
@@ -222,6 +249,14 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
                 + (" OVERDUE" if i.get("calibration_overdue") else "")]
                for role, i in sorted((results.get("instruments") or {}).items())
                if role != "gyro"], [20, 40, 40, 46, 28], body),
+    ]
+
+
+def _closing_sections(results: dict[str, Any], approval: Approval, h2: Any,
+                      body: Any) -> list[Any]:
+    """The decision rule and conformity per limit, the overall statement, the approval."""
+    verdict = results.get("verdict") or {}
+    return [
         Paragraph("Decision rule and conformity", h2),
         _grid([["Limit", "Value ± U", "Limit", "Rule", "Guard band", "Decision"]] +
               [_conformity_row(a) for a in results.get("acceptance") or []],
@@ -236,20 +271,6 @@ def write_certificate(results: dict[str, Any], path: Path, number: str, customer
              ("Run signature", _signature(results)),
              ("Signature", "\n\n______________________________")], body),
     ]
-    title = f"{SIMULATED_TITLE}: {number}" if simulated else f"Calibration certificate {number}"
-
-    def render(target: Path) -> None:
-        doc = SimpleDocTemplate(str(target), pagesize=A4, title=title,
-                                leftMargin=18 * mm, rightMargin=18 * mm, topMargin=15 * mm,
-                                bottomMargin=15 * mm)
-        decorate = _watermark if simulated else _no_decoration
-        doc.build(story, onFirstPage=decorate, onLaterPages=decorate,
-                  canvasmaker=_numbered_canvas(number))
-
-    # Atomic: a kill mid-render leaves a temporary file (set aside later), never half a PDF.
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, render, mode=0o644)
-    return path
 
 
 def is_simulated(results: dict[str, Any]) -> bool:
