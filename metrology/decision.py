@@ -78,6 +78,13 @@ def decide(value: float, expanded_u: float | None, limit: float, kind: str,
     return Decision.CONDITIONAL, guard
 
 
+class Judged(Protocol):
+    """An acceptance limit's outcome (acceptance.AcceptanceVerdict; it imports this module)."""
+
+    name: str
+    decision: Decision
+
+
 @dataclass(frozen=True)
 class Blocker:
     """Why a run whose limits all pass still cannot be called PASS."""
@@ -113,27 +120,27 @@ def instrument_blockers(instruments: dict[str, Any]) -> list[Blocker]:
     return blockers
 
 
-def overall_verdict(checks: Sequence[Check], acceptance: list[dict[str, Any]],
+def overall_verdict(checks: Sequence[Check], acceptance: Sequence[Judged],
                     blockers: list[Blocker]) -> dict[str, Any]:
     """INVALID > FAIL > BLOCKED > CONDITIONAL > PASS, with every reason named."""
     failed = [c for c in checks if not c.ok]
-    decisions = {a.get("decision") or ("PASS" if a.get("pass") else "FAIL") for a in acceptance}
+    decisions = {a.decision for a in acceptance}
     if failed:
         overall = "INVALID"
-    elif Decision.FAIL.value in decisions:
+    elif Decision.FAIL in decisions:
         overall = "FAIL"
     elif blockers:
         overall = "BLOCKED"
-    elif Decision.NOT_EVALUATED.value in decisions:
+    elif Decision.NOT_EVALUATED in decisions:
         overall = "INCOMPLETE"
-    elif Decision.CONDITIONAL.value in decisions:
+    elif Decision.CONDITIONAL in decisions:
         overall = "CONDITIONAL"
     else:
         overall = "PASS"
     return {"overall": overall, "invalid_because": [f"{c.name}: {c.detail}" for c in failed],
             "blocked_because": [f"{b.role}: {b.reason}" for b in blockers],
-            "conditional": sorted(a["name"] for a in acceptance
-                                  if a.get("decision") == Decision.CONDITIONAL.value),
-            "not_evaluated": sorted(a["name"] for a in acceptance
-                                    if a.get("decision") == Decision.NOT_EVALUATED.value),
+            "conditional": sorted(a.name for a in acceptance
+                                  if a.decision is Decision.CONDITIONAL),
+            "not_evaluated": sorted(a.name for a in acceptance
+                                    if a.decision is Decision.NOT_EVALUATED),
             "sanity": [{"name": c.name, "ok": c.ok, "detail": c.detail} for c in checks]}

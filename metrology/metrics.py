@@ -1,17 +1,35 @@
-"""The results.json metrics a procedure's acceptance limits may name, and what each needs.
+"""The one catalogue of results.json metrics: names, units, what each needs, how to read it.
 
 Acceptance limits are checked by QA the morning after; a misspelt metric or a
 limit on something the procedure never measures must fail at ``gyrocal
 validate``, not after sixteen hours on the table. Names are the key paths of
 ``report/results.json`` in ``/work/shared/spec/interfaces.md``.
+
+Every user of a metric takes it from here: procedure validation (the limits a
+procedure may set), the report's limit evaluation (``reports/results.py``), the
+certificate's table of single figures, the runs database's metric names
+(``reports/runs/metrics.py``) and the physical-sense checks. A value is read from
+a results mapping only through :func:`metric_value` / :func:`metric_number`, so
+the path walk exists once.
 """
 
 from __future__ import annotations
 
+import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from gyrocal.models.noise_terms import NOISE_TERMS
+
+
+@dataclass(frozen=True)
+class Certified:
+    """How the calibration certificate prints a metric: its row, its words, its unit."""
+
+    row: int
+    label: str
+    unit: str
 
 
 @dataclass(frozen=True)
@@ -19,6 +37,22 @@ class Metric:
     key: str               # key path in results.json
     unit: str | None       # canonical unit; None when it is the unit under test's own output unit
     needs: str             # what the sequence must contain: "sweep", "sweep_temps", "bias_temps", "allan"
+    #: the sign is physical: a max limit bounds the magnitude (every other metric with a
+    #: max limit is a size or a spread, and a negative value of it is impossible)
+    signed: bool = False
+    #: the name of the metric in the lab's runs database (its unit in the name), if stored
+    db_name: str | None = None
+    #: the certificate's row for it, when it is a certified single figure
+    certified: Certified | None = None
+
+    @property
+    def path(self) -> tuple[str, ...]:
+        return tuple(self.key.split("."))
+
+    @property
+    def noise_term(self) -> str | None:
+        """The ``allan.fit`` key of a fitted noise term (Q_arcsec…), else None."""
+        return self.key.removeprefix("allan.fit.") if self.key.startswith("allan.fit.") else None
 
 
 _SWEEP, _SWEEP_TEMPS, _BIAS_TEMPS, _ALLAN = "sweep", "sweep_temps", "bias_temps", "allan"
@@ -28,33 +62,76 @@ _TURN_ON = "turn_on"
 _REPEATABILITY = "turn_on_repeatability"
 _LIMIT_POS, _LIMIT_NEG = "rate_limit_positive", "rate_limit_negative"
 
+_IEEE = "IEEE Std 952 / 1431"
+
 METRICS: dict[str, Metric] = {
     m.key: m
     for m in (
-        Metric("nonlinearity.rms_pct", "%", _SWEEP),
-        Metric("nonlinearity.max_ppm_fs", "ppm", _SWEEP),
-        Metric("asymmetry_ppm", "ppm", _SWEEP),
-        Metric("scale_factor_ls.sf", None, _SWEEP),
-        Metric("scale_factor_ls.bias", None, _SWEEP),
-        Metric("sf_temperature.instability_pct", "%", _SWEEP_TEMPS),
-        Metric("sf_temperature.sensitivity_ppm_per_c", "ppm/°C", _SWEEP_TEMPS),
-        Metric("bias_temperature.sensitivity_dph_per_c", "deg/h/°C", _BIAS_TEMPS),
-        *(Metric(f"allan.fit.{t.fit_key}", t.unit, _ALLAN) for t in NOISE_TERMS),
+        Metric("nonlinearity.rms_pct", "%", _SWEEP, db_name="nonlinearity_rms_pct",
+               certified=Certified(2, "Nonlinearity (RMS of SF over rates)", "%")),
+        Metric("nonlinearity.max_ppm_fs", "ppm", _SWEEP, db_name="nonlinearity_max_ppm_fs",
+               certified=Certified(3, "Nonlinearity (max residual)", "ppm of full scale")),
+        Metric("asymmetry_ppm", "ppm", _SWEEP, signed=True, db_name="asymmetry_ppm",
+               certified=Certified(4, "Scale-factor asymmetry", "ppm")),
+        Metric("scale_factor_ls.sf", None, _SWEEP, db_name="sf", certified=Certified(
+            1, "Scale factor, LS line at the reference temperature", "output/(deg/s)")),
+        Metric("scale_factor_ls.bias", None, _SWEEP, signed=True, db_name="bias_dps_ls"),
+        Metric("sf_temperature.instability_pct", "%", _SWEEP_TEMPS, db_name="sf_instability_pct",
+               certified=Certified(6, "SF temperature instability", "%")),
+        Metric("sf_temperature.sensitivity_ppm_per_c", "ppm/°C", _SWEEP_TEMPS, signed=True,
+               db_name="sf_tempco_ppm_per_c",
+               certified=Certified(5, "SF temperature sensitivity", "ppm/°C")),
+        Metric("bias_temperature.sensitivity_dph_per_c", "deg/h/°C", _BIAS_TEMPS, signed=True,
+               db_name="bias_tempco_dph_per_c",
+               certified=Certified(7, "Bias temperature sensitivity", "deg/h per °C")),
+        # the noise terms; in the database under their model-file names (models/noise_terms.py)
+        *(Metric(f"allan.fit.{t.fit_key}", t.unit, _ALLAN, db_name=t.model_key)
+          for t in NOISE_TERMS),
         Metric("allan.fit.markov.sigma_dph", "deg/h", _ALLAN),
         Metric("allan.fit.markov.tau_s", "s", _ALLAN),
-        Metric("threshold.threshold_dps", "deg/s", _THRESHOLD),
-        Metric("threshold.resolution_dps", "deg/s", _THRESHOLD),
-        Metric("rate_limits.max_positive_dps", "deg/s", _LIMIT_POS),
-        Metric("rate_limits.max_negative_dps", "deg/s", _LIMIT_NEG),
-        Metric("frequency_response.bandwidth_hz", "Hz", _FREQUENCY),
-        Metric("frequency_response.phase_deg", "deg", _FREQUENCY),
-        Metric("turn_on.time_to_first_data_s", "s", _TURN_ON),
-        Metric("turn_on.time_to_band_s", "s", _TURN_ON),
-        Metric("turn_on.warmup_tau_s", "s", _TURN_ON),
-        Metric("turn_on.warmup_amplitude_dph", "deg/h", _TURN_ON),
-        Metric("turn_on_repeatability.std_dph", "deg/h", _REPEATABILITY),
+        Metric("threshold.threshold_dps", "deg/s", _THRESHOLD, certified=Certified(
+            8, f"Threshold, {_IEEE} (smallest resolved increment at zero rate; U from the "
+               "increment grid)", "deg/s")),
+        Metric("threshold.resolution_dps", "deg/s", _THRESHOLD, certified=Certified(
+            9, f"Resolution, {_IEEE} (smallest resolved increment at the set rates; U from "
+               "the increment grid)", "deg/s")),
+        Metric("rate_limits.max_positive_dps", "deg/s", _LIMIT_POS, certified=Certified(
+            10, f"Maximum input rate, positive, {_IEEE} (U from the rate walk)", "deg/s")),
+        Metric("rate_limits.max_negative_dps", "deg/s", _LIMIT_NEG, certified=Certified(
+            11, f"Maximum input rate, negative, {_IEEE} (U from the rate walk)", "deg/s")),
+        Metric("frequency_response.bandwidth_hz", "Hz", _FREQUENCY, certified=Certified(
+            12, f"Bandwidth (−3 dB), {_IEEE} frequency response test (table in synthesis "
+                "mode; U from the sine fits and the interpolation)", "Hz")),
+        Metric("frequency_response.phase_deg", "deg", _FREQUENCY, certified=Certified(
+            13, f"Phase at the stated frequency, {_IEEE} frequency response test (U from the "
+                "sine fits and the sample timing)", "deg")),
+        Metric("turn_on.time_to_first_data_s", "s", _TURN_ON, certified=Certified(
+            14, f"Turn-on time, {_IEEE} turn-on test (output-on to first valid data; U from "
+                "the poll interval)", "s")),
+        Metric("turn_on.time_to_band_s", "s", _TURN_ON, certified=Certified(
+            17, f"Warm-up time to the stated band of the settled bias, {_IEEE}", "s")),
+        Metric("turn_on.warmup_tau_s", "s", _TURN_ON, certified=Certified(
+            15, f"Warm-up time constant, {_IEEE} warm-up test (fit of b∞ + A·e^(−t/τ))", "s")),
+        Metric("turn_on.warmup_amplitude_dph", "deg/h", _TURN_ON, certified=Certified(
+            16, f"Warm-up amplitude, {_IEEE} warm-up test", "deg/h")),
+        Metric("turn_on_repeatability.std_dph", "deg/h", _REPEATABILITY, certified=Certified(
+            18, f"Turn-on-to-turn-on bias repeatability, {_IEEE} (standard deviation of the "
+                "cycles' biases; U from N)", "deg/h")),
     )
 }
+
+#: The runs database's one metric that is not a results.json key: the static bias at
+#: the reference temperature, interpolated between the two around it
+#: (``reports/runs/metrics.py``), in deg/h.
+HEADLINE_BIAS_DB_NAME = "bias_dph"
+
+#: Metrics stored in the runs database, by their database name (catalogue order).
+DATABASE_METRICS: dict[str, Metric] = {m.db_name: m for m in METRICS.values() if m.db_name}
+
+#: Certified single figures in the certificate's row order.
+CERTIFIED_METRICS: tuple[Metric, ...] = tuple(sorted(
+    (m for m in METRICS.values() if m.certified is not None),
+    key=lambda m: m.certified.row if m.certified is not None else 0))
 
 NEEDS_TEXT = {
     _SWEEP: "an sf_sweep test",
@@ -68,6 +145,43 @@ NEEDS_TEXT = {
     _TURN_ON: "a turn_on test",
     _REPEATABILITY: "a turn_on_repeatability test",
 }
+
+
+def metric_parent(results: Mapping[str, object], metric: Metric) -> Mapping[str, object] | None:
+    """The mapping of ``results`` that holds the metric's value (None when a level is missing)."""
+    node: object = results
+    for part in metric.path[:-1]:
+        node = node.get(part) if isinstance(node, Mapping) else None
+    return node if isinstance(node, Mapping) else None
+
+
+def metric_value(results: Mapping[str, object], metric: Metric) -> object:
+    """What results.json holds at the metric's key path; None when any part is missing/null."""
+    parent = metric_parent(results, metric)
+    return None if parent is None else parent.get(metric.path[-1])
+
+
+def as_number(value: object) -> float | None:
+    """A JSON number as a float; None for null, booleans, strings, mappings."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    return float(value)
+
+
+def metric_number(results: Mapping[str, object], metric: Metric) -> float | None:
+    """The metric's finite number in ``results``; None when absent, null, non-numeric or NaN/inf."""
+    number = as_number(metric_value(results, metric))
+    return number if number is not None and math.isfinite(number) else None
+
+
+def reported_uncertainty(results: Mapping[str, object], metric: Metric
+                         ) -> tuple[float | None, float | None]:
+    """u and U the report's ``uncertainty`` section gives the metric (keyed by its path)."""
+    section = results.get("uncertainty")
+    entry = section.get(metric.key) if isinstance(section, Mapping) else None
+    if not isinstance(entry, Mapping):
+        return None, None
+    return as_number(entry.get("u")), as_number(entry.get("U"))
 
 
 def normalise_unit(unit: str) -> str:
@@ -86,12 +200,3 @@ def normalise_unit(unit: str) -> str:
 def units_match(given: str, metric: Metric) -> bool:
     return metric.unit is None or normalise_unit(given) == normalise_unit(metric.unit)
 
-
-def metric_needs(metric: str) -> tuple[str, str] | None:
-    """What an acceptance metric needs the run to have measured, and that need in words.
-
-    The report's door to ``metrology/metrics.py`` (reports read runs only
-    through the record): a limit whose need no completed step met is NOT EVALUATED.
-    """
-    spec = METRICS.get(metric)
-    return None if spec is None else (spec.needs, NEEDS_TEXT[spec.needs])

@@ -30,11 +30,15 @@ from dataclasses import dataclass
 from typing import Any
 
 from gyrocal.metrology.decision import overall_verdict
+from gyrocal.metrology.metrics import METRICS, metric_value
 
 DEFAULT_SF_TOLERANCE_PCT = 5.0
 SIGN_CHECK_MIN_RATE_DPS = 1.0
 DRIFT_FLOOR_PPM = 100.0     # of the dwell's mean output
 DRIFT_FLOOR_DPH = 2.0       # deg/h, times the nominal scale factor
+#: the catalogue's spreads this module checks are finite and non-negative
+_SPREADS = tuple(METRICS[key] for key in ("nonlinearity.rms_pct", "nonlinearity.max_ppm_fs",
+                                          "sf_temperature.instability_pct"))
 
 
 @dataclass(frozen=True)
@@ -60,13 +64,9 @@ def check_physics(results: dict[str, Any], sf_tolerance_pct: float | None = None
         "scale factor near nominal", not bad_sf,
         f"within ±{tolerance:g} % of the nominal {nominal:g}" if not bad_sf else
         f"outside ±{tolerance:g} % of the nominal {nominal:g}: {'; '.join(bad_sf)}"))
-    nonlinear = results.get("nonlinearity")
-    instability = (results.get("sf_temperature") or {}).get("instability_pct")
-    negative = [f"{name} = {value!r}" for name, value in
-                (("nonlinearity.rms_pct", None if nonlinear is None else nonlinear.get("rms_pct")),
-                 ("nonlinearity.max_ppm_fs", None if nonlinear is None else nonlinear.get("max_ppm_fs")),
-                 ("sf_temperature.instability_pct", instability))
-                if value is not None and not (_finite(value) and value >= 0)]
+    negative = [f"{metric.key} = {value!r}" for metric in _SPREADS
+                if (value := metric_value(results, metric)) is not None
+                and not (_finite(value) and value >= 0)]
     checks.append(SanityCheck("non-negative spreads", not negative,
                               "finite and ≥ 0" if not negative else ", ".join(negative)))
     flipped = [f"{s['step_id']} ({s['rate_dps']:+g} deg/s) mean {s['output_mean']!r}"

@@ -31,7 +31,7 @@ import json
 import math
 import time
 from collections import defaultdict
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -39,13 +39,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from gyrocal.analysis.allan.summary import (
-    allan_curve,
-    curve_json,
-    fit_curve,
-    fit_uncertainty_json,
-    identifiability_json,
-)
+from gyrocal.analysis.allan.summary import allan_curve, fit_curve
 from gyrocal.analysis.rate import rate_limits
 from gyrocal.analysis.rate.dwell import Dwell, SegmentDrift, dwell_mean, segment_drift
 from gyrocal.analysis.rate.scale_factor import ScaleFactorResult, analyze_scale_factor
@@ -69,8 +63,13 @@ from gyrocal.record.run_folder import (
 from gyrocal.record.signing import Signer
 from gyrocal.record.step_kind import StepKind
 from gyrocal.record.strays import set_aside
+from gyrocal.reports.acceptance import evaluate_acceptance
+from gyrocal.reports.allan_section import AllanSection
+from gyrocal.reports.bias_results import BiasEntry, BiasResults, BiasSource
+from gyrocal.reports.compensation_results import CompensationResults, Tables
 from gyrocal.reports.html_report import render_html
-from gyrocal.reports.results import evaluate_acceptance, finite_or_none, results_bytes
+from gyrocal.reports.results import Results, UnitUnderTest, finite_or_none, results_bytes
+from gyrocal.reports.run_info import IDENTITY_KEYS, Provenance, RunInfo, run_mode
 from gyrocal.reports.sections import frequency as frequency_section
 from gyrocal.reports.sections.imu import imu_section
 from gyrocal.reports.sections.interference import interference_section
@@ -84,7 +83,8 @@ from gyrocal.reports.sections.turn_on import (
     turn_on_section,
 )
 from gyrocal.reports.sections.turn_on import headline_uncertainty as turn_on_uncertainty
-from gyrocal.reports.sections.uncertainty import StepMean, add_uncertainties
+from gyrocal.reports.sections.uncertainty import StepMean, uncertainty_budget
+from gyrocal.reports.sweep_results import ScaleFactorEntry, SweepResults
 
 REFERENCE_TEMP_C = 25.0
 REPORT_DIR = "report"
@@ -265,8 +265,8 @@ def _weighted_temp(summaries: list[StepSummary], attr: str) -> float | None:
     return float(sum(v * n for v, n in pairs) / sum(n for _, n in pairs))
 
 
-def _scale_factor(data: RunData, notes: list[str]) -> list[tuple[ScaleFactorResult, dict]]:
-    """SF per setpoint temperature, each with its JSON entry (extra keys kept)."""
+def _scale_factor(data: RunData, notes: list[str]) -> list[ScaleFactorEntry]:
+    """SF per setpoint temperature, with the measured temperatures and residuals."""
     groups: dict[float, list[StepSummary]] = defaultdict(list)
     for s in data.steps:
         if s.step.kind == StepKind.DWELL:
@@ -282,18 +282,10 @@ def _scale_factor(data: RunData, notes: list[str]) -> list[tuple[ScaleFactorResu
             notes.append(f"scale factor at {temp:g} °C not computed: {exc}")
             continue
         full_scale = abs(result.sf) * max(abs(d.rate_dps) for d in dwells)
-        entry = result.to_json() | {
-            "bias": result.bias,
-            "sensor_temp_c": _weighted_temp(members, "sensor_temp_c"),
-            "chamber_temp_c": _weighted_temp(members, "chamber_temp_c"),
-            "sf_by_rate": [[r, v] for r, v in sorted(result.sf_by_rate.items())],
-            "residuals_ppm_fs": sorted([d.rate_dps, float(res / full_scale * 1e6)]
-                                       for d, res in zip(dwells, result.residuals, strict=True)),
-            "nonlinearity": {"rms_pct": result.nonlinearity_rms_pct,
-                             "max_ppm_fs": result.nonlinearity_max_ppm_fs},
-            "asymmetry_ppm": result.asymmetry_ppm,
-        }
-        out.append((result, entry))
+        residuals = sorted((d.rate_dps, float(res / full_scale * 1e6))
+                           for d, res in zip(dwells, result.residuals, strict=True))
+        out.append(ScaleFactorEntry(result, _weighted_temp(members, "sensor_temp_c"),
+                                    _weighted_temp(members, "chamber_temp_c"), tuple(residuals)))
     return out
 
 
@@ -311,7 +303,7 @@ def _earth_rate_dph(plan: dict[str, Any], notes: list[str]) -> float:
 
 
 def _bias(data: RunData, sf_results: list[ScaleFactorResult], nominal_sf: float,
-          earth_dph: float, notes: list[str]) -> list[dict[str, Any]]:
+          earth_dph: float, notes: list[str]) -> list[BiasEntry]:
     sf_at = {r.temp_c: r for r in sf_results}
     holds: dict[float, list[StepSummary]] = defaultdict(list)
     for s in data.steps:
@@ -324,23 +316,23 @@ def _bias(data: RunData, sf_results: list[ScaleFactorResult], nominal_sf: float,
         if temp in holds:
             members = holds[temp]
             mean = sum(s.output_mean * s.n_used for s in members) / sum(s.n_used for s in members)
-            value, source = float(output_to_dph(mean, sf)) - earth_dph, "static"
+            value, source = float(output_to_dph(mean, sf)) - earth_dph, BiasSource.STATIC
             if sf_result is None:
                 notes.append(f"bias at {temp:g} °C uses the nominal scale factor {nominal_sf:g} "
                              "(no sweep at that temperature)")
             sensor = _weighted_temp(members, "sensor_temp_c")
         else:
             value = float(output_to_dph(sf_result.bias, sf)) - earth_dph
-            source, sensor = "sweep_intercept", None
-        points.append({"temp_c": temp, "bias_dph": value, "source": source,
-                       "sensor_temp_c": sensor})
+            source, sensor = BiasSource.SWEEP_INTERCEPT, None
+        points.append(BiasEntry(temp, value, source, sensor))
     return points
 
 
-def _comp_tables(points: list[list[float]], what: str, notes: list[str]) -> dict[str, Any]:
+def _comp_tables(points: list[tuple[float, float]], what: str, notes: list[str]) -> Tables:
     temps = [p[0] for p in points]
     values = [p[1] for p in points]
-    tables: dict[str, Any] = {"piecewise_linear": None, "polynomial": None}
+    tables: dict[str, comp.CompensationTable | None] = {"piecewise_linear": None,
+                                                         "polynomial": None}
     if len(points) < 3:
         notes.append(f"{what} compensation: {len(points)} temperature(s); residuals need ≥ 3 "
                      "(the table is the measured points)")
@@ -348,16 +340,11 @@ def _comp_tables(points: list[list[float]], what: str, notes: list[str]) -> dict
     for key, make in (("piecewise_linear", lambda: comp.piecewise_linear(temps, values)),
                       ("polynomial", lambda: comp.polynomial(temps, values,
                                                              degree=min(2, len(points) - 2)))):
-        table = make()
-        tables[key] = {"kind": table.kind, "points": table.to_pairs(),
-                       "residual_rms": table.residual_rms,
-                       "loo_residual_rms": table.loo_residual_rms,
-                       "loo_residual_max": table.loo_residual_max,
-                       "coefficients": table.coefficients}
+        tables[key] = make()
     return tables
 
 
-def _allan(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any] | None:
+def _allan(data: RunData, nominal_sf: float, notes: list[str]) -> AllanSection | None:
     if data.allan_step is None or data.allan_output is None:
         notes.append("allan: no static or allan hold was logged")
         return None
@@ -371,14 +358,7 @@ def _allan(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any]
         notes.append(f"allan: step {step.step_id} ({rate_dph.size} samples) gives no usable "
                      f"curve/fit: {exc}")
         return None
-    return curve_json(curve, fit) | {
-        "fit_uncertainty": fit_uncertainty_json(fit), "fit_dof": fit.dof,
-        **identifiability_json(fit),
-        "model_adev_dph": fit.model_adev(curve.tau_s).tolist(),
-        "step_id": step.step_id, "temp_c": step.setpoint_c,
-        "duration_s": rate_dph.size / fs_hz, "n_samples": int(rate_dph.size),
-        "rate_hz": fs_hz, "method": curve.method,
-    }
+    return AllanSection(curve, fit, step.step_id, step.setpoint_c, int(rate_dph.size), fs_hz)
 
 
 def _journal_summary(events: list[dict[str, Any]]) -> dict[str, Any]:
@@ -442,26 +422,58 @@ def _pick_reference(entries: list[dict[str, Any]]) -> dict[str, Any] | None:
     return min(entries, key=lambda e: abs(e["temp_c"] - REFERENCE_TEMP_C), default=None)
 
 
-def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
-    """Every figure of results.json from reduced run data (see the module docstring).
+def compute_results(data: RunData, notes: list[str]) -> Results:
+    """Every figure of results.json from reduced run data (see the module docstring), judged.
 
     One builder per section, in the order the keys appear in the file; each
-    appends what it could not compute to ``notes``.
+    appends what it could not compute to ``notes``. The limits and the physics
+    checks are judged on the measured sections, then the verdicts join them.
     """
+    measured = _measure(data, notes)
+    view = measured.to_json()
+    acceptance = tuple(evaluate_acceptance(view, data.plan.get("acceptance") or [], notes,
+                                           measured=measured_needs(data)))
+    sf_tolerance = (data.plan.get("sanity") or {}).get("sf_tolerance_pct")
+    instruments = measured.provenance.records["instruments"]
+    verdict = overall_verdict(check_physics(view, sf_tolerance), acceptance,
+                              instrument_blockers(instruments))
+    return replace(measured, acceptance=acceptance, verdict=verdict, notes=tuple(notes))
+
+
+def _measure(data: RunData, notes: list[str]) -> Results:
+    """The sections and their uncertainty budgets, not yet judged against the limits."""
     uut = data.plan.get("unit_under_test") or {}
     nominal_sf = float(uut.get("nominal_scale_factor") or 1.0)
-    sf_results, sweep = _sweep_sections(data, notes)
+    sweep = _sweep_sections(data, notes)
     earth_dph = _earth_rate_dph(data.plan, notes)
-    bias = _bias_sections(data, sf_results, nominal_sf, earth_dph, notes)
-    results: dict[str, Any] = {
-        "unit_under_test": {"model": uut.get("model"), "serial": uut.get("serial"),
-                            "output_units": uut.get("output_units"),
-                            "nominal_scale_factor": nominal_sf},
-        **sweep,
-        "bias": bias["bias"],
-        "bias_temperature": bias["bias_temperature"],
-        "allan": _allan(data, nominal_sf, notes),
-        "compensation": _compensation(sweep["scale_factor"], bias["bias"], notes),
+    bias = _bias_sections(data, [e.result for e in sweep.entries], nominal_sf, earth_dph, notes)
+    allan = _allan(data, nominal_sf, notes)
+    compensation = _compensation(sweep, bias, notes)
+    sections = _other_sections(data, nominal_sf, notes)
+    provenance = _provenance(data, _instruments(data, notes))
+    budget = uncertainty_budget(sweep, bias, compensation, allan,
+                                [_mean_u(s) for s in data.steps if s.step.kind in _BUDGETED],
+                                data.plan.get("station") or {}, nominal_sf, notes)
+    headlines = (headline_uncertainty(sections["threshold"])
+                 | rate_limits.headline_uncertainty(sections["rate_limits"])
+                 | frequency_section.headline_uncertainty(sections["frequency_response"])
+                 | turn_on_uncertainty(sections["turn_on"])
+                 | repeatability_uncertainty(sections["turn_on_repeatability"]))
+    return Results(
+        UnitUnderTest(uut.get("model"), uut.get("serial"), uut.get("output_units"), nominal_sf),
+        sweep, bias, allan, compensation, sections, earth_dph, REFERENCE_TEMP_C, provenance,
+        DEFINITIONS, budget, headlines)
+
+
+#: The step kinds whose means enter the sweep and bias budgets (the others have their own).
+_BUDGETED = frozenset(StepKind) - {StepKind.THRESHOLD, StepKind.RATE_LIMIT,
+                                   StepKind.FREQUENCY_RESPONSE, StepKind.MAGNETIC,
+                                   StepKind.TILT, StepKind.TURN_ON, StepKind.TURN_ON_CYCLE}
+
+
+def _other_sections(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any]:
+    """imu … turn_on_repeatability: JSON-ready sections of their own modules, in file order."""
+    return {
         "imu": _imu(data, notes),
         "table_interference": interference_section(data.folder.path, data.plan, data.events,
                                                    nominal_sf, notes),
@@ -473,33 +485,7 @@ def compute_results(data: RunData, notes: list[str]) -> dict[str, Any]:
         "frequency_response": _frequency_response(data, nominal_sf, notes),
         "turn_on": _turn_on(data, nominal_sf, notes),
         "turn_on_repeatability": _repeatability(data, nominal_sf, notes),
-        "earth_rate_removed_dph": earth_dph,
-        "reference_temp_c": REFERENCE_TEMP_C,
-        **_provenance(data, notes),
-        "definitions": DEFINITIONS,
     }
-    add_uncertainties(results, [_mean_u(s) for s in data.steps
-                                if s.step.kind not in (StepKind.THRESHOLD, StepKind.RATE_LIMIT,
-                                                       StepKind.FREQUENCY_RESPONSE,
-                                                       StepKind.MAGNETIC, StepKind.TILT,
-                                                       StepKind.TURN_ON,
-                                                       StepKind.TURN_ON_CYCLE)],
-                      data.plan,
-                      REFERENCE_TEMP_C, notes)
-    results.setdefault("uncertainty", {}).update(headline_uncertainty(results["threshold"]))
-    results["uncertainty"].update(rate_limits.headline_uncertainty(results["rate_limits"]))
-    results["uncertainty"].update(
-        frequency_section.headline_uncertainty(results["frequency_response"]))
-    results["uncertainty"].update(turn_on_uncertainty(results["turn_on"]))
-    results["uncertainty"].update(repeatability_uncertainty(results["turn_on_repeatability"]))
-    results["acceptance"] = evaluate_acceptance(results, data.plan.get("acceptance") or [], notes,
-                                                measured=measured_needs(data))
-    sf_tolerance = (data.plan.get("sanity") or {}).get("sf_tolerance_pct")
-    results["verdict"] = overall_verdict(check_physics(results, sf_tolerance),
-                                         results["acceptance"],
-                                         instrument_blockers(results["instruments"]))
-    results["notes"] = notes
-    return results
 
 
 def measured_needs(data: RunData) -> frozenset[str]:
@@ -657,91 +643,80 @@ DEFINITIONS = {
 }
 
 
-def _sweep_sections(data: RunData, notes: list[str]
-                    ) -> tuple[list[ScaleFactorResult], dict[str, Any]]:
+def _sweep_sections(data: RunData, notes: list[str]) -> SweepResults:
     """scale_factor, scale_factor_ls, nonlinearity, asymmetry_ppm, sf_temperature."""
-    sf_pairs = _scale_factor(data, notes)
-    sf_results = [r for r, _ in sf_pairs]
-    sf_entries = [e for _, e in sf_pairs]
-    if not sf_entries:
+    entries = _scale_factor(data, notes)
+    if not entries:
         notes.append("no ± rate sweep completed: scale factor, nonlinearity and asymmetry are null")
-    reference = _pick_reference(sf_entries)
     sf_temperature = None
-    if len(sf_results) >= 2:
-        sf_temperature = bias_mod.sf_temperature(sf_results, REFERENCE_TEMP_C).to_json()
-    elif sf_results:
+    if len(entries) >= 2:
+        sf_temperature = bias_mod.sf_temperature([e.result for e in entries], REFERENCE_TEMP_C)
+    elif entries:
         notes.append("sf_temperature: sweeps at one temperature only; needs two or more")
-    return sf_results, {
-        "scale_factor": sf_entries,
-        "scale_factor_ls": None if reference is None else {
-            "sf": reference["sf"], "bias": reference["bias"], "temp_c": reference["temp_c"]},
-        "nonlinearity": None if not sf_entries else {
-            "rms_pct": max(e["nonlinearity"]["rms_pct"] for e in sf_entries),
-            "max_ppm_fs": max(e["nonlinearity"]["max_ppm_fs"] for e in sf_entries)},
-        "asymmetry_ppm": None if not sf_entries else max(
-            (e["asymmetry_ppm"] for e in sf_entries), key=abs),
-        "sf_temperature": sf_temperature,
-    }
+    return SweepResults(tuple(entries), REFERENCE_TEMP_C, sf_temperature)
 
 
 def _bias_sections(data: RunData, sf_results: list[ScaleFactorResult], nominal_sf: float,
-                   earth_dph: float, notes: list[str]) -> dict[str, Any]:
+                   earth_dph: float, notes: list[str]) -> BiasResults:
     """bias (per temperature) and bias_temperature."""
     points = _bias(data, sf_results, nominal_sf, earth_dph, notes)
     sensitivity = None
     if len(points) >= 2:
-        sensitivity = {"sensitivity_dph_per_c": bias_mod.bias_sensitivity_dph_per_c(
-            [bias_mod.BiasPoint(p["temp_c"], p["bias_dph"]) for p in points])}
+        sensitivity = bias_mod.bias_sensitivity_dph_per_c(
+            [bias_mod.BiasPoint(p.temp_c, p.bias_dph) for p in points])
     else:
         notes.append(f"bias_temperature: bias at {len(points)} temperature(s); needs two or more")
-    return {"bias": points, "bias_temperature": sensitivity}
+    return BiasResults(tuple(points), sensitivity)
 
 
-def _compensation(sf_entries: list[dict[str, Any]], bias_points: list[dict[str, Any]],
-                  notes: list[str]) -> dict[str, Any]:
-    bias_pairs = [[p["temp_c"], p["bias_dph"]] for p in bias_points]
-    sf_pairs = [[e["temp_c"], e["sf"]] for e in sf_entries]
-    return {"bias_dph_vs_temp": bias_pairs, "sf_vs_temp": sf_pairs,
-            "tables": {"bias_dph": _comp_tables(bias_pairs, "bias", notes),
-                       "sf": _comp_tables(sf_pairs, "scale factor", notes)}}
+def _compensation(sweep: SweepResults, bias: BiasResults,
+                  notes: list[str]) -> CompensationResults:
+    bias_pairs = [(p.temp_c, p.bias_dph) for p in bias.entries]
+    sf_pairs = [(e.temp_c, e.result.sf) for e in sweep.entries]
+    return CompensationResults(tuple(bias_pairs), tuple(sf_pairs),
+                               {"bias_dph": _comp_tables(bias_pairs, "bias", notes),
+                                "sf": _comp_tables(sf_pairs, "scale factor", notes)})
 
 
-def _provenance(data: RunData, notes: list[str]) -> dict[str, Any]:
-    """Who, what, where and with what: run, procedure, station, instruments, inputs, journal."""
-    plan, manifest = data.plan, data.manifest
-    station = plan.get("station") or {}
-    # Who, when and how: as run_started fixed them (signed), never the mutable manifest's copy.
+def _run_info(data: RunData) -> RunInfo:
+    """results.json ``run``: who, when and how, as run_started fixed them (signed), never the
+    mutable manifest's copy; the state and times from the journal."""
+    manifest = data.manifest
     identity = _recorded_identity(data)
-    run = {key: identity.get(key, manifest.get(key)) for key in
-           ("run_id", "operator", "started_at", "mode", "seed", "speed", "software",
-            "station_name")}
+    recorded = {key: identity.get(key, manifest.get(key)) for key in IDENTITY_KEYS}
     started = next((e for e in data.events if e.get("event") == "run_started"), {})
-    run["plan_sha256"] = started.get("plan_sha256", manifest.get("plan_sha256"))
     completed = [e for e in data.events if e.get("event") == "run_completed"]
-    run["ended_at"] = completed[-1].get("ended_at") if completed else None
-    run["state"] = "done" if completed else str(manifest.get("state") or "running")
-    run["simulated"] = run.get("mode") == "sim"
     # The report of a run is built when its last step is done, before the run closes (the
     # report's hash goes into the closing line), so ended_at is not known yet: the time the
     # steps were done is, and it is what a certificate's "date of calibration" means.
     done = [e for e in data.events if e.get("event") == "steps_done" and e.get("wall_time")]
-    run["steps_done_at"] = (time.strftime("%Y-%m-%dT%H:%M:%S+0000",
-                                          time.gmtime(float(done[-1]["wall_time"])))
-                            if done else None)
     # ... and the calibration began with its first step, not with connecting the instruments
     first = next((e for e in data.events if e.get("event") == "step_started"
                   and e.get("wall_time")), None)
-    run["steps_started_at"] = (time.strftime("%Y-%m-%dT%H:%M:%S+0000",
-                                             time.gmtime(float(first["wall_time"])))
-                               if first else None)
-    # the procedure's own length (the plan's ETA): on simulated time it is not the wall span
-    run["procedure_s"] = data.manifest.get("eta_s")
-    return {
-        "run": run,
+    return RunInfo(
+        recorded, run_mode(recorded["mode"]),
+        plan_sha256=started.get("plan_sha256", manifest.get("plan_sha256")),
+        ended_at=completed[-1].get("ended_at") if completed else None,
+        state="done" if completed else str(manifest.get("state") or "running"),
+        steps_done_at=_utc_text(done[-1]["wall_time"]) if done else None,
+        steps_started_at=_utc_text(first["wall_time"]) if first else None,
+        # the procedure's own length (the plan's ETA): on simulated time not the wall span
+        procedure_s=manifest.get("eta_s"))
+
+
+def _utc_text(wall_time: float | str) -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%S+0000", time.gmtime(float(wall_time)))
+
+
+def _provenance(data: RunData, instruments: dict[str, Any]) -> Provenance:
+    """Who, what, where and with what: run, procedure, station, instruments, inputs, journal."""
+    plan, manifest = data.plan, data.manifest
+    station = plan.get("station") or {}
+    return Provenance(_run_info(data), {
         "procedure": plan.get("procedure"),
         "station": {"name": station.get("name"), "file": station.get("file"),
                     "site": station.get("site")},
-        "instruments": _instruments(data, notes),
+        "instruments": instruments,
         "inputs": {role: {"copy": e.get("copy"), "source": e.get("source"),
                           "sha256": e.get("sha256")}
                    for role, e in (manifest.get("inputs") or {}).items()},
@@ -752,7 +727,7 @@ def _provenance(data: RunData, notes: list[str]) -> dict[str, Any]:
                    "revolutions_used": s.trimmed_to_revolutions,
                    "sensor_temp_c": s.sensor_temp_c,
                    "drift": None if s.drift is None else s.drift.to_json()} for s in data.steps],
-    }
+    })
 
 
 # -- writing ------------------------------------------------------------------------------
@@ -784,25 +759,27 @@ def build_report(run_dir: str | Path, journal: Journal | None = None,
 def _build(run_dir: Path, journal: Journal, signer: Signer | None) -> dict[str, Any]:
     notes: list[str] = []
     data = read_run(run_dir, notes)
-    results = finite_or_none(compute_results(data, notes))
-    results["report_built_at"] = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
-    _write_report(data, results, journal, signer)
-    return results
+    results = replace(compute_results(data, notes),
+                      built_at=dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"))
+    return _write_report(data, results, journal, signer)
 
 
-def _write_report(data: RunData, results: dict[str, Any], journal: Journal,
-                  signer: Signer | None) -> None:
+def _write_report(data: RunData, results: Results, journal: Journal,
+                  signer: Signer | None) -> dict[str, Any]:
+    """Sign (when a signer is given), write results.json and report.html; the file's object."""
     started = next((e for e in data.events if e.get("event") == "run_started"), {})
     if signer is not None:
-        unsigned = sha256_bytes(results_bytes(results))
-        results["signature"] = {"signed": True, **signer.sign_report(
+        unsigned = sha256_bytes(results_bytes(results.to_json()))
+        signature = {"signed": True, **signer.sign_report(
             str(data.manifest.get("run_id", "")), journal.last_sha256, unsigned)}
     else:
-        results["signature"] = {"signed": False, "key_fingerprint": started.get("signing_key")}
-    encoded = results_bytes(results)
-    html = render_html(results).encode()
+        signature = {"signed": False, "key_fingerprint": started.get("signing_key")}
+    final = finite_or_none(replace(results, signature=signature).to_json())
+    encoded = results_bytes(final)
+    html = render_html(final).encode()
     root = data.folder.path
     write_bytes_atomic(root / RESULTS_FILE, encoded)
     write_bytes_atomic(root / HTML_FILE, html)
     journal.append(JournalEvent.REPORT_WRITTEN, files={RESULTS_FILE: sha256_bytes(encoded),
                                             HTML_FILE: sha256_bytes(html)})
+    return final

@@ -29,6 +29,7 @@ from reportlab.pdfgen.canvas import Canvas
 from reportlab.platypus import Paragraph, SimpleDocTemplate, Spacer, Table, TableStyle
 
 from gyrocal.metrology.gum import round_to_uncertainty
+from gyrocal.metrology.metrics import CERTIFIED_METRICS
 from gyrocal.record.atomic import write_atomic
 from gyrocal.record.journal import Journal, JournalEvent, sha256_file
 from gyrocal.record.run_folder import JOURNAL, RunFolder, RunFolderError
@@ -51,41 +52,6 @@ class Approval:
     date: dt.date
 
 
-#: (label, results.json path in the ``uncertainty`` map, unit) of the certified quantities
-_SINGLE = (("Scale factor, LS line at the reference temperature", "scale_factor_ls.sf",
-            "output/(deg/s)"),
-           ("Nonlinearity (RMS of SF over rates)", "nonlinearity.rms_pct", "%"),
-           ("Nonlinearity (max residual)", "nonlinearity.max_ppm_fs", "ppm of full scale"),
-           ("Scale-factor asymmetry", "asymmetry_ppm", "ppm"),
-           ("SF temperature sensitivity", "sf_temperature.sensitivity_ppm_per_c", "ppm/°C"),
-           ("SF temperature instability", "sf_temperature.instability_pct", "%"),
-           ("Bias temperature sensitivity", "bias_temperature.sensitivity_dph_per_c",
-            "deg/h per °C"),
-           ("Threshold, IEEE Std 952 / 1431 (smallest resolved increment at zero rate; U "
-            "from the increment grid)", "threshold.threshold_dps", "deg/s"),
-           ("Resolution, IEEE Std 952 / 1431 (smallest resolved increment at the set rates; "
-            "U from the increment grid)", "threshold.resolution_dps", "deg/s"),
-           ("Maximum input rate, positive, IEEE Std 952 / 1431 (U from the rate walk)",
-            "rate_limits.max_positive_dps", "deg/s"),
-           ("Maximum input rate, negative, IEEE Std 952 / 1431 (U from the rate walk)",
-            "rate_limits.max_negative_dps", "deg/s"),
-           ("Bandwidth (−3 dB), IEEE Std 952 / 1431 frequency response test (table in "
-            "synthesis mode; U from the sine fits and the interpolation)",
-            "frequency_response.bandwidth_hz", "Hz"),
-           ("Phase at the stated frequency, IEEE Std 952 / 1431 frequency response test "
-            "(U from the sine fits and the sample timing)", "frequency_response.phase_deg", "deg"),
-           ("Turn-on time, IEEE Std 952 / 1431 turn-on test (output-on to first valid data; U "
-            "from the poll interval)", "turn_on.time_to_first_data_s", "s"),
-           ("Warm-up time constant, IEEE Std 952 / 1431 warm-up test (fit of b∞ + A·e^(−t/τ))",
-            "turn_on.warmup_tau_s", "s"),
-           ("Warm-up amplitude, IEEE Std 952 / 1431 warm-up test", "turn_on.warmup_amplitude_dph",
-            "deg/h"),
-           ("Warm-up time to the stated band of the settled bias, IEEE Std 952 / 1431",
-            "turn_on.time_to_band_s", "s"),
-           ("Turn-on-to-turn-on bias repeatability, IEEE Std 952 / 1431 (standard deviation "
-            "of the cycles' biases; U from N)", "turn_on_repeatability.std_dph", "deg/h"))
-
-
 def result_rows(results: dict[str, Any]) -> list[list[str]]:
     """Quantity, value, U, k, unit: one row per certified number."""
     rows = [["Quantity", "Value", "U (95 %)", "k", "Unit"]]
@@ -98,12 +64,13 @@ def result_rows(results: dict[str, Any]) -> list[list[str]]:
         rows.append([f"Bias at {entry['temp_c']:g} °C (Earth rate removed)", value, big_u,
                      _k(entry.get("k")), "deg/h"])
     table = results.get("uncertainty") or {}
-    for label, path, unit in _SINGLE:
-        item = table.get(path)
-        if item is None:
+    for metric in CERTIFIED_METRICS:     # the catalogue's certified single figures, in row order
+        item = table.get(metric.key)
+        if item is None or metric.certified is None:
             continue
         value, big_u = round_to_uncertainty(item["value"], item.get("U"))
-        rows.append([label, value, big_u, _k(item.get("k")), unit])
+        rows.append([metric.certified.label, value, big_u, _k(item.get("k")),
+                     metric.certified.unit])
     return rows
 
 
@@ -382,8 +349,6 @@ def certify_run(run_dir: Path, *, customer: str, approval: Approval, number: str
     number, its SHA-256 and the results it was made from, sealed with ``signer`` like
     a report rebuild, so ``verify`` accounts for it. The caller holds the folder's lock.
     """
-
-
     source = run_dir / RESULTS_FILE
     if not source.is_file():
         raise RunFolderError(f"{source}: missing; run `gyrocal report {run_dir}` first")

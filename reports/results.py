@@ -1,117 +1,103 @@
-"""results.json assembly helpers and the acceptance evaluation.
+"""The report's results, typed, and their one encoding: ``report/results.json``.
 
-QA signs a run off against its acceptance limits, so the verdict must be
-traceable: each limit names a key path of results.json, the value found
-there is shown next to the limit, and a metric that could not be computed
-fails (a missing number is never a pass) with a note saying why.
+Each section is built by its own module as a typed value (sweep, bias, Allan,
+compensation, run, the uncertainty budget, the acceptance verdicts);
+:meth:`Results.to_json` is the only place that lays them out as the file's keys
+(interfaces.md: those keys stay, new ones may be added), each budget beside the
+value it belongs to. Sections still built as JSON by their modules (IMU,
+interference, threshold, turn-on…) are carried as they are, in file order.
 """
 
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
-from gyrocal.metrology.decision import DEFAULT_RULE, Decision, DecisionRule, decide
-from gyrocal.metrology.metrics import metric_needs
+from gyrocal.reports.acceptance import AcceptanceVerdict
+from gyrocal.reports.allan_section import AllanSection
+from gyrocal.reports.bias_results import BiasResults
+from gyrocal.reports.compensation_results import CompensationResults
+from gyrocal.reports.run_info import Provenance
+from gyrocal.reports.sections.uncertainty import UncertaintyBudget
+from gyrocal.reports.sweep_results import SweepResults
 
 #: The keys interfaces.md requires in report/results.json.
 REQUIRED_KEYS = ("unit_under_test", "scale_factor", "scale_factor_ls", "nonlinearity",
                  "asymmetry_ppm", "sf_temperature", "bias", "bias_temperature", "allan",
                  "compensation", "acceptance")
+#: results.json keys that are numbers computed from the samples (``gyrocal verify`` recomputes).
+RECOMPUTED_KEYS = ("unit_under_test", "scale_factor", "scale_factor_ls", "nonlinearity",
+                   "asymmetry_ppm", "sf_temperature", "bias", "bias_temperature", "allan",
+                   "compensation", "imu", "acceptance", "verdict")
 
 
-def lookup_metric(results: dict[str, Any], metric: str) -> Any:
-    """Value at a dotted key path (``allan.fit.B_dph``); None when any part is missing/null."""
-    node: Any = results
-    for part in metric.split("."):
-        if not isinstance(node, dict) or node.get(part) is None:
-            return None
-        node = node[part]
-    return node
+@dataclass(frozen=True)
+class UnitUnderTest:
+    model: str | None
+    serial: str | None
+    output_units: str | None
+    nominal_scale_factor: float      # output units per deg/s
+
+    def to_json(self) -> dict[str, Any]:
+        return {"model": self.model, "serial": self.serial, "output_units": self.output_units,
+                "nominal_scale_factor": self.nominal_scale_factor}
 
 
-#: Metrics whose sign is physical (a max limit bounds their magnitude); every other
-#: metric with a max limit is a size or a spread, and a negative value of it is impossible.
-SIGNED_METRICS = frozenset({"asymmetry_ppm", "scale_factor_ls.bias",
-                            "sf_temperature.sensitivity_ppm_per_c",
-                            "bias_temperature.sensitivity_dph_per_c"})
+@dataclass(frozen=True)
+class Results:
+    """Everything results.json states; the verdict fields are None until judged."""
 
+    unit_under_test: UnitUnderTest
+    sweep: SweepResults
+    bias: BiasResults
+    allan: AllanSection | None
+    compensation: CompensationResults
+    #: imu … turn_on_repeatability: JSON-ready sections of their own modules, in file order
+    sections: Mapping[str, Any]
+    earth_rate_removed_dph: float
+    reference_temp_c: float
+    provenance: Provenance
+    definitions: Mapping[str, str]
+    budget: UncertaintyBudget
+    #: the budgets the JSON-ready sections state for their single figures (path → budget)
+    headline_uncertainty: Mapping[str, Any]
+    acceptance: tuple[AcceptanceVerdict, ...] | None = None
+    verdict: Mapping[str, Any] | None = None
+    notes: tuple[str, ...] | None = None
+    built_at: str | None = None
+    signature: Mapping[str, Any] | None = None
 
-def evaluate_acceptance(results: dict[str, Any], limits: list[dict[str, Any]],
-                        notes: list[str], measured: frozenset[str] | None = None
-                        ) -> list[dict[str, Any]]:
-    """One verdict per limit: {name, metric, kind, limit, unit, value, pass, decision, …}.
-
-    ``limits`` are plan.json's acceptance entries ({name, metric, max|min, unit,
-    decision_rule}); the rule (decision.py) uses the metric's expanded
-    uncertainty from results["uncertainty"]. ``pass`` is true only for PASS.
-    ``measured`` (what the completed steps measured, ``metrology/metrics.py``
-    ``needs``): a limit whose metric needs more is NOT EVALUATED, whatever number
-    some other step gave. A noise term the record cannot identify is judged by its
-    95 % upper bound (PASS only if that bound is within a max limit), never as 0.
-    A null or non-numeric value of a measured metric fails, with a note.
-    """
-    uncertainty = results.get("uncertainty") or {}
-    verdicts = []
-    for limit in limits:
-        kind = "max" if limit.get("max") is not None else "min"
-        bound = float(limit[kind])
-        rule = DecisionRule(limit.get("decision_rule") or DEFAULT_RULE.value)
-        expanded = (uncertainty.get(limit["metric"]) or {}).get("U")
-        entry = {"name": limit["name"], "metric": limit["metric"], "kind": kind,
-                 "limit": bound, "unit": limit.get("unit"), "value": None,
-                 "decision_rule": rule.value, "U": expanded, "guard_band": 0.0}
-        decision = _judge(results, entry, rule, measured, notes)
-        entry.update({"pass": decision is Decision.PASS, "decision": decision.value})
-        verdicts.append(entry)
-    return verdicts
-
-
-def _judge(results: dict[str, Any], entry: dict[str, Any], rule: DecisionRule,
-           measured: frozenset[str] | None, notes: list[str]) -> Decision:
-    """The decision for one limit; fills ``value``, ``guard_band`` and any ``why`` in ``entry``."""
-    metric, kind, bound, label = entry["metric"], entry["kind"], entry["limit"], entry["name"]
-    needs = metric_needs(metric)
-    if measured is not None and needs is not None and needs[0] not in measured:
-        entry["why"] = f"not measured: it needs {needs[1]}, completed"
-        notes.append(f"acceptance {label!r}: {metric} NOT EVALUATED ({entry['why']})")
-        return Decision.NOT_EVALUATED
-    value = lookup_metric(results, metric)
-    number = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) \
-        else None
-    if number is None or not math.isfinite(number):
-        notes.append(f"acceptance {label!r}: {metric} was not computed, so the limit fails")
-        return Decision.FAIL
-    term = metric.removeprefix("allan.fit.")
-    allan = results.get("allan") or {}
-    if metric.startswith("allan.fit.") and (allan.get("identifiable") or {}).get(term) is False:
-        return _judge_unidentifiable(entry, allan, term, notes)
-    entry["value"] = number
-    if kind == "max" and number < 0 and metric not in SIGNED_METRICS:
-        notes.append(f"acceptance {label!r}: {metric} = {number:g} cannot be negative, "
-                     "so the limit fails")
-        return Decision.FAIL
-    judged = abs(number) if kind == "max" and metric in SIGNED_METRICS else number
-    decision, entry["guard_band"] = decide(judged, entry["U"], bound, kind, rule)
-    return decision
-
-
-def _judge_unidentifiable(entry: dict[str, Any], allan: dict[str, Any], term: str,
-                          notes: list[str]) -> Decision:
-    upper = (allan.get("upper_bound_95") or {}).get(term)
-    entry["identifiable"] = False
-    entry["upper_bound_95"] = upper
-    if entry["kind"] == "max" and isinstance(upper, (int, float)) and math.isfinite(upper) \
-            and upper <= entry["limit"]:
-        entry["why"] = (f"not identifiable from this record; its 95 % upper bound {upper:.3g} "
-                        "is within the limit")
-        return Decision.PASS
-    entry["why"] = ("not identifiable from this record" +
-                    (f"; its 95 % upper bound {upper:.3g} does not settle the limit"
-                     if isinstance(upper, (int, float)) else ""))
-    notes.append(f"acceptance {entry['name']!r}: {entry['metric']} NOT EVALUATED ({entry['why']})")
-    return Decision.NOT_EVALUATED
+    def to_json(self) -> dict[str, Any]:
+        """results.json's object, keys in file order (NaN/inf still in; see results_bytes)."""
+        b = self.budget
+        out: dict[str, Any] = {
+            "unit_under_test": self.unit_under_test.to_json(),
+            **self.sweep.to_json(b.sweep),
+            **self.bias.to_json(b.bias, b.bias_slope),
+            "allan": None if self.allan is None else self.allan.to_json(b.allan),
+            "compensation": self.compensation.to_json(b.compensation),
+            **self.sections,
+            "earth_rate_removed_dph": self.earth_rate_removed_dph,
+            "reference_temp_c": self.reference_temp_c,
+            **self.provenance.to_json(),
+            "definitions": dict(self.definitions),
+            "uncertainty": b.paths_json() | dict(self.headline_uncertainty),
+            "uncertainty_inputs": b.inputs.to_json(),
+        }
+        if self.acceptance is not None:
+            out["acceptance"] = [v.to_json() for v in self.acceptance]
+        if self.verdict is not None:
+            out["verdict"] = dict(self.verdict)
+        if self.notes is not None:
+            out["notes"] = list(self.notes)
+        if self.built_at is not None:
+            out["report_built_at"] = self.built_at
+        if self.signature is not None:
+            out["signature"] = dict(self.signature)
+        return out
 
 
 def finite_or_none(value: Any) -> Any:

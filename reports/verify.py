@@ -71,16 +71,12 @@ from gyrocal.record.signing import (
 )
 from gyrocal.record.strays import files_on_disk, unrecorded
 from gyrocal.reports.build import compute_results, read_run
-from gyrocal.reports.results import finite_or_none, results_bytes
+from gyrocal.reports.results import RECOMPUTED_KEYS, finite_or_none, results_bytes
 
 #: Events a finished run may still gain after ``run_closed``: report rebuilds, certificates,
 #: what a cut-off session left set aside, and their seals.
 AFTER_CLOSE = ("report_written", "certificate_written", "orphan_set_aside",
                "torn_tail_set_aside", SEAL_EVENT)
-#: results.json keys that are numbers computed from the samples (interfaces.md).
-RECOMPUTED_KEYS = ("unit_under_test", "scale_factor", "scale_factor_ls", "nonlinearity",
-                   "asymmetry_ppm", "sf_temperature", "bias", "bias_temperature", "allan",
-                   "compensation", "imu", "acceptance", "verdict")
 #: Relative tolerance of the recomputation (the same code on the same samples: rounding only).
 RECOMPUTE_RTOL = 1e-9
 
@@ -400,8 +396,8 @@ def _report_signature(stored: dict[str, Any], path: Path, events: list[dict[str,
 def _recompute(folder: RunFolder, stored: dict[str, Any], results_path: Path,
                result: VerifyResult) -> None:
     notes: list[str] = []
-    fresh = json.loads(json.dumps(finite_or_none(compute_results(read_run(folder.path, notes),
-                                                                 notes))))
+    computed = compute_results(read_run(folder.path, notes), notes)
+    fresh = json.loads(json.dumps(finite_or_none(computed.to_json())))
     for key in RECOMPUTED_KEYS:
         difference = _first_difference(stored.get(key), fresh.get(key), key)
         if difference is not None:

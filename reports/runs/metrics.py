@@ -1,6 +1,7 @@
-"""The numbers a run's results.json contributes to the lab's database, one owner for their names.
+"""The numbers a run's results.json contributes to the lab's database.
 
-Each metric is a path into results.json with its unit in its name. Its
+Which metrics, and their database names (units in the name), are the catalogue's
+(``metrology/metrics.py``: ``DATABASE_METRICS``). Its
 uncertainty is taken from what the report provides: the report's
 ``uncertainty`` section (keyed by the value's path: ``scale_factor_ls.sf``,
 ``asymmetry_ppm``, ``allan.fit.N_deg_per_rth``, ``bias@25``), else a mapping
@@ -20,7 +21,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from gyrocal.models.noise_terms import NOISE_TERMS
+from gyrocal.metrology.metrics import (
+    DATABASE_METRICS,
+    HEADLINE_BIAS_DB_NAME,
+    metric_parent,
+    reported_uncertainty,
+)
+from gyrocal.metrology.metrics import as_number as _number
 
 
 @dataclass(frozen=True)
@@ -31,47 +38,16 @@ class MetricValue:
     U: float | None      # expanded uncertainty (coverage factor per the report)  # noqa: N815
 
 
-#: metric name → path in results.json (the last element is the key of the value)
-METRICS: dict[str, tuple[str, ...]] = {
-    "sf": ("scale_factor_ls", "sf"),
-    "bias_dps_ls": ("scale_factor_ls", "bias"),
-    "sf_tempco_ppm_per_c": ("sf_temperature", "sensitivity_ppm_per_c"),
-    "sf_instability_pct": ("sf_temperature", "instability_pct"),
-    "bias_tempco_dph_per_c": ("bias_temperature", "sensitivity_dph_per_c"),
-    "nonlinearity_rms_pct": ("nonlinearity", "rms_pct"),
-    "nonlinearity_max_ppm_fs": ("nonlinearity", "max_ppm_fs"),
-    "asymmetry_ppm": ("asymmetry_ppm",),
-    # the noise terms under their model-file names (models/noise_terms.py)
-    **{t.model_key: ("allan", "fit", t.fit_key) for t in NOISE_TERMS},
-}
-
-
-def _number(value: Any) -> float | None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return None
-    return float(value)
-
-
-def _reported_u(results: dict[str, Any], path: tuple[str, ...]) -> tuple[float | None, float | None]:
-    """u and U from the report's ``uncertainty`` section, keyed by the value's path."""
-    section = results.get("uncertainty")
-    entry = section.get(".".join(path)) if isinstance(section, dict) else None
-    if not isinstance(entry, dict):
-        return None, None
-    return _number(entry.get("u")), _number(entry.get("U"))
-
-
 def metric_values(results: dict[str, Any]) -> list[MetricValue]:
+    """Every catalogue metric with a database name that ``results`` holds, then the headline bias."""
     out = []
-    for name, path in METRICS.items():
-        container: Any = results
-        for key in path[:-1]:
-            container = container.get(key) if isinstance(container, dict) else None
-        if not isinstance(container, dict):
+    for name, metric in DATABASE_METRICS.items():
+        container = metric_parent(results, metric)
+        if container is None:
             continue
-        key = path[-1]
+        key = metric.path[-1]
         raw = container.get(key)
-        u, U = _reported_u(results, path)  # noqa: N806 - GUM's symbol
+        u, U = reported_uncertainty(results, metric)  # noqa: N806 - GUM's symbol
         if isinstance(raw, dict):                       # {"value": …, "u": …, "U": …}
             value = _number(raw.get("value"))
             u = u if u is not None else _number(raw.get("u"))
@@ -82,7 +58,7 @@ def metric_values(results: dict[str, Any]) -> list[MetricValue]:
             U = U if U is not None else _number(container.get(f"{key}_U"))  # noqa: N806
         if value is None:
             continue
-        if u is None and path[:2] == ("allan", "fit"):
+        if u is None and metric.noise_term is not None:
             fit_u = (results["allan"].get("fit_uncertainty") or {}).get(key) or {}
             u = _number(fit_u.get("stderr"))
         out.append(MetricValue(name, value, u, U))
@@ -102,7 +78,7 @@ def bias_at_reference(results: dict[str, Any]) -> MetricValue | None:
     entries.sort(key=lambda e: e["temp_c"])
     for entry in entries:
         if abs(entry["temp_c"] - reference) < 1e-9:
-            return MetricValue("bias_dph", float(entry["bias_dph"]), _number(entry.get("u")),
+            return MetricValue(HEADLINE_BIAS_DB_NAME, float(entry["bias_dph"]), _number(entry.get("u")),
                                _number(entry.get("U")))
     below = [e for e in entries if e["temp_c"] < reference]
     above = [e for e in entries if e["temp_c"] > reference]
@@ -116,4 +92,4 @@ def bias_at_reference(results: dict[str, Any]) -> MetricValue | None:
         a, b = _number(lo.get(key)), _number(hi.get(key))
         return None if a is None or b is None else (1 - w) * a + w * b
 
-    return MetricValue("bias_dph", value, weighted("u"), weighted("U"))
+    return MetricValue(HEADLINE_BIAS_DB_NAME, value, weighted("u"), weighted("U"))

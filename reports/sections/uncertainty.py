@@ -1,23 +1,28 @@
-"""Puts u, U, k, dof_eff and budget beside each calibrated value of results.json.
+"""The uncertainty budget of every calibrated value of results.json, typed.
 
 New keys only (interfaces.md: keys stay, new ones may be added): every
 ``scale_factor`` and ``bias`` entry, ``scale_factor_ls`` and
 ``bias_temperature`` get ``u``/``U``/``k``/``dof_eff``/``budget`` beside their
 value, and ``uncertainty`` maps each dotted metric path (the names acceptance
 limits use, e.g. ``asymmetry_ppm`` or ``nonlinearity.rms_pct``) to its budget,
-which is where the decision rule (decision.py) finds U.
+which is where the decision rule (decision.py) finds U. This module computes
+the budgets from the typed sections (:class:`UncertaintyBudget`); the sections'
+``to_json`` put them beside their values.
 """
 
 from __future__ import annotations
 
 import math
 from collections import defaultdict
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
+from gyrocal.analysis.allan.noise_fit import TERM_NAMES
 from gyrocal.analysis.thermal import compensation as comp
+from gyrocal.analysis.thermal.compensation import CompensationTable
 from gyrocal.metrology.gum import Contribution, EvalType, Uncertainty, combine
 from gyrocal.metrology.uncertainty import (
     MeanU,
@@ -29,6 +34,10 @@ from gyrocal.metrology.uncertainty import (
     sweep_uncertainty,
 )
 from gyrocal.record.logged_steps import HOLD_KINDS
+from gyrocal.reports.allan_section import AllanSection
+from gyrocal.reports.bias_results import BiasResults, BiasSource
+from gyrocal.reports.compensation_results import CompensationResults, TableUncertainty
+from gyrocal.reports.sweep_results import SweepResults
 
 
 @dataclass(frozen=True)
@@ -50,15 +59,64 @@ def _pooled_hold(holds: list[MeanU]) -> MeanU:
                  "+".join(h.step_id for h in holds))
 
 
-def add_uncertainties(results: dict[str, Any], steps: list[StepMean], plan: dict[str, Any],
-                      reference_temp_c: float, notes: list[str]) -> None:
-    """Adds the keys above to ``results`` in place (figures already computed by build.py)."""
-    station = plan.get("station") or {}
+@dataclass(frozen=True)
+class UncertaintyBudget:
+    """Every budget the report states, typed, beside the values they belong to.
+
+    ``paths`` is results.json ``uncertainty``: each dotted metric path (the names
+    acceptance limits use) and ``bias@T`` → its budget, which is where the decision
+    rule (decision.py) finds U. The other fields put the same budgets beside the
+    values of their sections (``to_json`` of each section).
+    """
+
+    sweep: Mapping[float, Mapping[str, Uncertainty]]     # setpoint → figure → budget
+    bias: Mapping[float, Uncertainty]                     # setpoint → bias budget
+    bias_slope: Uncertainty | None                        # bias_temperature
+    compensation: TableUncertainty                        # quantity → table → entries
+    allan: Mapping[str, Uncertainty] | None               # allan.fit key → budget
+    paths: Mapping[str, Uncertainty]
+    inputs: TypeB
+
+    def paths_json(self) -> dict[str, Any]:
+        return {path: {"value": u.value} | u.to_json() for path, u in self.paths.items()}
+
+
+def uncertainty_budget(sweep: SweepResults, bias: BiasResults,
+                       compensation: CompensationResults, allan: AllanSection | None,
+                       steps: list[StepMean], station: Mapping[str, Any], nominal_sf: float,
+                       notes: list[str]) -> UncertaintyBudget:
+    """The budgets of the figures build.py computed, from the same step means."""
     type_b = TypeB.from_station(station.get("uncertainty"))
     if type_b.assumed:
         notes.append("uncertainty: the station does not declare " + ", ".join(type_b.assumed)
                      + "; the defaults of metrology/uncertainty.py are assumed (see "
                        "uncertainty_inputs)")
+    sweeps, holds = _group_means(steps)
+    per_temp = {e.temp_c: sweep_uncertainty(sweeps[e.temp_c], type_b) for e in sweep.entries}
+    paths = _sweep_paths(sweep, per_temp)
+    if len(per_temp) >= 2 and sweep.sf_temperature is not None:
+        all_dwells = [m for t in sorted(per_temp) for m in sweeps[t]]
+        for key, unc in sf_temperature_uncertainty(all_dwells, type_b,
+                                                   sweep.reference_temp_c).items():
+            paths[f"sf_temperature.{key}"] = unc
+    latitude = (station.get("site") or {}).get("latitude_deg")
+    bias_u = _bias_budgets(bias, per_temp, sweeps, holds, latitude, type_b, nominal_sf, notes)
+    paths.update({f"bias@{t:g}": u for t, u in bias_u.items()})
+    slope = None
+    if len(bias_u) >= 2 and bias.sensitivity_dph_per_c is not None:
+        temps = sorted(bias_u)
+        slope = slope_uncertainty(temps, [bias_u[t] for t in temps], type_b, "bias")
+        paths["bias_temperature.sensitivity_dph_per_c"] = slope
+    allan_u = None if allan is None else allan_term_budgets(allan)
+    paths.update({f"allan.fit.{name}": u for name, u in (allan_u or {}).items()})
+    return UncertaintyBudget(per_temp, bias_u, slope,
+                             _compensation_budgets(compensation, sweep, per_temp, bias, bias_u),
+                             allan_u, paths, type_b)
+
+
+def _group_means(steps: list[StepMean]) -> tuple[dict[float, list[MeanU]],
+                                                 dict[float, list[MeanU]]]:
+    """Dwell means by setpoint, static/allan hold means by setpoint (finite u and ν only)."""
     usable = [s for s in steps if math.isfinite(s.mean.u) and math.isfinite(s.mean.dof)]
     sweeps: dict[float, list[MeanU]] = defaultdict(list)
     holds: dict[float, list[MeanU]] = defaultdict(list)
@@ -67,37 +125,13 @@ def add_uncertainties(results: dict[str, Any], steps: list[StepMean], plan: dict
             sweeps[s.mean.temp_c].append(s.mean)
         elif s.kind in HOLD_KINDS:
             holds[s.mean.temp_c].append(s.mean)
-    paths: dict[str, Uncertainty] = {}
-    per_temp: dict[float, dict[str, Uncertainty]] = {}
-    for entry in results.get("scale_factor") or []:
-        temp = float(entry["temp_c"])
-        per_temp[temp] = sweep_uncertainty(sweeps[temp], type_b)
-        entry.update(per_temp[temp]["sf"].to_json())
-        entry["uncertainty"] = {k: v.to_json() for k, v in per_temp[temp].items() if k != "sf"}
-    _sweep_paths(results, per_temp, paths)
-    if len(per_temp) >= 2 and results.get("sf_temperature"):
-        all_dwells = [m for t in sorted(per_temp) for m in sweeps[t]]
-        for key, unc in sf_temperature_uncertainty(all_dwells, type_b, reference_temp_c).items():
-            paths[f"sf_temperature.{key}"] = unc
-    latitude = (station.get("site") or {}).get("latitude_deg")
-    bias_u = _bias_entries(results, per_temp, sweeps, holds, latitude, type_b, notes)
-    paths.update({f"bias@{t:g}": u for t, u in bias_u.items()})
-    if len(bias_u) >= 2 and results.get("bias_temperature"):
-        temps = sorted(bias_u)
-        slope = slope_uncertainty(temps, [bias_u[t] for t in temps], type_b, "bias")
-        paths["bias_temperature.sensitivity_dph_per_c"] = slope
-        results["bias_temperature"].update(slope.to_json())
-    _compensation_entries(results)
-    paths.update(_allan_terms(results))
-    results["uncertainty"] = {path: {"value": u.value} | u.to_json() for path, u in paths.items()}
-    results["uncertainty_inputs"] = type_b.to_json()
+    return sweeps, holds
 
 
-#: results.json compensation table → (its points' list, the value key of a point)
-_TABLE_SOURCES = {"sf": ("scale_factor", "sf"), "bias_dph": ("bias", "bias_dph")}
-
-
-def _compensation_entries(results: dict[str, Any]) -> None:
+def _compensation_budgets(compensation: CompensationResults, sweep: SweepResults,
+                          per_temp: Mapping[float, Mapping[str, Uncertainty]],
+                          bias: BiasResults, bias_u: Mapping[float, Uncertainty]
+                          ) -> TableUncertainty:
     """u/U/k/budget of every compensation-table entry (``tables.*.*.uncertainty``).
 
     An entry is a linear function of the per-temperature points (the piecewise table's
@@ -107,57 +141,59 @@ def _compensation_entries(results: dict[str, Any]) -> None:
     name in several points - the table's rate scale error, the site latitude - is one
     input common to them (fully correlated), the others are each point's own.
     """
-    tables = (results.get("compensation") or {}).get("tables") or {}
-    for key, (source, value_key) in _TABLE_SOURCES.items():
-        points = [p for p in results.get(source) or [] if p.get("budget")]
-        for table in (tables.get(key) or {}).values():
-            if table is None or len(points) != len(table["points"]):
+    sources = {
+        "sf": [(e.temp_c, e.result.sf, per_temp[e.temp_c]["sf"]) for e in sweep.entries
+               if e.temp_c in per_temp and per_temp[e.temp_c]["sf"].budget],
+        "bias_dph": [(e.temp_c, e.bias_dph, bias_u[e.temp_c]) for e in bias.entries
+                     if e.temp_c in bias_u and bias_u[e.temp_c].budget],
+    }
+    out: dict[str, dict[str, tuple[tuple[float, Uncertainty], ...]]] = {}
+    for quantity, points in sources.items():
+        for kind, table in (compensation.tables.get(quantity) or {}).items():
+            if table is None or len(points) != len(table.points):
                 continue
-            temps = [float(p["temp_c"]) for p in points]
-            make = _table_maker(table)
-            entries = table_entry_uncertainty(temps, [p[value_key] for p in points],
-                                              [p["budget"] for p in points], make)
-            table["uncertainty"] = [{"temp_c": t, "value": u.value} | u.to_json()
-                                    for t, u in entries]
+            entries = table_entry_uncertainty([t for t, _, _ in points],
+                                              [v for _, v, _ in points],
+                                              [u.budget for _, _, u in points],
+                                              _table_maker(table))
+            out.setdefault(quantity, {})[kind] = tuple(entries)
+    return out
 
 
-def _table_maker(table: dict[str, Any]):
+def _table_maker(table: CompensationTable):
     """The function of analysis/thermal/compensation.py that made ``table`` (same degree)."""
-    if not table.get("coefficients"):
+    if not table.coefficients:
         return comp.piecewise_linear
-    degree = len(table["coefficients"]) - 1
+    degree = len(table.coefficients) - 1
     return lambda temps, values: comp.polynomial(temps, values, degree=degree)
 
 
 def table_entry_uncertainty(temps: list[float], values: list[float],
-                            budgets: list[list[dict[str, Any]]], make
+                            budgets: list[tuple[Contribution, ...]], make
                             ) -> list[tuple[float, Uncertainty]]:
     """(temp, Uncertainty) of each entry of the table ``make(temps, values)``."""
     n = len(temps)
     eye = np.eye(n)
     # h[i, j]: how entry i moves with point j (the table is linear in its points)
     h = np.array([[p[1] for p in make(temps, eye[j]).points] for j in range(n)]).T
-    lines: dict[str, dict[str, Any]] = {}
+    lines: dict[str, Contribution] = {}
     sensitivity: dict[str, np.ndarray] = {}
     for j, budget in enumerate(budgets):
         for line in budget:
-            name = line["name"]
-            lines.setdefault(name, line)
-            sensitivity.setdefault(name, np.zeros(n))[j] += float(line["sensitivity"])
+            lines.setdefault(line.name, line)
+            sensitivity.setdefault(line.name, np.zeros(n))[j] += float(line.sensitivity)
     out = []
     for i, (temp_c, value) in enumerate(make(temps, values).points):
         contributions = []
         for name, line in lines.items():
             c = float(h[i] @ sensitivity[name])
-            u_input = float(line["u_input"])
-            contributions.append(Contribution(
-                name, line["source"], EvalType(line["type"]), line["distribution"], u_input,
-                c, abs(c) * u_input, math.inf if line.get("dof") is None else float(line["dof"])))
+            contributions.append(replace(line, sensitivity=c,
+                                         u_contribution=abs(c) * line.u_input))
         out.append((float(temp_c), combine(value, contributions)))
     return out
 
 
-def _allan_terms(results: dict[str, Any]) -> dict[str, Uncertainty]:
+def allan_term_budgets(allan: AllanSection) -> dict[str, Uncertainty]:
     """u/U/k/budget of each fitted noise term (``allan.uncertainty`` and the paths map).
 
     u is the term's standard error from the weighted least-squares fit of the Allan
@@ -165,58 +201,48 @@ def _allan_terms(results: dict[str, Any]) -> dict[str, Uncertainty]:
     degrees of freedom; the 68 % intervals already reported stay beside them. A term
     fitted at zero keeps u = its upper-bound scale: a coefficient cannot be negative.
     """
-    allan = results.get("allan")
-    if not allan or not allan.get("fit_uncertainty"):
-        return {}
-    dof = float(allan.get("fit_dof") or math.inf)
+    dof = float(allan.fit.dof or math.inf)
     out: dict[str, Uncertainty] = {}
-    for name, est in allan["fit_uncertainty"].items():
-        value = (allan.get("fit") or {}).get(name) if "." not in name else None
-        stderr = est.get("stderr")
+    for name in TERM_NAMES:
+        term = getattr(allan.fit, name)
+        value, stderr = term.value, term.stderr
         if not isinstance(value, (int, float)) or not isinstance(stderr, (int, float)) \
                 or not math.isfinite(stderr) or stderr <= 0:
             continue
         line = Contribution(f"{name}: WLS fit of the Allan variance", "analysis/allan/noise_fit.py "
                             "(EDF-weighted least squares)", EvalType.A, "normal", stderr, 1.0,
                             stderr, dof)
-        out[f"allan.fit.{name}"] = combine(float(value), [line])
-    allan["uncertainty"] = {name.removeprefix("allan.fit."): {"value": u.value} | u.to_json()
-                            for name, u in out.items()}
+        out[name] = combine(float(value), [line])
     return out
 
 
-def _sweep_paths(results: dict[str, Any], per_temp: dict[float, dict[str, Uncertainty]],
-                 paths: dict[str, Uncertainty]) -> None:
+def _sweep_paths(sweep: SweepResults, per_temp: Mapping[float, Mapping[str, Uncertainty]]
+                 ) -> dict[str, Uncertainty]:
     """The single-number sweep figures: budgets of the temperature each was taken from."""
-    if not per_temp:
-        return
-    ls = results.get("scale_factor_ls")
-    if ls:
-        ref = per_temp[float(ls["temp_c"])]
-        paths["scale_factor_ls.sf"], paths["scale_factor_ls.bias"] = ref["sf"], ref["bias"]
-        ls.update(ref["sf"].to_json())
-    entries = results.get("scale_factor") or []
-    for path, key in (("nonlinearity.rms_pct", "rms_pct"),
-                      ("nonlinearity.max_ppm_fs", "max_ppm_fs")):
-        worst = max(entries, key=lambda e, key=key: e["nonlinearity"][key])
-        paths[path] = per_temp[float(worst["temp_c"])][f"nonlinearity_{key}"]
-    chosen = max(entries, key=lambda e: abs(e["asymmetry_ppm"]))
-    paths["asymmetry_ppm"] = per_temp[float(chosen["temp_c"])]["asymmetry_ppm"]
+    paths: dict[str, Uncertainty] = {}
+    ref, rms, worst, asym = sweep.reference, sweep.worst_rms, sweep.worst_max, \
+        sweep.largest_asymmetry
+    if ref is None or rms is None or worst is None or asym is None:
+        return paths
+    paths["scale_factor_ls.sf"] = per_temp[ref.temp_c]["sf"]
+    paths["scale_factor_ls.bias"] = per_temp[ref.temp_c]["bias"]
+    paths["nonlinearity.rms_pct"] = per_temp[rms.temp_c]["nonlinearity_rms_pct"]
+    paths["nonlinearity.max_ppm_fs"] = per_temp[worst.temp_c]["nonlinearity_max_ppm_fs"]
+    paths["asymmetry_ppm"] = per_temp[asym.temp_c]["asymmetry_ppm"]
+    return paths
 
 
-def _bias_entries(results: dict[str, Any], per_temp: dict[float, dict[str, Uncertainty]],
+def _bias_budgets(bias: BiasResults, per_temp: Mapping[float, Mapping[str, Uncertainty]],
                   sweeps: dict[float, list[MeanU]], holds: dict[float, list[MeanU]],
-                  latitude: float | None, type_b: TypeB, notes: list[str]
+                  latitude: float | None, type_b: TypeB, nominal_sf: float, notes: list[str]
                   ) -> dict[float, Uncertainty]:
     out = {}
-    for point in results.get("bias") or []:
-        temp = float(point["temp_c"])
-        if point.get("source") == "static" and holds.get(temp):
+    for point in bias.entries:
+        temp = point.temp_c
+        if point.source is BiasSource.STATIC and holds.get(temp):
             sf = per_temp.get(temp, {}).get("sf")
             if sf is None:
-                nominal = float((results.get("unit_under_test") or {}).get(
-                    "nominal_scale_factor") or 1.0)
-                sf = Uncertainty(nominal, 0.0, math.inf, 1.96, ())
+                sf = Uncertainty(nominal_sf, 0.0, math.inf, 1.96, ())
                 notes.append(f"uncertainty of bias at {temp:g} °C: the nominal scale factor's "
                              "uncertainty is not known and is taken as 0")
             unc = bias_uncertainty_static(_pooled_hold(holds[temp]), sf, latitude, type_b)
@@ -224,6 +250,5 @@ def _bias_entries(results: dict[str, Any], per_temp: dict[float, dict[str, Uncer
             unc = bias_uncertainty_sweep(sweeps[temp], latitude, type_b)
         else:
             continue
-        point.update(unc.to_json())
         out[temp] = unc
     return out

@@ -15,8 +15,11 @@ from pathlib import Path
 import pytest
 
 from gyrocal.cli import main
+from gyrocal.metrology.decision import Decision
+from gyrocal.metrology.metrics import METRICS, metric_number
 from gyrocal.record.journal import read_journal
-from gyrocal.reports.results import REQUIRED_KEYS, evaluate_acceptance, lookup_metric
+from gyrocal.reports.acceptance import evaluate_acceptance
+from gyrocal.reports.results import REQUIRED_KEYS
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.timeout(120)
@@ -104,7 +107,8 @@ def test_every_calibrated_quantity_carries_its_gum_uncertainty(results):
     for path in ("scale_factor_ls.sf", "nonlinearity.rms_pct", "nonlinearity.max_ppm_fs",
                  "asymmetry_ppm", "sf_temperature.sensitivity_ppm_per_c",
                  "bias_temperature.sensitivity_dph_per_c"):
-        assert results["uncertainty"][path]["value"] == pytest.approx(lookup_metric(results, path))
+        assert results["uncertainty"][path]["value"] == pytest.approx(
+            metric_number(results, METRICS[path]))
         assert results["uncertainty"][path]["U"] > 0
     # the table's rate accuracy from stations/sim.yaml (10 ppm rectangular) is a type B line
     sf_lines = {line["name"]: line for line in results["scale_factor"][0]["budget"]}
@@ -132,12 +136,17 @@ def test_acceptance_table_and_missing_metrics(results):
         {"name": "absent", "metric": "allan.fit.markov.tau_s", "max": 1000.0},
     ]
     verdicts = evaluate_acceptance(results, limits, notes)
-    assert [v["pass"] for v in verdicts] == [False, False, False]
-    assert verdicts[0]["value"] == results["nonlinearity"]["max_ppm_fs"]
-    assert verdicts[1]["kind"] == "min"
-    assert verdicts[2]["value"] is None
+    assert [v.decision for v in verdicts] == [Decision.FAIL] * 3
+    assert [v.to_json()["pass"] for v in verdicts] == [False, False, False]
+    assert verdicts[0].value == results["nonlinearity"]["max_ppm_fs"]
+    assert verdicts[1].kind == "min"
+    assert verdicts[2].value is None
     assert any("allan.fit.markov.tau_s" in n for n in notes)
-    assert lookup_metric(results, "nonlinearity.nope") is None
+    # a limit on a metric the catalogue does not have fails, named (an old plan.json)
+    unknown = evaluate_acceptance(results, [{"name": "old", "metric": "nonlinearity.nope",
+                                             "max": 1.0}], notes)
+    assert unknown[0].decision is Decision.FAIL and unknown[0].value is None
+    assert any("nonlinearity.nope is not a metric" in n for n in notes)
 
 
 def test_journal_chain_stays_whole_after_engine_and_cli_reports(smoke_run, tmp_path):

@@ -20,7 +20,7 @@ from tests.support.hand_run import EARTH_DPH, TRUTH, write_run
 
 def test_numbers_follow_from_the_hand_made_record(tmp_path: Path) -> None:
     notes: list[str] = []
-    results = compute_results(read_run(write_run(tmp_path), notes), notes)
+    results = compute_results(read_run(write_run(tmp_path), notes), notes).to_json()
     by_temp = {e["temp_c"]: e for e in results["scale_factor"]}
     for temp, (sf, _) in TRUTH.items():
         assert by_temp[temp]["sf"] == pytest.approx(sf, abs=1e-12)
@@ -43,7 +43,7 @@ def test_a_record_without_sweeps_says_what_it_could_not_compute(tmp_path: Path) 
             s["kind"] = "static"         # the dwells now count as holds, not sweeps
     (run / "plan.json").write_text(json.dumps(plan))
     notes: list[str] = []
-    results = compute_results(read_run(run, notes), notes)
+    results = compute_results(read_run(run, notes), notes).to_json()
     assert results["scale_factor"] == [] and results["nonlinearity"] is None
     assert any("no ± rate sweep completed" in n for n in notes)
 
@@ -62,7 +62,7 @@ def test_samples_the_gyro_flagged_are_never_averaged_in(tmp_path: Path) -> None:
     table = table.set_column(table.schema.get_field_index("gyro"), "gyro", pa.array(gyro))
     pq.write_table(table.append_column("status", pa.array(status)), chunk)
     notes: list[str] = []
-    results = compute_results(read_run(run, notes), notes)
+    results = compute_results(read_run(run, notes), notes).to_json()
     sf0 = next(e for e in results["scale_factor"] if e["temp_c"] == 0.0)
     assert sf0["sf"] == pytest.approx(TRUTH[0.0][0], abs=1e-12)
     step = next(s for s in results["steps"] if s["step_id"] == "T01.dwell+10")

@@ -20,8 +20,9 @@ from gyrocal.metrology.decision import (
     overall_verdict,
 )
 from gyrocal.metrology.sanity import SanityCheck
+from gyrocal.reports.acceptance import evaluate_acceptance
 from gyrocal.reports.build import build_report
-from gyrocal.reports.results import evaluate_acceptance
+from tests.support.verdicts import judged
 
 OK = [SanityCheck("scale factor near nominal", True, "fine")]
 
@@ -59,10 +60,11 @@ def test_guarded_acceptance_entry_gives_conditional_within_u_of_its_limit():
               {"name": "nl simple", "metric": "nonlinearity.rms_pct", "max": 0.55}]
     verdicts = evaluate_acceptance(results, limits, [])
     asym, nl, simple = verdicts
-    assert asym["decision"] == "CONDITIONAL" and asym["pass"] is False   # |−4.5| + 1 > 5
-    assert asym["guard_band"] == 1.0 and asym["decision_rule"] == "guarded"
-    assert nl["decision"] == "PASS" and nl["pass"] is True
-    assert simple["decision"] == "PASS" and simple["decision_rule"] == "simple"
+    assert asym.decision is Decision.CONDITIONAL and asym.passed is False   # |−4.5| + 1 > 5
+    assert asym.guard_band == 1.0 and asym.decision_rule is DecisionRule.GUARDED
+    assert nl.decision is Decision.PASS and nl.passed is True
+    assert simple.decision is Decision.PASS and simple.decision_rule is DecisionRule.SIMPLE
+    assert asym.to_json()["pass"] is False and asym.to_json()["decision"] == "CONDITIONAL"
     verdict = overall_verdict(OK, verdicts, [])
     assert verdict["overall"] == "CONDITIONAL" and verdict["conditional"] == ["asym"]
 
@@ -76,7 +78,7 @@ def _instruments(**table):
 
 
 def test_expired_reference_blocks_pass_unless_waived():
-    passing = [{"name": "a", "pass": True, "decision": "PASS"}]
+    passing = [judged(Decision.PASS, "a")]
     assert overall_verdict(OK, passing, instrument_blockers(_instruments()))["overall"] == "PASS"
     expired = _instruments(calibration_due="2001-01-01", calibration_overdue=True)
     verdict = overall_verdict(OK, passing, instrument_blockers(expired))

@@ -128,13 +128,16 @@ def test_compensation_residuals_carry_their_units(evil_run):
     """Two temperatures give no residuals; with three (tables made by the report's own
     builder) every residual is printed with the table's unit."""
     from gyrocal.reports.build import _comp_tables
+    from gyrocal.reports.compensation_results import CompensationResults
     from gyrocal.reports.html_report import render_html
 
     results = json.loads((evil_run / "report" / "results.json").read_text())
     notes: list[str] = []
-    results["compensation"]["tables"] = {
-        "bias_dph": _comp_tables([[-10.0, 1.2], [25.0, 2.0], [60.0, 3.5]], "bias", notes),
-        "sf": _comp_tables([[-10.0, 0.99990], [25.0, 1.0], [60.0, 1.00012]], "sf", notes)}
+    bias = ((-10.0, 1.2), (25.0, 2.0), (60.0, 3.5))
+    sf = ((-10.0, 0.99990), (25.0, 1.0), (60.0, 1.00012))
+    results["compensation"] = CompensationResults(bias, sf, {
+        "bias_dph": _comp_tables(list(bias), "bias", notes),
+        "sf": _comp_tables(list(sf), "sf", notes)}).to_json()
     assert not notes
     text = _visible_text(render_html(results))
     assert re.search(r"in-sample RMS residual \S+ deg/h, leave-one-out RMS \S+ deg/h, "

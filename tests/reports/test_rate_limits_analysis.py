@@ -46,10 +46,12 @@ def test_an_unreached_limit_is_a_lower_bound_with_no_uncertainty_and_a_note():
 
 
 def test_a_walk_on_a_line_far_from_the_nominal_sf_makes_the_run_invalid():
+    from gyrocal.metrology.decision import Decision
     from gyrocal.metrology.sanity import check_physics, verdict
+    from tests.support.verdicts import judged
 
     section = rate_limits_section(walk({50.0: -50.0, 100.0: -100.0, 150.0: -150.0}), [])
     results = {"unit_under_test": {"nominal_scale_factor": 1.0}, "rate_limits": section}
     check = next(c for c in check_physics(results) if c.name.startswith("rate-limit walk"))
     assert not check.ok and "SF -1" in check.detail
-    assert verdict(check_physics(results), [{"pass": True}])["overall"] == "INVALID"
+    assert verdict(check_physics(results), [judged(Decision.PASS)])["overall"] == "INVALID"

@@ -9,8 +9,10 @@ from pathlib import Path
 import pytest
 
 from gyrocal.cli import EXIT_ACCEPTANCE_FAILED, main
+from gyrocal.metrology.decision import Decision
 from gyrocal.metrology.sanity import check_physics, verdict
-from gyrocal.reports.results import evaluate_acceptance
+from gyrocal.reports.acceptance import evaluate_acceptance
+from tests.support.verdicts import judged
 
 
 def results(sf: float = 1.0002, nonlinearity: float = 0.001, mean: float = 10.0,
@@ -29,8 +31,8 @@ def results(sf: float = 1.0002, nonlinearity: float = 0.001, mean: float = 10.0,
 def test_a_sound_run_passes_its_physics() -> None:
     checks = check_physics(results())
     assert all(c.ok for c in checks)
-    assert verdict(checks, [{"pass": True}])["overall"] == "PASS"
-    assert verdict(checks, [{"pass": False}])["overall"] == "FAIL"
+    assert verdict(checks, [judged(Decision.PASS)])["overall"] == "PASS"
+    assert verdict(checks, [judged(Decision.FAIL)])["overall"] == "FAIL"
 
 
 @pytest.mark.parametrize(("bad", "check"), [
@@ -43,7 +45,7 @@ def test_a_sound_run_passes_its_physics() -> None:
 ])
 def test_impossible_numbers_are_invalid_whatever_the_limits_say(bad: dict, check: str) -> None:
     checks = check_physics(results(**bad))
-    result = verdict(checks, [{"pass": True}])
+    result = verdict(checks, [judged(Decision.PASS)])
     assert result["overall"] == "INVALID"
     assert [c.name for c in checks if not c.ok] == [check]
     assert result["invalid_because"][0].startswith(check)
@@ -61,9 +63,9 @@ def test_max_limits_fail_on_nan_and_impossible_negatives_and_bound_signed_sizes(
     limits = [{"name": "nl", "metric": "nonlinearity.rms_pct", "max": 0.05},
               {"name": "asym", "metric": "asymmetry_ppm", "max": 200.0},
               {"name": "inst", "metric": "sf_temperature.instability_pct", "max": 0.1}]
-    assert [v["pass"] for v in evaluate_acceptance(data, limits, notes)] == [False, False, False]
+    assert [v.passed for v in evaluate_acceptance(data, limits, notes)] == [False, False, False]
     data["asymmetry_ppm"] = -50.0
-    assert evaluate_acceptance(data, limits[1:2], notes)[0]["pass"] is True
+    assert evaluate_acceptance(data, limits[1:2], notes)[0].passed is True
 
 
 def test_an_impossible_run_folder_is_invalid_in_the_report_and_the_exit_code(
@@ -102,7 +104,7 @@ def test_a_dwell_whose_first_tenth_strays_is_invalid() -> None:
     """Issue 28: 80 samples of the table's ramp (84 → 99.8 deg/s) at the start of a 2500-sample
     dwell at 100 deg/s put its first tenth 2.592 deg/s (26,000 ppm) below the rest."""
     checks = check_physics(with_drift(2.592, noise_limit=0.002, mean=99.9))
-    result = verdict(checks, [{"pass": True}])
+    result = verdict(checks, [judged(Decision.PASS)])
     assert result["overall"] == "INVALID"
     assert [c.name for c in checks if not c.ok] == ["dwells steady"]
     assert "T01.sf.+10dps: part 1 of 10" in result["invalid_because"][0]

@@ -19,8 +19,8 @@ import pytest
 from gyrocal.analysis.allan.summary import allan_curve, fit_curve, identifiability_json
 from gyrocal.app.verdict import verdict_line
 from gyrocal.cli import EXIT_ACCEPTANCE_FAILED, EXIT_FAULT, main
-from gyrocal.metrology.decision import overall_verdict
-from gyrocal.reports.results import evaluate_acceptance
+from gyrocal.metrology.decision import Decision, overall_verdict
+from gyrocal.reports.acceptance import evaluate_acceptance
 from tests.orchestrator.conftest import write_station
 
 pytestmark = pytest.mark.timeout(300)
@@ -108,12 +108,12 @@ def test_a_noise_term_the_record_cannot_identify_is_never_graded_as_zero() -> No
               {"name": "Q loose", "metric": "allan.fit.Q_arcsec", "max": bound_q * 2, "unit": "arcsec"},
               {"name": "Q min", "metric": "allan.fit.Q_arcsec", "min": 0.01, "unit": "arcsec"}]
     notes: list[str] = []
-    verdicts = {v["name"]: v for v in evaluate_acceptance(results, limits, notes)}
-    assert verdicts["Q tight"]["decision"] == "NOT EVALUATED"     # was: Q = 0, PASS
-    assert verdicts["Q loose"]["decision"] == "PASS"             # the bound settles it
-    assert verdicts["Q min"]["decision"] == "NOT EVALUATED"      # a bound cannot show ≥
+    verdicts = {v.name: v for v in evaluate_acceptance(results, limits, notes)}
+    assert verdicts["Q tight"].decision is Decision.NOT_EVALUATED     # was: Q = 0, PASS
+    assert verdicts["Q loose"].decision is Decision.PASS             # the bound settles it
+    assert verdicts["Q min"].decision is Decision.NOT_EVALUATED      # a bound cannot show ≥
     for verdict in verdicts.values():
-        assert verdict["value"] is None and verdict["identifiable"] is False
+        assert verdict.value is None and verdict.identifiable is False
         assert verdict_line(verdict).startswith("not identifiable from this record (95 % upper "
                                                 f"bound {bound_q:.3g} arcsec)")
     assert overall_verdict([], list(verdicts.values()), [])["overall"] == "INCOMPLETE"
@@ -127,6 +127,6 @@ def test_every_verdict_line_prints_value_plus_minus_u_with_units() -> None:
               {"name": "nl", "metric": "nonlinearity.rms_pct", "max": 1.0, "unit": "%"}]
     verdicts = evaluate_acceptance(results, limits, [])
     near = verdict_line(verdicts[0])       # 95 within U = 12 of 100, simple rule: PASS with U
-    assert verdicts[0]["decision"] == "PASS"
+    assert verdicts[0].decision is Decision.PASS
     assert near == "95 ± 12 ppm (max 100 ppm, simple rule)"
     assert verdict_line(verdicts[1]) == "0.5 (U not stated) % (max 1 %, simple rule)"
