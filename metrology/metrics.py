@@ -33,6 +33,14 @@ class Certified:
 
 
 @dataclass(frozen=True)
+class Trend:
+    """How the runs database's history plot shows a metric: its panel and axis label."""
+
+    row: int
+    label: str          # words and unit
+
+
+@dataclass(frozen=True)
 class Metric:
     key: str               # key path in results.json
     unit: str | None       # canonical unit; None when it is the unit under test's own output unit
@@ -44,6 +52,8 @@ class Metric:
     db_name: str | None = None
     #: the certificate's row for it, when it is a certified single figure
     certified: Certified | None = None
+    #: the history plot's panel for it (runs database), when one is drawn
+    trend: Trend | None = None
 
     @property
     def path(self) -> tuple[str, ...]:
@@ -63,30 +73,37 @@ _REPEATABILITY = "turn_on_repeatability"
 _LIMIT_POS, _LIMIT_NEG = "rate_limit_positive", "rate_limit_negative"
 
 _IEEE = "IEEE Std 952 / 1431"
+_NOISE_TRENDS = {"N": Trend(7, "angle random walk\n(deg/√h)"),
+                 "B": Trend(8, "bias instability\n(deg/h)")}
 
 METRICS: dict[str, Metric] = {
     m.key: m
     for m in (
         Metric("nonlinearity.rms_pct", "%", _SWEEP, db_name="nonlinearity_rms_pct",
-               certified=Certified(2, "Nonlinearity (RMS of SF over rates)", "%")),
+               certified=Certified(2, "Nonlinearity (RMS of SF over rates)", "%"),
+               trend=Trend(5, "SF nonlinearity\nRMS (%)")),
         Metric("nonlinearity.max_ppm_fs", "ppm", _SWEEP, db_name="nonlinearity_max_ppm_fs",
                certified=Certified(3, "Nonlinearity (max residual)", "ppm of full scale")),
         Metric("asymmetry_ppm", "ppm", _SWEEP, signed=True, db_name="asymmetry_ppm",
-               certified=Certified(4, "Scale-factor asymmetry", "ppm")),
+               certified=Certified(4, "Scale-factor asymmetry", "ppm"),
+               trend=Trend(6, "SF asymmetry\n(ppm)")),
         Metric("scale_factor_ls.sf", None, _SWEEP, db_name="sf", certified=Certified(
-            1, "Scale factor, LS line at the reference temperature", "output/(deg/s)")),
+            1, "Scale factor, LS line at the reference temperature", "output/(deg/s)"),
+            trend=Trend(1, "scale factor\n(output/(deg/s))")),
         Metric("scale_factor_ls.bias", None, _SWEEP, signed=True, db_name="bias_dps_ls"),
         Metric("sf_temperature.instability_pct", "%", _SWEEP_TEMPS, db_name="sf_instability_pct",
                certified=Certified(6, "SF temperature instability", "%")),
         Metric("sf_temperature.sensitivity_ppm_per_c", "ppm/°C", _SWEEP_TEMPS, signed=True,
                db_name="sf_tempco_ppm_per_c",
-               certified=Certified(5, "SF temperature sensitivity", "ppm/°C")),
+               certified=Certified(5, "SF temperature sensitivity", "ppm/°C"),
+               trend=Trend(2, "SF temp. coeff.\n(ppm/°C)")),
         Metric("bias_temperature.sensitivity_dph_per_c", "deg/h/°C", _BIAS_TEMPS, signed=True,
                db_name="bias_tempco_dph_per_c",
-               certified=Certified(7, "Bias temperature sensitivity", "deg/h per °C")),
+               certified=Certified(7, "Bias temperature sensitivity", "deg/h per °C"),
+               trend=Trend(4, "bias temp. coeff.\n(deg/h/°C)")),
         # the noise terms; in the database under their model-file names (models/noise_terms.py)
-        *(Metric(f"allan.fit.{t.fit_key}", t.unit, _ALLAN, db_name=t.model_key)
-          for t in NOISE_TERMS),
+        *(Metric(f"allan.fit.{t.fit_key}", t.unit, _ALLAN, db_name=t.model_key,
+                 trend=_NOISE_TRENDS.get(t.symbol)) for t in NOISE_TERMS),
         Metric("allan.fit.markov.sigma_dph", "deg/h", _ALLAN),
         Metric("allan.fit.markov.tau_s", "s", _ALLAN),
         Metric("threshold.threshold_dps", "deg/s", _THRESHOLD, certified=Certified(
@@ -124,9 +141,15 @@ METRICS: dict[str, Metric] = {
 #: the reference temperature, interpolated between the two around it
 #: (``reports/runs/metrics.py``), in deg/h.
 HEADLINE_BIAS_DB_NAME = "bias_dph"
+_HEADLINE_BIAS_TREND = Trend(3, "bias at ref. temp.\n(deg/h)")
 
 #: Metrics stored in the runs database, by their database name (catalogue order).
 DATABASE_METRICS: dict[str, Metric] = {m.db_name: m for m in METRICS.values() if m.db_name}
+
+#: The history plot's panels: database name → axis label, in panel order.
+TRENDS: dict[str, str] = {name: trend.label for name, trend in sorted(
+    [*((m.db_name, m.trend) for m in DATABASE_METRICS.values() if m.trend and m.db_name),
+     (HEADLINE_BIAS_DB_NAME, _HEADLINE_BIAS_TREND)], key=lambda item: item[1].row)}
 
 #: Certified single figures in the certificate's row order.
 CERTIFIED_METRICS: tuple[Metric, ...] = tuple(sorted(

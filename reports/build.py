@@ -418,10 +418,6 @@ def _instruments(data: RunData, notes: list[str]) -> dict[str, Any]:
     return out
 
 
-def _pick_reference(entries: list[dict[str, Any]]) -> dict[str, Any] | None:
-    return min(entries, key=lambda e: abs(e["temp_c"] - REFERENCE_TEMP_C), default=None)
-
-
 def compute_results(data: RunData, notes: list[str]) -> Results:
     """Every figure of results.json from reduced run data (see the module docstring), judged.
 

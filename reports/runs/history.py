@@ -14,23 +14,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from gyrocal.metrology.metrics import TRENDS
+
 COVERAGE_K = 2.0
 
-#: what the table and plot show, in this order (others stay in the database)
-SHOWN = ("sf", "sf_tempco_ppm_per_c", "bias_dph", "bias_tempco_dph_per_c",
-         "nonlinearity_rms_pct", "asymmetry_ppm", "arw_deg_per_rth", "bias_instability_dph")
-
+#: what the table and plot show, in this order (others stay in the database): the catalogue's
+SHOWN = tuple(TRENDS)
 #: how the plot labels each metric: words and the unit
-LABELS = {
-    "sf": "scale factor\n(output/(deg/s))",
-    "sf_tempco_ppm_per_c": "SF temp. coeff.\n(ppm/°C)",
-    "bias_dph": "bias at ref. temp.\n(deg/h)",
-    "bias_tempco_dph_per_c": "bias temp. coeff.\n(deg/h/°C)",
-    "nonlinearity_rms_pct": "SF nonlinearity\nRMS (%)",
-    "asymmetry_ppm": "SF asymmetry\n(ppm)",
-    "arw_deg_per_rth": "angle random walk\n(deg/√h)",
-    "bias_instability_dph": "bias instability\n(deg/h)",
-}
+LABELS = TRENDS
 
 
 @dataclass(frozen=True)

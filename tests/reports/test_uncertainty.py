@@ -169,17 +169,16 @@ def test_compensation_entries_carry_the_points_budgets_through_the_table() -> No
     of numpy's polyfit over the points drawn from their budgets, a common rate-scale line
     moving all points together (fully correlated) and each point's own noise apart."""
     from gyrocal.analysis.thermal import compensation as comp
+    from gyrocal.metrology.gum import Contribution, EvalType
     from gyrocal.reports.sections.uncertainty import table_entry_uncertainty
 
     temps = [-40.0, -10.0, 25.0, 50.0, 75.0]
     values = [0.99990, 0.99995, 1.0, 1.00004, 1.00009]
     own_u = [2e-6, 3e-6, 1.5e-6, 2.5e-6, 4e-6]
     common_u, common_c = 5.8e-6, -1.0            # table rate scale error, c = -SF
-    budgets = [[{"name": f"mean @{t:g}", "source": "data", "type": "A", "distribution": "normal",
-                 "u_input": u, "sensitivity": 1.0, "dof": None},
-                {"name": "table rate scale error", "source": "station", "type": "B",
-                 "distribution": "rectangular", "u_input": common_u,
-                 "sensitivity": common_c * v, "dof": None}]
+    budgets = [(Contribution(f"mean @{t:g}", "data", EvalType.A, "normal", u, 1.0, u, math.inf),
+                Contribution("table rate scale error", "station", EvalType.B, "rectangular",
+                             common_u, common_c * v, abs(common_c * v) * common_u, math.inf))
                for t, u, v in zip(temps, own_u, values, strict=True)]
     piecewise = table_entry_uncertainty(temps, values, budgets, comp.piecewise_linear)
     for (t, unc), u, v in zip(piecewise, own_u, values, strict=True):
