@@ -177,4 +177,3 @@ class PlanRecord:
 def load_plan_record(run_dir: Path) -> PlanRecord:
     """plan.json of a run folder, typed (KeyError/ValueError name a malformed record)."""
     return PlanRecord.of(read_plan_record(run_dir))
-
