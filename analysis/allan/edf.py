@@ -10,7 +10,8 @@ based on finite differences", PTTI 2003; NIST SP 1065 §5.3).
 allantools implements Greenhall's algorithm and the interval, and this module
 calls it. The one case it leaves out (it raises ``NotImplementedError``) is
 white angle noise when an averaging time has fewer than d+1 independent terms
-(τ beyond a third of the record): that case is the exact finite sum below,
+(for the Allan variance, τ of a quarter of the record or more; the default
+τ grid stops just short of it): that case is the exact finite sum below,
 and joins allantools' formula where both apply (tests/reports/test_allan_confidence.py).
 A benchmark of the former hand-written port against allantools found no
 material difference (both tens of ms per 100-τ curve, equal to 1e-13), so the

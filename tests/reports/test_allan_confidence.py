@@ -1,8 +1,10 @@
 """EDF, noise identification and confidence intervals of the Allan deviation.
 
-Oracles: allantools' Greenhall EDF, noise-ID and chi-squared interval
-(written independently from the same papers), and the exact Allan variance of
-simulated white and random-walk rate noise.
+The EDF and the interval are allantools' (the library serves); the tests pin the
+one EDF case it leaves out, by hand and by Monte Carlo, and the interval against
+NIST SP 1065 eq. 45 written out. The noise identification is hand-written for speed
+and allantools' autocorr_noise_id is its oracle. Coverage is checked against the
+exact Allan variance of simulated white and random-walk rate noise.
 """
 
 import math
@@ -19,7 +21,12 @@ from gyrocal.analysis.allan.edf import (
     edf_greenhall,
     edf_white_angle_overlapping,
 )
-from gyrocal.analysis.allan.noise_id import identify_alpha_from_averages
+from gyrocal.analysis.allan.noise_id import (
+    ALPHA_MAX,
+    ALPHA_MIN,
+    identify_alpha_from_averages,
+    identify_alpha_per_m,
+)
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -116,6 +123,45 @@ def test_noise_identification_matches_truth_and_allantools(alpha):
     theirs = allantools.autocorr_noise_id(y, 1, data_type="freq", dmin=0, dmax=2)[0]
     assert ours == alpha
     assert theirs == alpha
+
+
+def _allantools_alpha(averages: np.ndarray) -> int:
+    raw = allantools.autocorr_noise_id(averages, 1, data_type="freq", dmin=0, dmax=2)[0]
+    return int(np.clip(raw, ALPHA_MIN, ALPHA_MAX))
+
+
+def test_noise_identification_equals_allantools_type_for_type():
+    """The hand-written identification is kept for speed (benchmarks/bench_noise_id.py);
+    allantools is its oracle on every series: mixtures of types with a ramp, lengths
+    from the minimum of 30 averages up."""
+    rng = np.random.default_rng(27)
+    compared = set()
+    for trial in range(150):
+        n = int(rng.choice([30, 31, 64, 200, 1000, 3000]))
+        weights = rng.uniform(0.0, 0.5, 5)
+        weights[trial % 5] = 1.0  # each type dominates in turn, the others blur it
+        y = sum(w * _power_law(a, n, rng) / _power_law(a, n, rng).std()
+                for w, a in zip(weights, [2, 1, 0, -1, -2], strict=True))
+        y = y + rng.uniform(-1, 1) * np.arange(n) / n  # a ramp, which both remove
+        ours = identify_alpha_from_averages(y)
+        assert ours == _allantools_alpha(y), f"trial {trial}, n={n}, weights={weights}"
+        compared.add(ours)
+    assert compared == {2, 1, 0, -1, -2}
+
+
+def test_noise_type_per_tau_equals_allantools_on_a_decimated_record():
+    rng = np.random.default_rng(5)
+    n = 300_000
+    y = rng.standard_normal(n) + np.cumsum(rng.standard_normal(n)) * 3e-3
+    phase = np.concatenate(([0.0], np.cumsum(y - y.mean())))
+    m_values = np.array([1, 3, 10, 30, 100, 300, 1000, 3000, 9000, 20_000])
+    alphas = identify_alpha_per_m(phase, m_values, max_points=20_000)
+    for m, alpha in zip(m_values, alphas, strict=True):
+        points = phase[: min(n // m, 20_000) * m + 1 : m]
+        if points.size - 1 >= 30:
+            assert alpha == _allantools_alpha(np.diff(points)), f"m={m}"
+        else:  # too few averages: the longest identifiable τ's type is carried forward
+            assert alpha == alphas[m_values < m][-1]
 
 
 def test_noise_type_along_a_curve_follows_the_dominant_term():
