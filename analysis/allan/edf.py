@@ -13,9 +13,10 @@ white angle noise when an averaging time has fewer than d+1 independent terms
 (for the Allan variance, τ of a quarter of the record or more; the default
 τ grid stops just short of it): that case is the exact finite sum below,
 and joins allantools' formula where both apply (tests/reports/test_allan_confidence.py).
-A benchmark of the former hand-written port against allantools found no
-material difference (both tens of ms per 100-τ curve, equal to 1e-13), so the
-library serves.
+Measured side by side before the hand-written port was removed (issue 27): the
+EDFs of a 100-τ curve took tens of ms in either (equal to 1e-13); the interval,
+one allantools call per τ, takes ~14 ms a curve against 0.4 ms vectorised, small
+beside the curve itself (0.7 s at 10 M samples), so the library serves.
 
 Noise types are the power-law exponent α of the *rate* (fractional-frequency)
 PSD, S_y(f) ∝ f^α: +2 white angle (quantization), +1 flicker angle, 0 white
