@@ -24,7 +24,6 @@ ISSUE_27_ALLOWED = {
     "analysis/discrepancy/lookalikes.py::separating_experiment",
     "analysis/discrepancy/workflow.py::_search_pass",
     "analysis/discrepancy/workflow.py::_gap_pass",
-    "gyrocal/cli.py::_add_run_commands",
     "orchestrator/acquisition.py::Acquisition.record",
 }
 
