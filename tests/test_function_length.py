@@ -21,7 +21,6 @@ MARK = "# long:"
 #: list; nothing may be added to it (a long function that must stay long says why
 #: with a ``# long:`` comment instead).
 ISSUE_27_ALLOWED = {
-    "analysis/discrepancy/lookalikes.py::separating_experiment",
     "analysis/discrepancy/workflow.py::_search_pass",
     "analysis/discrepancy/workflow.py::_gap_pass",
     "orchestrator/acquisition.py::Acquisition.record",
