@@ -23,7 +23,6 @@ MARK = "# long:"
 ISSUE_27_ALLOWED = {
     "analysis/discrepancy/workflow.py::_search_pass",
     "analysis/discrepancy/workflow.py::_gap_pass",
-    "orchestrator/acquisition.py::Acquisition.record",
 }
 
 
