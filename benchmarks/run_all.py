@@ -11,6 +11,7 @@ BENCHMARKS = [
     ["bench_model.py"],
     ["bench_gyro_stream.py"],
     ["bench_allan.py"],
+    ["bench_noise_id.py"],
     ["bench_allan_stream.py"],
     ["bench_report.py"],
     ["bench_dry_run.py"],

@@ -51,6 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"gyrocal {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_run_commands(sub)
+    _add_live_commands(sub)
     _add_report_commands(sub)
     _add_runs_commands(sub)
     _add_analyze_commands(sub)
@@ -59,24 +60,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_run_commands(sub: argparse._SubParsersAction) -> None:
-    """Validate, plan, run, resume, status, watch, confirm: running a procedure."""
+    """Validate, plan, run, resume: running a procedure."""
     p = sub.add_parser("validate", help="validate a procedure (and station) before anything moves")
     p.add_argument("procedure")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--station")
     group.add_argument("--sim", action="store_true",
                        help="check as for `run --sim` (the simulated gyro takes the procedure's rate)")
-    p.add_argument("--allow-outside-paths", action="store_true",
-                   help="let the procedure/station name files outside their folder, project "
-                        "and the working folder")
+    _add_allow_outside_paths(p)
     p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_validate"))
 
     p = sub.add_parser("plan", help="print the expanded steps, durations and ETA")
     p.add_argument("procedure")
     p.add_argument("--station")
-    p.add_argument("--allow-outside-paths", action="store_true",
-                   help="let the procedure/station name files outside their folder, project "
-                        "and the working folder")
+    _add_allow_outside_paths(p)
     p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_plan"))
 
     p = sub.add_parser("run", help="run a procedure on a station or against simulated instruments")
@@ -96,9 +93,7 @@ def _add_run_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--signing-key", default=None,
                    help="the station's private key (default: the station file's signing_key, "
                    "or $GYROCAL_SIGNING_KEY)")
-    p.add_argument("--allow-outside-paths", action="store_true",
-                   help="let the procedure/station name files outside their folder, project "
-                        "and the working folder")
+    _add_allow_outside_paths(p)
     p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_run"))
 
     p = sub.add_parser("resume", help="continue a faulted or interrupted run")
@@ -107,6 +102,15 @@ def _add_run_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--signing-key", default=None, help="as for run")
     p.set_defaults(func=_lazy("gyrocal.app.run_commands", "cmd_resume"))
 
+
+def _add_allow_outside_paths(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--allow-outside-paths", action="store_true",
+                   help="let the procedure/station name files outside their folder, project "
+                        "and the working folder")
+
+
+def _add_live_commands(sub: argparse._SubParsersAction) -> None:
+    """Status, watch, confirm: following and answering a run under way."""
     p = sub.add_parser("status", help="where a run is (state, step n/N, ETA, last event, holder)")
     p.add_argument("run_dir")
     p.add_argument("--json", action="store_true", help="the same snapshot as JSON, for scripts")

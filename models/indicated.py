@@ -211,105 +211,12 @@ def indicated_rate(
     omega = inputs.table_rate_dps
     chamber = inputs.chamber_temp_c
     fx = {e.name: e.params for e in model.effects}
-
-    # --- sensor temperature and its rate
-    if inputs.sensor_temp_c is not None:
-        sensor = inputs.sensor_temp_c
-    elif "thermal_lag" in fx:
-        sensor = thermal_lag_c(
-            chamber,
-            dt,
-            fx["thermal_lag"]["tau_s"],
-            None if state is None else state.sensor_temp_c,
-            None if state is None else state.chamber_temp_c,
-        )
-    else:
-        sensor = chamber
-    if history is not None and sensor is chamber:
-        sensor_rate = history.chamber_rate_c_per_min
-    elif history is not None and history.sensor_rate_c_per_min is not None \
-            and sensor is inputs.sensor_temp_c:
-        sensor_rate = history.sensor_rate_c_per_min
-    else:
-        sensor_rate = temperature_rate_c_per_min(
-            sensor, dt, None if state is None else state.sensor_temp_c
-        )
+    sensor, sensor_rate = _sensor_temperature(inputs, fx, dt, state, history)
     delta_t = sensor - model.reference_temp_c
-
-    # --- table angle and hysteresis branch (history of the inputs)
-    if history is not None:
-        angle = history.angle_deg
-        branch, branch_end, extreme_end = (history.branch, history.branch_end,
-                                           history.extreme_end_c)
-    else:
-        if inputs.table_angle_deg is not None:
-            angle = inputs.table_angle_deg
-        else:
-            angle = _integrated_angle_deg(omega, dt, state)
-        branch, branch_end, extreme_end = hysteresis_sign(
-            chamber,
-            1 if state is None else state.hysteresis_sign,
-            None if state is None else state.hysteresis_extreme_c,
-            HYSTERESIS_BAND_C,
-        )
-
-    # --- rate terms: the sensing bandwidth first (a first-order low-pass of ω_t, the same
-    # first-order-hold solution as the thermal lag), then the dead zone; both replace ω_t
-    # in every rate term
-    sensed = omega
-    if "rate_bandwidth" in fx:
-        sensed = thermal_lag_c(omega, dt, 1.0 / (2.0 * np.pi * fx["rate_bandwidth"]["bandwidth_hz"]),
-                               None if state is None else state.sensed_rate_dps,
-                               None if state is None else state.table_rate_dps)
-    omega_eff = sensed
-    if "dead_zone" in fx:
-        omega_eff = np.where(np.abs(sensed) < fx["dead_zone"]["threshold_dps"], 0.0, sensed)
-    # A term whose coefficient is 0 is skipped, not multiplied out (adding 0·x is exact
-    # for the finite inputs ModelInputs admits): a fit evaluates "unit" models with a
-    # single coefficient set, on 10 M samples each skipped term saves an array pass.
-    def coefficient(effect: str, key: str) -> float:
-        return float(fx[effect][key]) if effect in fx else 0.0
-
-    sf_ppm = model.sf_error_ppm
-    if model.sf_tempco_ppm_per_c != 0.0:
-        sf_ppm = sf_ppm + model.sf_tempco_ppm_per_c * delta_t
-    if (k := coefficient("sf_temp_quadratic", "ppm_per_c2")) != 0.0:
-        sf_ppm = sf_ppm + k * delta_t**2
-    rate = omega_eff if np.ndim(sf_ppm) == 0 and sf_ppm == 0.0 else (1.0 + 1e-6 * sf_ppm) * omega_eff
-    sf_ppm = np.broadcast_to(sf_ppm, (n,))
-    if (k := coefficient("sf_nonlinearity_quadratic", "k2_per_dps")) != 0.0:
-        rate = rate + k * omega_eff**2
-    if (k := coefficient("sf_nonlinearity_cubic", "k3_per_dps2")) != 0.0:
-        rate = rate + k * omega_eff**3
-    if (k := coefficient("sf_asymmetry", "ppm")) != 0.0:
-        rate = rate + 0.5e-6 * k * np.abs(omega_eff)
-    if "rate_saturation" in fx:
-        # the input-rate limit: the output follows the rate up to it, then stays there
-        rate = np.clip(rate, -fx["rate_saturation"]["negative_dps"],
-                       fx["rate_saturation"]["positive_dps"])
-
-    # --- bias bracket, deg/h
-    bias = model.bias_dph + model.earth_rate_dph
-    if model.bias_tempco_dph_per_c != 0.0:
-        bias = bias + model.bias_tempco_dph_per_c * delta_t
-    if (k := coefficient("temp_rate_bias", "dph_per_c_per_min")) != 0.0:
-        bias = bias + k * sensor_rate
-    if (k := coefficient("temp_hysteresis", "dph")) != 0.0:
-        bias = bias + k * branch
-    if (k := coefficient("bias_temp_quadratic", "dph_per_c2")) != 0.0:
-        bias = bias + k * delta_t**2
-    if (k := coefficient("warmup_transient", "amplitude_dph")) != 0.0:
-        bias = bias + k * np.exp(-t / fx["warmup_transient"]["tau_s"])
-    if (k := coefficient("bias_ramp", "dph_per_h")) != 0.0:
-        bias = bias + k * t / 3600.0
-    if (k := coefficient("table_angle_harmonic", "amplitude_dph")) != 0.0:
-        bias = bias + k * np.cos(np.deg2rad(angle - fx["table_angle_harmonic"]["phase_deg"]))
-    if (k := coefficient("periodic_interference", "amplitude_dph")) != 0.0:
-        bias = bias + k * np.sin(2.0 * np.pi * fx["periodic_interference"]["freq_hz"] * t)
-    if (k := coefficient("magnetic_sensitivity", "dph_per_t")) != 0.0 and inputs.field_t is not None:
-        bias = bias + k * inputs.field_t
-    bias = np.broadcast_to(bias, (n,))
-
+    angle, branch, branch_end, extreme_end = _angle_and_branch(inputs, dt, state, history)
+    sensed, omega_eff = _sensed_rate(omega, fx, dt, state)
+    rate, sf_ppm = _rate_terms(model, fx, omega_eff, delta_t, n)
+    bias = _bias_dph(model, fx, inputs, delta_t, sensor_rate, branch, angle)
     end = ModelState(
         t_s=float(t[-1]),
         chamber_temp_c=float(chamber[-1]),
@@ -331,6 +238,129 @@ def indicated_rate(
         bias_dph=bias,
         state=end,
     )
+
+
+_Effects = dict[str, dict[str, float]]
+
+
+def _sensor_temperature(inputs: ModelInputs, fx: _Effects, dt: np.ndarray,
+                        state: ModelState | None, history: InputHistory | None
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """The sensor's temperature (measured, lagging the chamber, or the chamber's) and its rate."""
+    chamber = inputs.chamber_temp_c
+    if inputs.sensor_temp_c is not None:
+        sensor = inputs.sensor_temp_c
+    elif "thermal_lag" in fx:
+        sensor = thermal_lag_c(
+            chamber,
+            dt,
+            fx["thermal_lag"]["tau_s"],
+            None if state is None else state.sensor_temp_c,
+            None if state is None else state.chamber_temp_c,
+        )
+    else:
+        sensor = chamber
+    if history is not None and sensor is chamber:
+        sensor_rate = history.chamber_rate_c_per_min
+    elif history is not None and history.sensor_rate_c_per_min is not None \
+            and sensor is inputs.sensor_temp_c:
+        sensor_rate = history.sensor_rate_c_per_min
+    else:
+        sensor_rate = temperature_rate_c_per_min(
+            sensor, dt, None if state is None else state.sensor_temp_c
+        )
+    return sensor, sensor_rate
+
+
+def _angle_and_branch(inputs: ModelInputs, dt: np.ndarray, state: ModelState | None,
+                   history: InputHistory | None) -> tuple[np.ndarray, np.ndarray, int, float]:
+    """Table angle and hysteresis branch (with its end state), precomputed or from the inputs."""
+    if history is not None:
+        return history.angle_deg, history.branch, history.branch_end, history.extreme_end_c
+    if inputs.table_angle_deg is not None:
+        angle = inputs.table_angle_deg
+    else:
+        angle = _integrated_angle_deg(inputs.table_rate_dps, dt, state)
+    branch, branch_end, extreme_end = hysteresis_sign(
+        inputs.chamber_temp_c,
+        1 if state is None else state.hysteresis_sign,
+        None if state is None else state.hysteresis_extreme_c,
+        HYSTERESIS_BAND_C,
+    )
+    return angle, branch, branch_end, extreme_end
+
+
+def _sensed_rate(omega: np.ndarray, fx: _Effects, dt: np.ndarray,
+                 state: ModelState | None) -> tuple[np.ndarray, np.ndarray]:
+    """The sensing bandwidth first (a first-order low-pass of ω_t, the same first-order-hold
+    solution as the thermal lag), then the dead zone; both replace ω_t in every rate term.
+    Returns the band-limited rate and the effective rate after the dead zone."""
+    sensed = omega
+    if "rate_bandwidth" in fx:
+        sensed = thermal_lag_c(omega, dt, 1.0 / (2.0 * np.pi * fx["rate_bandwidth"]["bandwidth_hz"]),
+                               None if state is None else state.sensed_rate_dps,
+                               None if state is None else state.table_rate_dps)
+    omega_eff = sensed
+    if "dead_zone" in fx:
+        omega_eff = np.where(np.abs(sensed) < fx["dead_zone"]["threshold_dps"], 0.0, sensed)
+    return sensed, omega_eff
+
+
+# A term whose coefficient is 0 is skipped, not multiplied out (adding 0·x is exact
+# for the finite inputs ModelInputs admits): a fit evaluates "unit" models with a
+# single coefficient set, on 10 M samples each skipped term saves an array pass.
+def _coefficient(fx: _Effects, effect: str, key: str) -> float:
+    return float(fx[effect][key]) if effect in fx else 0.0
+
+
+def _rate_terms(model: GyroModel, fx: _Effects, omega_eff: np.ndarray, delta_t: np.ndarray,
+                n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The scale-factor bracket applied to the effective rate, deg/s, and the SF error, ppm."""
+    sf_ppm = model.sf_error_ppm
+    if model.sf_tempco_ppm_per_c != 0.0:
+        sf_ppm = sf_ppm + model.sf_tempco_ppm_per_c * delta_t
+    if (k := _coefficient(fx, "sf_temp_quadratic", "ppm_per_c2")) != 0.0:
+        sf_ppm = sf_ppm + k * delta_t**2
+    rate = omega_eff if np.ndim(sf_ppm) == 0 and sf_ppm == 0.0 else (1.0 + 1e-6 * sf_ppm) * omega_eff
+    sf_ppm = np.broadcast_to(sf_ppm, (n,))
+    if (k := _coefficient(fx, "sf_nonlinearity_quadratic", "k2_per_dps")) != 0.0:
+        rate = rate + k * omega_eff**2
+    if (k := _coefficient(fx, "sf_nonlinearity_cubic", "k3_per_dps2")) != 0.0:
+        rate = rate + k * omega_eff**3
+    if (k := _coefficient(fx, "sf_asymmetry", "ppm")) != 0.0:
+        rate = rate + 0.5e-6 * k * np.abs(omega_eff)
+    if "rate_saturation" in fx:
+        # the input-rate limit: the output follows the rate up to it, then stays there
+        rate = np.clip(rate, -fx["rate_saturation"]["negative_dps"],
+                       fx["rate_saturation"]["positive_dps"])
+    return rate, sf_ppm
+
+
+def _bias_dph(model: GyroModel, fx: _Effects, inputs: ModelInputs, delta_t: np.ndarray,
+              sensor_rate: np.ndarray, branch: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """The bias bracket, deg/h, one value per sample."""
+    t = inputs.t_s
+    bias = model.bias_dph + model.earth_rate_dph
+    if model.bias_tempco_dph_per_c != 0.0:
+        bias = bias + model.bias_tempco_dph_per_c * delta_t
+    if (k := _coefficient(fx, "temp_rate_bias", "dph_per_c_per_min")) != 0.0:
+        bias = bias + k * sensor_rate
+    if (k := _coefficient(fx, "temp_hysteresis", "dph")) != 0.0:
+        bias = bias + k * branch
+    if (k := _coefficient(fx, "bias_temp_quadratic", "dph_per_c2")) != 0.0:
+        bias = bias + k * delta_t**2
+    if (k := _coefficient(fx, "warmup_transient", "amplitude_dph")) != 0.0:
+        bias = bias + k * np.exp(-t / fx["warmup_transient"]["tau_s"])
+    if (k := _coefficient(fx, "bias_ramp", "dph_per_h")) != 0.0:
+        bias = bias + k * t / 3600.0
+    if (k := _coefficient(fx, "table_angle_harmonic", "amplitude_dph")) != 0.0:
+        bias = bias + k * np.cos(np.deg2rad(angle - fx["table_angle_harmonic"]["phase_deg"]))
+    if (k := _coefficient(fx, "periodic_interference", "amplitude_dph")) != 0.0:
+        bias = bias + k * np.sin(2.0 * np.pi * fx["periodic_interference"]["freq_hz"] * t)
+    if (k := _coefficient(fx, "magnetic_sensitivity", "dph_per_t")) != 0.0 \
+            and inputs.field_t is not None:
+        bias = bias + k * inputs.field_t
+    return np.broadcast_to(bias, (len(inputs),))
 
 
 def effect_contribution_dph(

@@ -18,6 +18,7 @@ import numpy as np
 from gyrocal.instruments.factory import Instruments
 from gyrocal.instruments.gyro.channels import SensorChannels, concat_channels
 from gyrocal.instruments.gyro.plausibility import StreamPlausibility
+from gyrocal.instruments.interfaces import GyroBlock
 from gyrocal.models.clock import RealClock, SimClock
 from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
@@ -38,6 +39,13 @@ class StepResult:
     flagged_samples: int = 0        # the gyro's status byte marks them saturated / in error
     implausible: str | None = None  # why the stream cannot be real (stale, counter jump)
 
+    def count(self, block: GyroBlock) -> None:
+        """Add a read block's samples, lost frames, CRC errors and flagged samples."""
+        self.samples += len(block)
+        self.lost_frames += block.lost_frames
+        self.crc_errors += block.crc_errors
+        self.flagged_samples += block.flagged_count
+
     @property
     def bad_fraction(self) -> float:
         """Lost, CRC-failed and flagged frames over all frames of the attempt."""
@@ -50,6 +58,44 @@ class AcquisitionPolicy:
     chunk_s: float            # seconds of samples per Parquet chunk
     block_s: float            # seconds of samples per driver read (and per table readback)
     read_timeout_margin_s: float
+
+
+def _continuing(index: np.ndarray, last_index: int) -> tuple[np.ndarray, int]:
+    """A block's frame indices, renumbered after the last one when the counter restarted
+    (or wrapped), and the new last index."""
+    if last_index >= 0 and len(index) and index[0] <= last_index:
+        index = index - index[0] + last_index + 1
+    if len(index):
+        last_index = int(index[-1])
+    return index, last_index
+
+
+def _no_columns() -> dict[str, list[np.ndarray]]:
+    return {"index": [], "gyro": [], "sensor": [], "xyz": [], "raw_status": [], "flagged": []}
+
+
+@dataclass
+class _Pending:
+    """The blocks read since the last chunk was written, column by column."""
+
+    columns: dict[str, list[np.ndarray]] = field(default_factory=_no_columns)
+    channels: list[SensorChannels] = field(default_factory=list)  # accelerometers, inclinometers, temperatures
+    n: int = 0
+
+    def add(self, block: GyroBlock, index: np.ndarray) -> None:
+        self.columns["index"].append(index)
+        self.columns["gyro"].append(np.asarray(block.rate, dtype=np.float64))
+        self.columns["raw_status"].append(np.asarray(block.status, dtype=np.uint8))
+        self.columns["flagged"].append(np.zeros(len(block), bool) if block.flagged is None
+                                       else np.asarray(block.flagged, dtype=bool))
+        if block.rate_xyz is not None:     # all three axes (a multi-axis IMU calibration)
+            self.columns["xyz"].append(np.asarray(block.rate_xyz, dtype=np.float64).reshape(-1, 3))
+        if block.channels is not None:
+            self.channels.append(block.channels)
+        temp = block.temperature_c
+        self.columns["sensor"].append(np.full(len(block), np.nan) if temp is None
+                                      else np.asarray(temp, dtype=np.float64))
+        self.n += len(block)
 
 
 class Acquisition:
@@ -101,14 +147,7 @@ class Acquisition:
         if self.on_attempt is not None:
             self.on_attempt(step.step_id, attempt)
         gyro.flush()
-        # On a real clock the stream is checked against wall time (instruments/gyro/
-        # plausibility.py): n samples cannot come faster than the unit makes them.
-        plausible = None if isinstance(self.clock, SimClock) else StreamPlausibility(
-            fs, speed=self.clock.speed)
-        if plausible is not None:
-            flushed = time.monotonic()
-            plausible.start(flushed, since_wall_s=self._frames_since(
-                step, flushed, at_rate_since_wall_s, plausible.slack_s))
+        plausible = self._plausibility(step, fs, at_rate_since_wall_s)
         t0 = self.clock.now_s()
         angle_start = (t0, 0.0, self._safe_position())
         context_t = [t0]
@@ -118,10 +157,7 @@ class Acquisition:
 
         self._check_table_rate(result, demand_now(), self.inst.table.read_rate_dps())
         angle_start = (t0, demand_now(), angle_start[2])
-        pending: dict[str, list[np.ndarray]] = {"index": [], "gyro": [], "sensor": [], "xyz": [], "raw_status": [],
-                   "flagged": []}
-        channels: list[SensorChannels] = []     # accelerometers, inclinometers, temperatures
-        pending_n = 0
+        pending = _Pending()
         chunk_index = 0
         last_index = -1
         timeout_s = self.read_timeout_s(block_n / fs)
@@ -129,67 +165,76 @@ class Acquisition:
             want = min(block_n, n_total - result.samples)
             self.clock.elapse_reading(want / fs)
             block = gyro.read_samples(want, timeout_s=timeout_s)
-            result.samples += len(block)
-            result.lost_frames += block.lost_frames
-            result.crc_errors += block.crc_errors
-            result.flagged_samples += block.flagged_count
+            result.count(block)
             index = np.asarray(block.index, dtype=np.int64)
-            if plausible is not None and len(index):
-                verdict = plausible.check(time.monotonic(), len(block), int(index[0]),
-                                          int(index[-1]))
-                if verdict is not None:
-                    result.implausible = verdict.reason
-                    self.journal.append(JournalEvent.GYRO_IMPLAUSIBLE, step_id=step.step_id,
-                                        attempt=attempt, reason=verdict.reason,
-                                        samples=verdict.samples, frame_span=verdict.frame_span,
-                                        allowed_frames=round(verdict.allowed_frames, 1),
-                                        wall_s=round(verdict.wall_s, 4))
-                    return result        # nothing of this attempt is calibration data
-            if last_index >= 0 and len(index) and index[0] <= last_index:
-                index = index - index[0] + last_index + 1
-            if len(index):
-                last_index = int(index[-1])
-            pending["index"].append(index)
-            pending["gyro"].append(np.asarray(block.rate, dtype=np.float64))
-            pending["raw_status"].append(np.asarray(block.status, dtype=np.uint8))
-            pending["flagged"].append(np.zeros(len(block), bool) if block.flagged is None
-                                      else np.asarray(block.flagged, dtype=bool))
-            if block.rate_xyz is not None:     # all three axes (a multi-axis IMU calibration)
-                pending["xyz"].append(np.asarray(block.rate_xyz, dtype=np.float64).reshape(-1, 3))
-            if block.channels is not None:
-                channels.append(block.channels)
-            temp = block.temperature_c
-            pending["sensor"].append(np.full(len(block), np.nan) if temp is None
-                                     else np.asarray(temp, dtype=np.float64))
-            pending_n += len(block)
+            if plausible is not None and len(index) and self._implausible(
+                    plausible, step, attempt, result, len(block), index):
+                return result        # nothing of this attempt is calibration data
+            index, last_index = _continuing(index, last_index)
+            pending.add(block, index)
             reading = self.inst.table.read_rate_dps()
             self._check_table_rate(result, demand_now(), reading)
             self.progress.update(table_dps=reading, elapsed_s=self.elapsed_s())
-            if pending_n >= chunk_n or result.samples >= n_total:
-                # The chamber is polled once a chunk (every chunk_s of clock time, on a station
-                # as on simulated time), not every block: it is soaked within its tolerance
-                # while a step is logged and its air changes over minutes, so the column
-                # interpolated between these polls is as good, and its alarm is still seen
-                # within a chunk (the limit controller cuts the heaters by itself). At every
-                # block it made ~16,000 of an overnight dry run's ~35,000 Modbus exchanges.
-                context_t.append(t0 + (last_index + 1) / fs)
-                context_chamber.append(self.poll_chamber())
-                columns = self._assemble(pending, t0, fs, context_t, context_chamber,
+            if pending.n >= chunk_n or result.samples >= n_total:
+                self._poll_chamber_into(context_t, context_chamber, t0 + (last_index + 1) / fs)
+                columns = self._assemble(pending.columns, t0, fs, context_t, context_chamber,
                                          rate_dps, angle_start, reference)
-                if channels and sum(c.rows for c in channels) == pending_n:
-                    columns.update(concat_channels(channels).columns())
-                angle_start = (float(columns["t_s"][-1]), float(columns["table_rate_dps"][-1]),
-                               float(columns["table_angle_deg"][-1]))
-                record = self.folder.write_chunk(step.step_id, attempt, chunk_index, columns)
-                self.journal.append(JournalEvent.CHUNK_WRITTEN, step_id=step.step_id, attempt=attempt,
-                                    path=record.path, sha256=record.sha256, rows=record.rows)
-                result.chunks.append(record.path)
+                angle_start = self._write_chunk(step, attempt, chunk_index, pending, columns,
+                                                result)
                 chunk_index += 1
-                pending = {"index": [], "gyro": [], "sensor": [], "xyz": [], "raw_status": [],
-                   "flagged": []}
-                channels = []
-                pending_n = 0
+                pending = _Pending()
         return result
+
+    def _poll_chamber_into(self, context_t: list[float], context_chamber: list[float],
+                           t_s: float) -> None:
+        """The chamber is polled once a chunk (every chunk_s of clock time, on a station as on
+        simulated time), not every block: it is soaked within its tolerance while a step is
+        logged and its air changes over minutes, so the column interpolated between these
+        polls is as good, and its alarm is still seen within a chunk (the limit controller
+        cuts the heaters by itself). At every block it made ~16,000 of an overnight dry
+        run's ~35,000 Modbus exchanges."""
+        context_t.append(t_s)
+        context_chamber.append(self.poll_chamber())
+
+    def _plausibility(self, step: PlanStep, fs: float,
+                      at_rate_since_wall_s: float | None) -> StreamPlausibility | None:
+        """On a real clock the stream is checked against wall time (instruments/gyro/
+        plausibility.py): n samples cannot come faster than the unit makes them."""
+        if isinstance(self.clock, SimClock):
+            return None
+        plausible = StreamPlausibility(fs, speed=self.clock.speed)
+        flushed = time.monotonic()
+        plausible.start(flushed, since_wall_s=self._frames_since(
+            step, flushed, at_rate_since_wall_s, plausible.slack_s))
+        return plausible
+
+    def _implausible(self, plausible: StreamPlausibility, step: PlanStep, attempt: int,
+                     result: StepResult, rows: int, index: np.ndarray) -> bool:
+        """Check a block against wall time; an impossible stream is journaled and ends the attempt."""
+        verdict = plausible.check(time.monotonic(), rows, int(index[0]), int(index[-1]))
+        if verdict is None:
+            return False
+        result.implausible = verdict.reason
+        self.journal.append(JournalEvent.GYRO_IMPLAUSIBLE, step_id=step.step_id,
+                            attempt=attempt, reason=verdict.reason,
+                            samples=verdict.samples, frame_span=verdict.frame_span,
+                            allowed_frames=round(verdict.allowed_frames, 1),
+                            wall_s=round(verdict.wall_s, 4))
+        return True
+
+    def _write_chunk(self, step: PlanStep, attempt: int, chunk_index: int, pending: _Pending,
+                     columns: dict[str, np.ndarray], result: StepResult
+                     ) -> tuple[float, float, float]:
+        """Write one chunk (with the sensor channels when every row has them) and journal it;
+        returns where the table angle continues: (t_s, rate_dps, angle_deg) of its last row."""
+        if pending.channels and sum(c.rows for c in pending.channels) == pending.n:
+            columns.update(concat_channels(pending.channels).columns())
+        record = self.folder.write_chunk(step.step_id, attempt, chunk_index, columns)
+        self.journal.append(JournalEvent.CHUNK_WRITTEN, step_id=step.step_id, attempt=attempt,
+                            path=record.path, sha256=record.sha256, rows=record.rows)
+        result.chunks.append(record.path)
+        return (float(columns["t_s"][-1]), float(columns["table_rate_dps"][-1]),
+                float(columns["table_angle_deg"][-1]))
 
     def _frames_since(self, step: PlanStep, flushed_wall_s: float,
                       at_rate_since_wall_s: float | None, slack_s: float) -> float | None:

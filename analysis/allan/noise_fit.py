@@ -346,22 +346,8 @@ def fit_noise_terms(tau_s, adev_dph, edf=None, markov: str | bool = "auto",
         t_best, with_markov = _markov_search(tau, avar, edf_arr, rho, design)
         markov_design = np.hstack([design, markov_avar_unit(tau, t_best)[:, None]])
         delta_chi2 = plain.chi2 - with_markov.chi2
-        absorbed_plain = _hat_trace_rho(design, plain, edf_arr, rho)
-        absorbed_markov = _hat_trace_rho(markov_design, with_markov, edf_arr, rho)
-        per_parameter = max((absorbed_markov - absorbed_plain) / 2.0, 1.0)
-        birge_markov = max(with_markov.chi2 / max(tau.size - absorbed_markov, 1.0), 1.0)
-        peak = MARKOV_PEAK_RATIO * t_best
-        birge_plain = plain.chi2 / max(tau.size - absorbed_plain, 1.0)
-        by_chi2_drop = (delta_chi2 / per_parameter
-                        > _MARKOV_THRESHOLD_FACTOR * stats.chi2.ppf(_MARKOV_SIGNIFICANCE, 2)
-                        * birge_markov)
-        by_misfit = (birge_plain > _MARKOV_MISFIT_BIRGE
-                     and birge_plain > _MARKOV_BIRGE_DROP * max(birge_markov, 1e-12))
-        significant = (
-            (by_chi2_drop or by_misfit)
-            and _HUMP_MARGIN * tau[0] < peak < tau[-1] / _HUMP_MARGIN
-            and with_markov.coeffs[-1] > 0
-        )
+        significant = _markov_significant(tau, design, plain, markov_design, with_markov,
+                                          edf_arr, rho, t_best)
         if markov is True or significant:
             chosen, chosen_design, t_markov = with_markov, markov_design, t_best
 
@@ -374,20 +360,50 @@ def fit_noise_terms(tau_s, adev_dph, edf=None, markov: str | bool = "auto",
     terms = {name: _estimate(chosen.coeffs[i], cov[i, i]) for i, name in enumerate(TERM_NAMES)}
     markov_estimate = None
     if t_markov is not None:
-        sigma = _estimate(chosen.coeffs[-1], cov[-1, -1])
-        t_err = _markov_time_error(tau, avar, edf_arr, rho, design, t_markov, birge)
-        if t_err > _MARKOV_TIME_UNCONSTRAINED:  # a flat χ²(ln T): say so, never overflow
-            tau_estimate = TermEstimate(t_markov, math.inf, 0.0, math.inf)
-        else:
-            tau_estimate = TermEstimate(t_markov, t_markov * t_err, t_markov * math.exp(-t_err),
-                                        t_markov * math.exp(t_err))
-        markov_estimate = MarkovEstimate(
-            sigma_dph=sigma,
-            tau_s=tau_estimate,
-            tau_peak_s=MARKOV_PEAK_RATIO * t_markov,
-            delta_chi2=delta_chi2,
-        )
+        markov_estimate = _markov_estimate(tau, avar, edf_arr, rho, design, chosen, cov,
+                                           t_markov, birge, delta_chi2)
     return NoiseFit(**terms, markov=markov_estimate, chi2=chosen.chi2, dof=dof)
+
+
+def _markov_significant(tau, design, plain, markov_design, with_markov, edf, rho,
+                        t_best: float) -> bool:
+    """Whether the Markov term earns its place (module docstring): its χ² drop per absorbed
+    parameter, or a misfit it cures, with its hump inside the curve and a positive size."""
+    delta_chi2 = plain.chi2 - with_markov.chi2
+    absorbed_plain = _hat_trace_rho(design, plain, edf, rho)
+    absorbed_markov = _hat_trace_rho(markov_design, with_markov, edf, rho)
+    per_parameter = max((absorbed_markov - absorbed_plain) / 2.0, 1.0)
+    birge_markov = max(with_markov.chi2 / max(tau.size - absorbed_markov, 1.0), 1.0)
+    peak = MARKOV_PEAK_RATIO * t_best
+    birge_plain = plain.chi2 / max(tau.size - absorbed_plain, 1.0)
+    by_chi2_drop = (delta_chi2 / per_parameter
+                    > _MARKOV_THRESHOLD_FACTOR * stats.chi2.ppf(_MARKOV_SIGNIFICANCE, 2)
+                    * birge_markov)
+    by_misfit = (birge_plain > _MARKOV_MISFIT_BIRGE
+                 and birge_plain > _MARKOV_BIRGE_DROP * max(birge_markov, 1e-12))
+    return bool(
+        (by_chi2_drop or by_misfit)
+        and _HUMP_MARGIN * tau[0] < peak < tau[-1] / _HUMP_MARGIN
+        and with_markov.coeffs[-1] > 0
+    )
+
+
+def _markov_estimate(tau, avar, edf, rho, design, chosen, cov, t_markov: float, birge: float,
+                     delta_chi2: float) -> MarkovEstimate:
+    """The Markov term's size and correlation time with their uncertainties."""
+    sigma = _estimate(chosen.coeffs[-1], cov[-1, -1])
+    t_err = _markov_time_error(tau, avar, edf, rho, design, t_markov, birge)
+    if t_err > _MARKOV_TIME_UNCONSTRAINED:  # a flat χ²(ln T): say so, never overflow
+        tau_estimate = TermEstimate(t_markov, math.inf, 0.0, math.inf)
+    else:
+        tau_estimate = TermEstimate(t_markov, t_markov * t_err, t_markov * math.exp(-t_err),
+                                    t_markov * math.exp(t_err))
+    return MarkovEstimate(
+        sigma_dph=sigma,
+        tau_s=tau_estimate,
+        tau_peak_s=MARKOV_PEAK_RATIO * t_markov,
+        delta_chi2=delta_chi2,
+    )
 
 
 def _markov_time_error(tau, avar, edf, rho, design, t_markov: float, birge: float) -> float:

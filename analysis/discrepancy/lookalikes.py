@@ -86,6 +86,28 @@ def lookalike_group(best: str, scores: dict[str, EffectScores]) -> tuple[float, 
     return prob[best] / total, rivals
 
 
+def _two_ramp_rates(hold_min: int) -> list[str]:
+    """The thermal look-alikes' fragment: a slow and a fast ramp, each followed by a soak."""
+    soak = f"    soak: {{tolerance_c: 0.3, hold: {hold_min} min, max_wait: {hold_min + 120} min}}"
+    return [
+        "# two ramp rates: a lag shifts the temperature by rate·tau (grows with the rate) and",
+        "# settles within 3·tau in the soak; a dT/dt bias stops the moment the ramp stops.",
+        "sequence:",
+        "  - setpoint_c: 45.0",
+        "    ramp_c_per_min: 0.5",
+        soak,
+        f"    tests: [{{kind: static, duration: {hold_min} min}}]",
+        "  - setpoint_c: 5.0",
+        "    ramp_c_per_min: 3.0",
+        soak,
+        f"    tests: [{{kind: static, duration: {hold_min} min}}]",
+        "  - setpoint_c: 25.0",
+        "    ramp_c_per_min: 1.0",
+        soak,
+        "    tests: [{kind: static, duration: 30 min}]",
+    ]
+
+
 def separating_experiment(best: str, rivals: list[str], tau_s: float | None = None,
                           rate_levels_dps: tuple[float, ...] = ()) -> str:
     """A YAML procedure fragment (a ``sequence``) that separates ``best`` from ``rivals``.
@@ -104,23 +126,7 @@ def separating_experiment(best: str, rivals: list[str], tau_s: float | None = No
     slow = {"warmup_transient", "bias_ramp"}
     hold_min = max(30, int(math.ceil(3.0 * (tau_s or 600.0) / 60.0)))
     if group & thermal:
-        lines += [
-            "# two ramp rates: a lag shifts the temperature by rate·tau (grows with the rate) and",
-            "# settles within 3·tau in the soak; a dT/dt bias stops the moment the ramp stops.",
-            "sequence:",
-            "  - setpoint_c: 45.0",
-            "    ramp_c_per_min: 0.5",
-            f"    soak: {{tolerance_c: 0.3, hold: {hold_min} min, max_wait: {hold_min + 120} min}}",
-            f"    tests: [{{kind: static, duration: {hold_min} min}}]",
-            "  - setpoint_c: 5.0",
-            "    ramp_c_per_min: 3.0",
-            f"    soak: {{tolerance_c: 0.3, hold: {hold_min} min, max_wait: {hold_min + 120} min}}",
-            f"    tests: [{{kind: static, duration: {hold_min} min}}]",
-            "  - setpoint_c: 25.0",
-            "    ramp_c_per_min: 1.0",
-            f"    soak: {{tolerance_c: 0.3, hold: {hold_min} min, max_wait: {hold_min + 120} min}}",
-            "    tests: [{kind: static, duration: 30 min}]",
-        ]
+        lines += _two_ramp_rates(hold_min)
     elif group & rate:
         top = max(rate_levels_dps, default=200.0)
         levels = sorted({round(float(x), 3) for x in np.geomspace(0.1, max(top, 1.0), 12)})

@@ -25,12 +25,12 @@ class Encoding(Enum):
     TEXT = "text, one character per register"
 
 
-_FIXED_COUNTS = {
-    Encoding.UINT16: 1,
-    Encoding.INT16_DECIMALS: 1,
-    Encoding.FLOAT32_LWF: 2,
-    Encoding.FLOAT32_HWF: 2,
-    Encoding.INT32_LWF: 2,
+#: The encodings that are plain pymodbus conversions: data type and word order.
+_PYMODBUS: dict[Encoding, tuple[codec.DataType, codec.WordOrder]] = {
+    Encoding.UINT16: (codec.DataType.UINT16, "big"),
+    Encoding.FLOAT32_LWF: (codec.DataType.FLOAT32, "little"),
+    Encoding.FLOAT32_HWF: (codec.DataType.FLOAT32, "big"),
+    Encoding.INT32_LWF: (codec.DataType.INT32, "little"),
 }
 
 
@@ -47,7 +47,11 @@ class Register:
 
     @property
     def count(self) -> int:
-        return self.text_count if self.encoding is Encoding.TEXT else _FIXED_COUNTS[self.encoding]
+        if self.encoding is Encoding.TEXT:
+            return self.text_count
+        if self.encoding is Encoding.INT16_DECIMALS:
+            return 1
+        return _PYMODBUS[self.encoding][0].value[1]
 
     @property
     def label(self) -> str:
@@ -59,32 +63,24 @@ class Register:
     def decode(self, registers: Sequence[int], decimals: int = 0) -> float | int | str:
         if len(registers) != self.count:
             raise ValueError(f"{self.label}: expected {self.count} register(s), got {len(registers)}")
-        if self.encoding is Encoding.UINT16:
-            return int(registers[0])
         if self.encoding is Encoding.INT16_DECIMALS:
             return codec.decode_int16_decimals(registers[0], decimals)
-        if self.encoding is Encoding.FLOAT32_LWF:
-            return codec.decode_float32_low_word_first(registers)
-        if self.encoding is Encoding.FLOAT32_HWF:
-            return codec.decode_float32_high_word_first(registers)
-        if self.encoding is Encoding.INT32_LWF:
-            return codec.decode_int32_low_word_first(registers)
-        return codec.decode_text_one_char_per_register(registers)
+        if self.encoding is Encoding.TEXT:
+            return codec.decode_text_one_char_per_register(registers)
+        data_type, word_order = _PYMODBUS[self.encoding]
+        return codec.from_registers(registers, data_type, word_order)
 
     def encode(self, value: float | int | str, decimals: int = 0) -> list[int]:
-        if self.encoding is Encoding.UINT16:
-            if not 0 <= int(value) <= 0xFFFF:
-                raise ValueError(f"{self.label}: {value!r} outside 0..65535")
-            return [int(value)]
         if self.encoding is Encoding.INT16_DECIMALS:
             return [codec.encode_int16_decimals(float(value), decimals)]
-        if self.encoding is Encoding.FLOAT32_LWF:
-            return codec.encode_float32_low_word_first(float(value))
-        if self.encoding is Encoding.FLOAT32_HWF:
-            return codec.encode_float32_high_word_first(float(value))
-        if self.encoding is Encoding.INT32_LWF:
-            return codec.encode_int32_low_word_first(int(value))
-        return codec.encode_text_one_char_per_register(str(value), self.count)
+        if self.encoding is Encoding.TEXT:
+            return codec.encode_text_one_char_per_register(str(value), self.count)
+        data_type, word_order = _PYMODBUS[self.encoding]
+        number = float(value) if data_type is codec.DataType.FLOAT32 else int(value)
+        try:
+            return codec.to_registers(number, data_type, word_order)
+        except ValueError as exc:
+            raise ValueError(f"{self.label}: {exc}") from exc
 
 
 def register_table(*registers: Register) -> dict[str, Register]:

@@ -13,9 +13,9 @@ Sources for the register map (holding registers, 0-based protocol addresses):
 - Limit alarm: the limit controller is wired to a digital input, and the input
   is ACTIVE when its state equals its condition. Watlow Series F4P user's
   manual, ch. 9 Modbus register list: 201 + 12·(N−1) "Digital Input N, Status"
-  (read; 0 low, 1 high; p. 9.4) and 1061 + 2·(N−1) "Condition, Digital Input
-  N" (0 low, 1 high; p. 9.3; Setup Page table p. 6.17: the condition that
-  triggers the input); features pp. 7.3-7.4: the input's event lasts as long as
+  (read; 0 low, 1 high; p. 9.5) and 1061 + 2·(N−1) "Condition, Digital Input
+  N" (0 low, 1 high; p. 9.4; Setup Page table p. 6.18: the condition that
+  triggers the input); features p. 7.4: the input's event lasts as long as
   that state exists. Espec's driver agrees since its fix 13600df (its
   ``__get_digital_input`` returns state ≠ condition and files such an input
   under *inactive* alarms). An earlier release of this driver read
@@ -76,12 +76,12 @@ PROFILE_STATE_TEXT = {0: "constant", 1: "constant", PROFILE_RUNNING: "profile ru
                       PROFILE_PAUSED: "profile paused"}
 
 
-#: Digital input condition / status values (F4P manual pp. 9.3-9.4): 0 low, 1 high.
+#: Digital input condition / status values (F4P manual pp. 9.4-9.5): 0 low, 1 high.
 DIGITAL_LEVELS = {0: "low", 1: "high"}
 
 
 def digital_input_registers(number: int) -> tuple[Register, Register]:
-    """(status, condition) of digital input ``number`` (1-4), F4P manual pp. 9.3-9.4."""
+    """(status, condition) of digital input ``number`` (1-4), F4P manual pp. 9.4-9.5."""
     if not 1 <= number <= 4:
         raise ValueError(f"digital input must be 1..4, got {number!r}")
     return (Register(f"di{number}_state", 201 + 12 * (number - 1), Encoding.UINT16, False,
@@ -204,7 +204,7 @@ class WatlowF4:
 
     def limit_tripped(self) -> bool:
         """True when the limit controller's digital input is active: its status EQUALS its
-        condition (F4P manual pp. 9.3-9.4, 6.17, 7.3-7.4). A value other than 0/1 is a fault."""
+        condition (F4P manual pp. 9.4-9.5, 6.18, 7.4). A value other than 0/1 is a fault."""
         if self._limit_registers is None:
             return False
         status_reg, condition_reg = self._limit_registers

@@ -25,7 +25,7 @@ Faults (armed on :attr:`faults`, a :class:`FaultInjector` over :data:`FAULTS`):
   ``physics.stuck`` so the PV stalls short of the setpoint.
 - ``alarm`` (param ``state`` for the F4T, default 7 "alarm high"): persistent;
   the status register (F4T) or the limit controller's digital input (F4:
-  status 201 equal to its condition 1061, F4P manual pp. 9.3-9.4) reports an
+  status 201 equal to its condition 1061, F4P manual pp. 9.4-9.5) reports an
   alarm regardless of the physics.
 - ``profile_running``: persistent; the controller runs its own profile (F4:
   register 200 reads 2; F4T: register 16568 reads 149, Espec's "running").
@@ -298,7 +298,7 @@ class SimulatedWatlowF4(_SimulatedModbusChamber):
     #: the registers of the driver's map, plus digital input 1 where the simulated limit
     #: controller is wired (station sim.yaml: chamber.limit_input: 1)
     REGISTERS = {**F4_REGISTERS, **{r.name: r for r in digital_input_registers(1)}}
-    #: the input triggers on a high state (condition 1061 = 1; F4P manual p. 9.3): the limit
+    #: the input triggers on a high state (condition 1061 = 1; F4P manual p. 9.4): the limit
     #: controller's contact reads low (201 = 0) while healthy and high (201 = 1) once tripped
     LIMIT_INPUT_CONDITION = 1
     SERIAL_NUMBER = (12, 3456)

@@ -181,8 +181,26 @@ class SimulatedStation:
         # A version-2 model file is a three-axis IMU on a hexahedron fixture; version 1 is
         # the single-axis gyro every other procedure calibrates.
         self.model = model if model is not None else load_any_model(sim.gyro_model)
+        self.chamber_physics, self.table_physics = self._physics(station, sim, clock)
+        # A real STIM300 is configured for its output rate; the simulated one takes
+        # the procedure's rate so dry runs log exactly what the procedure asks for.
+        self.sample_rate_hz = float(sample_rate_hz or station.gyro.sample_rate_hz)
+        specs, supply_spec = self._fault_injectors(station)
+        self.fixture: SimulatedFixture | None = None
+        self.source: GyroPhysicsSource | ImuPhysicsSource = self._physics_source(station, sim)
+        #: the table turned on its side tilts the unit through gravity (tilt_linearity)
+        self.tilt: TiltForce | None = None
+        if station.table.orientation == "horizontal" and isinstance(self.source, GyroPhysicsSource):
+            self.tilt = TiltForce(self.table_physics, station.site.gravity_g, sim.inclinometer,
+                                  self.seed + _SEED_TILT)
+        self._start_servers(station, sim, specs, supply_spec, gyro_block_frames, gyro_port)
+        self._started = False
+
+    def _physics(self, station, sim, clock: RealClock | SimClock
+                 ) -> tuple[ChamberPhysics, TablePhysics]:
+        """The chamber's air and the table's axis, within the station's limits."""
         limits = station.chamber.limits
-        self.chamber_physics = ChamberPhysics(
+        chamber = ChamberPhysics(
             clock,
             ambient_c=sim.chamber.ambient_c,
             tau_s=sim.chamber.tau_s,
@@ -194,48 +212,49 @@ class SimulatedStation:
             seed=self.seed + _SEED_CHAMBER,
         )
         table_limits = station.table.limits
-        self.table_physics = TablePhysics(
+        table = TablePhysics(
             clock,
             max_rate_dps=table_limits.max_rate_dps,
             max_accel_dps2=table_limits.max_accel_dps2,
             rate_noise_dps=sim.table.rate_noise_dps,
             seed=self.seed + _SEED_TABLE,
         )
-        gyro_cfg = station.gyro
-        # A real STIM300 is configured for its output rate; the simulated one takes
-        # the procedure's rate so dry runs log exactly what the procedure asks for.
-        self.sample_rate_hz = float(sample_rate_hz or gyro_cfg.sample_rate_hz)
+        return chamber, table
+
+    def _fault_injectors(self, station) -> tuple[dict[Role, DriverSpec], DriverSpec | None]:
+        """One fault injector per simulator, with the faults its driver's simulator knows."""
         self.fixture_faults = FaultInjector(FIXTURE_FAULTS, owner="simulated fixture")
-        self.fixture: SimulatedFixture | None = None
         specs = {role: registry().get(role, config.driver) for role, config in (
-            (Role.CHAMBER, station.chamber), (Role.TABLE, station.table), (Role.GYRO, gyro_cfg))}
+            (Role.CHAMBER, station.chamber), (Role.TABLE, station.table),
+            (Role.GYRO, station.gyro))}
         self.chamber_faults = FaultInjector(specs[Role.CHAMBER].sim_faults, owner="simulated chamber")
         self.table_faults = FaultInjector(specs[Role.TABLE].sim_faults, owner="simulated table")
         self.gyro_faults = FaultInjector(specs[Role.GYRO].sim_faults, owner="simulated gyro")
         supply_spec = registry().get(Role.SUPPLY, station.supply.driver) if station.supply else None
         self.supply_faults = FaultInjector(supply_spec.sim_faults if supply_spec else (),
                                            owner="simulated supply")
-        self.source: GyroPhysicsSource | ImuPhysicsSource
+        return specs, supply_spec
+
+    def _physics_source(self, station, sim) -> GyroPhysicsSource | ImuPhysicsSource:
+        """The unit's physics: an IMU on the fixture, or the single-axis gyro with drive lines."""
         if isinstance(self.model, ImuModel):
             self.fixture = SimulatedFixture(self.fixture_faults)
-            self.source = ImuPhysicsSource(
+            return ImuPhysicsSource(
                 self.model, self.sample_rate_hz, self.seed + _SEED_GYRO, self.table_physics,
                 self.chamber_physics, station.site.latitude_deg, self.fixture,
-                start_s=clock.now_s(), gravity_g=station.site.gravity_g)
-        else:
-            self.gyro_simulator = GyroSimulator(self.model, self.sample_rate_hz,
-                                                seed=self.seed + _SEED_GYRO)
-            table_sim = sim.table
-            drive = DriveInterference(table_sim.drive_lines, table_sim.drive_noise_dph,
-                                      self.sample_rate_hz, self.seed + _SEED_DRIVE)
-            self.source = GyroPhysicsSource(self.gyro_simulator, self.table_physics,
-                                            self.chamber_physics, start_s=clock.now_s(),
-                                            interference=drive if drive.active else None)
-        #: the table turned on its side tilts the unit through gravity (tilt_linearity)
-        self.tilt: TiltForce | None = None
-        if station.table.orientation == "horizontal" and isinstance(self.source, GyroPhysicsSource):
-            self.tilt = TiltForce(self.table_physics, station.site.gravity_g, sim.inclinometer,
-                                  self.seed + _SEED_TILT)
+                start_s=self.clock.now_s(), gravity_g=station.site.gravity_g)
+        self.gyro_simulator = GyroSimulator(self.model, self.sample_rate_hz,
+                                            seed=self.seed + _SEED_GYRO)
+        drive = DriveInterference(sim.table.drive_lines, sim.table.drive_noise_dph,
+                                  self.sample_rate_hz, self.seed + _SEED_DRIVE)
+        return GyroPhysicsSource(self.gyro_simulator, self.table_physics,
+                                 self.chamber_physics, start_s=self.clock.now_s(),
+                                 interference=drive if drive.active else None)
+
+    def _start_servers(self, station, sim, specs: dict[Role, DriverSpec],
+                       supply_spec: DriverSpec | None, gyro_block_frames: int | None,
+                       gyro_port: ReplayGyroPort | None) -> None:
+        """Each instrument's simulator (or the replayed gyro), and the coil and power hooks."""
         if gyro_block_frames is None:
             # Per block the model is evaluated once (its fixed cost is ~0.2 ms), so blocks must
             # be large; 512 frames (0.26 s at 2 kHz, 2 s at 250 Hz) keeps that cost under 1 µs a
@@ -258,10 +277,9 @@ class SimulatedStation:
         if gyro_port is not None:
             self.gyro_port = gyro_port
         else:
-            request = self._request({**gyro_cfg.settings, "_block_frames": gyro_block_frames},
+            request = self._request({**station.gyro.settings, "_block_frames": gyro_block_frames},
                                     self.gyro_faults, seed_offset=_SEED_PTY)
             self.gyro_port = _simulator(specs[Role.GYRO], request)
-        self._started = False
 
     def _coil_field(self, coil) -> Callable[[], float]:
         """B along the gyro's sensitive axis: the coil constant × (I(+) - I(-)) of the simulated

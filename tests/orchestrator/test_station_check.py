@@ -3,8 +3,8 @@
 - Against ``gyrocal sim serve`` in its own process (the whole simulated station).
 - Against pymodbus's stock server holding a Watlow F4's registers as the F4P
   manual lays them out (model 0, serial 1-2, input 100, set point 300, units
-  901, decimals 606; digital input 1 status 201 and condition 1061, pp. 9.1-9.4
-  and 9.10), with the limit controller tripped — status equal to condition —
+  901, decimals 606; digital input 1 status 201 and condition 1061, pp. 9.2-9.5
+  and 9.11), with the limit controller tripped — status equal to condition —
   and an F4T running its own profile (16568 = 149, Espec watlowf4t.py).
 - Against the simulated table with its safety chain broken (``:Interlock?``
   answers Fault).

@@ -1,4 +1,23 @@
-"""Byte pairs for the pure encodings, taken from manuals or worked by hand (not from the code)."""
+"""Register values of the controllers' encodings, from their manuals, through the product's path.
+
+The conversions are pymodbus's (``modbus_codec`` adds the implied decimals, the
+F4T's text and the range checks); every expected register below is worked by
+hand from the manual's data layout, never produced by an encoder.
+
+Sources (docs/protocol-elements.md, "Chamber"):
+- F4P: Watlow Series F4P user's manual (page numbers from its page footers) —
+  p. 6.4, Operations Page table, "Proportional Band": the Modbus value is an integer
+  in units, tenths, hundredths or thousandths; p. 6.13, Setup Page table, "Decimal"
+  (register 606): 0 to 3 decimals; p. 9.2, alphabetical register list, 302 "Alarm 1
+  Low Deviation": -19999 to -1, so registers are signed; p. 9.11, "Parameters Sorted
+  by Modbus Register": 100 "Input 1 Value", 300 "Set Point 1". ESPEC-4
+  (ChamberConnectLibrary ``modbus.py``, ``read_holding_signed``) reads them as signed
+  16-bit.
+- F4T: Watlow F4T Setup and Operations User's Guide 0600-0093-0000 Rev. F, p. 231
+  (loop block: set point 2782, process value 2820 are floats) and p. 225 (part number
+  16-30 one character per register, serial 12 and software release 4 as integers);
+  ESPEC-T (``modbus.py``: two registers per float or integer, low word first by default).
+"""
 
 import pytest
 from modbus_rtu import rtu_frame, rtu_frame_ok
@@ -9,8 +28,14 @@ from gyrocal.instruments.chamber.register_map import Encoding, Register, registe
 
 pytestmark = pytest.mark.timeout(10)
 
+F4_SETPOINT = Register("setpoint", 300, Encoding.INT16_DECIMALS, True, "set point 1")
+F4T_SETPOINT = Register("setpoint", 2782, Encoding.FLOAT32_LWF, True, "set point")
+F4T_SERIAL = Register("serial_number", 12, Encoding.INT32_LWF, False, "serial number")
+F4T_PART = Register("part_number", 16, Encoding.TEXT, False, "part number", text_count=15)
 
-# value, decimals, register: hand-worked two's complement
+
+# F4P p. 6.4 / p. 6.13: value × 10^decimals as a signed 16-bit register (two's complement
+# worked by hand: a negative n is 0x10000 + n).
 INT16_PAIRS = [
     (23.1, 1, 0x00E7),        # 231
     (-40.0, 1, 0xFE70),       # -400 = 0x10000 - 400
@@ -20,50 +45,73 @@ INT16_PAIRS = [
     (-3276.8, 1, 0x8000),     # int16 min
     (150.0, 0, 0x0096),
     (-12.34, 2, 0xFB2E),      # -1234
+    (-1.999, 3, 0xF831),      # -1999 (3 decimals, the F4P's largest setting)
 ]
 
 
 @pytest.mark.parametrize(("value", "decimals", "register"), INT16_PAIRS)
-def test_int16_with_implied_decimals_matches_hand_worked_registers(value, decimals, register):
-    assert codec.encode_int16_decimals(value, decimals) == register
-    assert codec.decode_int16_decimals(register, decimals) == pytest.approx(value, abs=1e-9)
+def test_f4_int16_with_implied_decimals_matches_hand_worked_registers(value, decimals, register):
+    assert F4_SETPOINT.encode(value, decimals) == [register]
+    assert F4_SETPOINT.decode([register], decimals) == pytest.approx(value, abs=1e-9)
 
 
 @pytest.mark.parametrize(("value", "decimals"), [(3276.8, 1), (-3276.9, 1), (float("nan"), 1), (400.0, 2)])
 def test_int16_refuses_values_that_do_not_fit(value, decimals):
     with pytest.raises(ValueError):
-        codec.encode_int16_decimals(value, decimals)
+        F4_SETPOINT.encode(value, decimals)
 
 
-# value, [low word, high word]: IEEE-754 bit patterns worked by hand
+# F4T p. 231 with ESPEC-T: IEEE-754 float32, the low 16 bits in the first register.
+# The bit patterns are worked by hand: sign, 8-bit exponent (bias 127), 23-bit fraction.
 FLOAT_PAIRS = [
-    (25.0, [0x0000, 0x41C8]),      # 0x41C80000
-    (-40.0, [0x0000, 0xC220]),     # 0xC2200000
+    (25.0, [0x0000, 0x41C8]),      # 0x41C80000: 1.5625 × 2^4
+    (-40.0, [0x0000, 0xC220]),     # 0xC2200000: -1.25 × 2^5
     (23.1, [0xCCCD, 0x41B8]),      # 0x41B8CCCD (23.1 rounded to float32)
     (1.0, [0x0000, 0x3F80]),
 ]
 
 
 @pytest.mark.parametrize(("value", "registers"), FLOAT_PAIRS)
-def test_float32_is_sent_low_word_first(value, registers):
-    assert codec.encode_float32_low_word_first(value) == registers
-    assert codec.decode_float32_low_word_first(registers) == pytest.approx(value, rel=1e-7)
+def test_f4t_float32_is_sent_low_word_first(value, registers):
+    assert F4T_SETPOINT.encode(value) == registers
+    assert F4T_SETPOINT.decode(registers) == pytest.approx(value, rel=1e-7)
+
+
+@pytest.mark.parametrize(("value", "registers"), FLOAT_PAIRS)
+def test_high_word_first_is_the_same_words_swapped(value, registers):
+    high_first = Register("setpoint", 2782, Encoding.FLOAT32_HWF, True, "set point")
+    assert high_first.encode(value) == registers[::-1]
+    assert high_first.decode(registers[::-1]) == pytest.approx(value, rel=1e-7)
 
 
 @pytest.mark.parametrize(("value", "registers"), [(1234567, [0xD687, 0x0012]), (-2, [0xFFFE, 0xFFFF]), (7, [7, 0])])
-def test_int32_is_sent_low_word_first(value, registers):
-    assert codec.encode_int32_low_word_first(value) == registers
-    assert codec.decode_int32_low_word_first(registers) == value
+def test_f4t_int32_is_sent_low_word_first(value, registers):
+    assert F4T_SERIAL.encode(value) == registers          # 1234567 = 0x0012D687
+    assert F4T_SERIAL.decode(registers) == value
 
 
-def test_text_holds_one_character_per_register():
-    assert codec.encode_text_one_char_per_register("F4T", 5) == [0x46, 0x34, 0x54, 0, 0]
-    assert codec.decode_text_one_char_per_register([0x46, 0x34, 0x54, 0, 0]) == "F4T"
+def test_f4t_text_holds_one_character_per_register():
+    # F4T p. 225: one ASCII character in each register's low byte ("F" 0x46, "4" 0x34, "T" 0x54)
+    assert F4T_PART.encode("F4T") == [0x46, 0x34, 0x54] + [0] * 12
+    assert F4T_PART.decode([0x46, 0x34, 0x54] + [0] * 12) == "F4T"
 
 
-def test_two_register_decoders_refuse_a_wrong_count():
-    with pytest.raises(ValueError, match="expected 2 registers"):
-        codec.decode_float32_low_word_first([0x41C8])
+def test_decoders_refuse_a_wrong_count_or_an_impossible_register():
+    with pytest.raises(ValueError, match="expected 2 register"):
+        F4T_SETPOINT.decode([0x41C8])
+    with pytest.raises(ValueError, match="outside 0..65535"):
+        F4T_SETPOINT.decode([0x10000, 0])
+    with pytest.raises(ValueError, match="outside 0..65535"):
+        codec.decode_int16_decimals(-1, 1)
+
+
+def test_values_that_no_register_holds_are_value_errors_naming_the_register():
+    with pytest.raises(ValueError, match=r"holding registers 2782-2783 \(set point\).*float32"):
+        F4T_SETPOINT.encode(1e39)
+    with pytest.raises(ValueError, match=r"holding register 606 \(decimals\).*uint16"):
+        Register("decimals", 606, Encoding.UINT16, False, "decimals").encode(70000)
+    with pytest.raises(ValueError, match="int32"):
+        F4T_SERIAL.encode(2**31)
 
 
 # Complete RTU frames. The first is the brief's "read holding register 100 from

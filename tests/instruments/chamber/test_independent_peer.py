@@ -7,7 +7,7 @@ F4T guide p. 225) with loop 1 set point / process value (2782 / 2820, float32
 low word first), alarm 1 state 1356 and device status 90; the F4's process
 value / set point (100 / 300, tenths), run state 200 and its limit
 controller's digital input (status 201, condition 1061; F4P manual pp.
-9.3-9.4), and the F4T's profile state 16568 (Espec ChamberConnectLibrary).
+9.4-9.5), and the F4T's profile state 16568 (Espec ChamberConnectLibrary).
 The drivers must read temperatures, units, alarms and profile state
 correctly and write set points in the controller's units.
 """
@@ -89,9 +89,9 @@ def test_f4_driver_reads_run_state_and_limit_input_not_register_200_as_alarm(f4_
 
 
 # Watlow Series F4P user's manual, ch. 9 Modbus registers: digital input N status at
-# 201 + 12 (N-1), 0 low / 1 high (p. 9.4); its condition at 1061 + 2 (N-1), 0 low / 1 high
-# (p. 9.3; Setup Page table p. 6.17: the state that triggers the input). An input is active
-# while its state equals its condition (features, pp. 7.3-7.4). Espec's driver agrees since 13600df.
+# 201 + 12 (N-1), 0 low / 1 high (p. 9.5); its condition at 1061 + 2 (N-1), 0 low / 1 high
+# (p. 9.4; Setup Page table p. 6.18: the state that triggers the input). An input is active
+# while its state equals its condition (features, p. 7.4). Espec's driver agrees since 13600df.
 @pytest.mark.parametrize(("limit_input", "condition", "state", "tripped"), [
     (1, 1, 0, False),      # triggers on high, contact low: healthy
     (1, 1, 1, True),       # triggers on high, contact high: tripped

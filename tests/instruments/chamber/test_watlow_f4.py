@@ -42,8 +42,8 @@ def test_write_negative_setpoint_bytes(scripted_peer):
 def test_read_status_bytes(scripted_peer, status_reply, tripped):
     """Register 200 is the run state (1: constant), not an alarm (Espec ChamberConnectLibrary
     watlowf4.py). The alarm is the limit controller's digital input 1, active when its
-    status (201; F4P manual p. 9.4, 0 low / 1 high) equals its condition (1061; p. 9.3 and
-    the Setup Page table p. 6.17: the state that triggers the input; pp. 7.3-7.4)."""
+    status (201; F4P manual p. 9.5, 0 low / 1 high) equals its condition (1061; p. 9.4 and
+    the Setup Page table p. 6.18: the state that triggers the input; p. 7.4)."""
     peer = scripted_peer([
         ("01 03 00 C8 00 01 05 F4", "01 03 02 00 01 79 84"),         # register 200: 1 constant
         ("01 03 00 C9 00 01 54 34", status_reply),                   # register 201: DI 1 status

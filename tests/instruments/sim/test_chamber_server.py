@@ -96,7 +96,7 @@ def test_f4_setpoint_write_to_register_300_reaches_the_physics(f4, physics):
 def test_f4_identity_run_state_and_limit_input_registers(f4):
     """200: run state (0 constant, 2 profile running; Espec watlowf4.py), never an alarm;
     the alarm is digital input 1, active when its status (201) equals its condition (1061 = 1,
-    high; F4P manual pp. 9.3-9.4): healthy 201 = 0, tripped 201 = 1."""
+    high; F4P manual pp. 9.4-9.5): healthy 201 = 0, tripped 201 = 1."""
     with rtu_socket(f4) as sock:
         reply = exchange(sock, "01 03 00 00 00 03 05 CB", 11)
         assert crc_ok(reply) and struct.unpack(">3H", reply[3:9])[0] == 5270
