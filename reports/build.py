@@ -64,16 +64,17 @@ from gyrocal.record.signing import Signer
 from gyrocal.record.step_kind import StepKind
 from gyrocal.record.strays import set_aside
 from gyrocal.reports.acceptance import evaluate_acceptance
-from gyrocal.reports.allan_section import AllanSection
-from gyrocal.reports.bias_results import BiasEntry, BiasResults, BiasSource
-from gyrocal.reports.compensation_results import CompensationResults, Tables
 from gyrocal.reports.html_report import render_html
 from gyrocal.reports.results import Results, UnitUnderTest, finite_or_none, results_bytes
 from gyrocal.reports.run_info import IDENTITY_KEYS, Provenance, RunInfo, run_mode
 from gyrocal.reports.sections import frequency as frequency_section
+from gyrocal.reports.sections.allan import AllanSection
+from gyrocal.reports.sections.bias import BiasEntry, BiasResults, BiasSource
+from gyrocal.reports.sections.compensation import CompensationResults, Tables
 from gyrocal.reports.sections.imu import imu_section
 from gyrocal.reports.sections.interference import interference_section
 from gyrocal.reports.sections.magnetic import magnetic_section
+from gyrocal.reports.sections.sweep import ScaleFactorEntry, SweepResults
 from gyrocal.reports.sections.tilt import tilt_section
 from gyrocal.reports.sections.turn_on import (
     CycleRecord,
@@ -84,7 +85,6 @@ from gyrocal.reports.sections.turn_on import (
 )
 from gyrocal.reports.sections.turn_on import headline_uncertainty as turn_on_uncertainty
 from gyrocal.reports.sections.uncertainty import StepMean, uncertainty_budget
-from gyrocal.reports.sweep_results import ScaleFactorEntry, SweepResults
 
 REFERENCE_TEMP_C = 25.0
 REPORT_DIR = "report"

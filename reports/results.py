@@ -17,12 +17,12 @@ from dataclasses import dataclass
 from typing import Any
 
 from gyrocal.reports.acceptance import AcceptanceVerdict
-from gyrocal.reports.allan_section import AllanSection
-from gyrocal.reports.bias_results import BiasResults
-from gyrocal.reports.compensation_results import CompensationResults
 from gyrocal.reports.run_info import Provenance
+from gyrocal.reports.sections.allan import AllanSection
+from gyrocal.reports.sections.bias import BiasResults
+from gyrocal.reports.sections.compensation import CompensationResults
+from gyrocal.reports.sections.sweep import SweepResults
 from gyrocal.reports.sections.uncertainty import UncertaintyBudget
-from gyrocal.reports.sweep_results import SweepResults
 
 #: The keys interfaces.md requires in report/results.json.
 REQUIRED_KEYS = ("unit_under_test", "scale_factor", "scale_factor_ls", "nonlinearity",

@@ -34,10 +34,10 @@ from gyrocal.metrology.uncertainty import (
     sweep_uncertainty,
 )
 from gyrocal.record.logged_steps import HOLD_KINDS
-from gyrocal.reports.allan_section import AllanSection
-from gyrocal.reports.bias_results import BiasResults, BiasSource
-from gyrocal.reports.compensation_results import CompensationResults, TableUncertainty
-from gyrocal.reports.sweep_results import SweepResults
+from gyrocal.reports.sections.allan import AllanSection
+from gyrocal.reports.sections.bias import BiasResults, BiasSource
+from gyrocal.reports.sections.compensation import CompensationResults, TableUncertainty
+from gyrocal.reports.sections.sweep import SweepResults
 
 
 @dataclass(frozen=True)

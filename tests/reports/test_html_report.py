@@ -128,8 +128,8 @@ def test_compensation_residuals_carry_their_units(evil_run):
     """Two temperatures give no residuals; with three (tables made by the report's own
     builder) every residual is printed with the table's unit."""
     from gyrocal.reports.build import _comp_tables
-    from gyrocal.reports.compensation_results import CompensationResults
     from gyrocal.reports.html_report import render_html
+    from gyrocal.reports.sections.compensation import CompensationResults
 
     results = json.loads((evil_run / "report" / "results.json").read_text())
     notes: list[str] = []
