@@ -25,6 +25,7 @@ from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments
 from gyrocal.instruments.interfaces import Identity
 from gyrocal.models.imu_model import Mounting
+from gyrocal.models.sim_state import SimStateError
 from gyrocal.orchestrator.acquisition import Acquisition, AcquisitionPolicy, StepResult
 from gyrocal.orchestrator.conditions import Conditions
 from gyrocal.orchestrator.interrupts import GatedChamber, GatedTable, InterruptGate
@@ -90,8 +91,8 @@ class Rehearsal(Protocol):
     def snapshot(self) -> dict[str, Any] | None:
         """The simulated state now (JSON data), or None when it cannot all be kept."""
 
-    def restore(self, state: dict[str, Any]) -> None:
-        """Put the simulated station back into a snapshot's state."""
+    def restore(self, state: dict[str, Any]) -> bool:
+        """Put the simulated station back into a snapshot's state (False: it keeps none)."""
 
 
 @dataclass(frozen=True)
@@ -388,7 +389,14 @@ class RunEngine:
         if index == 0 or not completed or "sim_state" not in completed[-1] \
                 or completed[-1].get("step_id") != self.steps[index - 1].step_id:
             return
-        self.rehearsal.restore(completed[-1]["sim_state"])
+        try:
+            if not self.rehearsal.restore(completed[-1]["sim_state"]):
+                return
+        except SimStateError as exc:
+            raise RunFaultError(
+                f"the simulated state journaled at line {completed[-1].get('seq')} "
+                f"({completed[-1].get('step_id')}) does not fit this station: {exc}; was the "
+                f"journal edited? `gyrocal verify {self.folder.path}` checks it") from None
         self.journal.append(JournalEvent.SIM_STATE_RESTORED, step_id=step.step_id,
                             from_seq=completed[-1].get("seq"),
                             clock_s=completed[-1]["sim_state"].get("clock_s"))

@@ -329,15 +329,26 @@ class SimulatedStation:
                 "table": capture(self.table_physics),
                 "gyro": capture(self.source)}
 
-    def restore(self, state: dict[str, Any]) -> None:
-        """Put the station back into ``state`` (from :meth:`snapshot` of this station)."""
+    def restore(self, state: dict[str, Any]) -> bool:
+        """Put the station back into ``state`` (from :meth:`snapshot` of this station).
+
+        False (nothing restored) when this station keeps no snapshot (a resumed dry
+        run on a real-time clock, ``--speed N``). A snapshot that does not fit
+        (an edited journal) is a :class:`SimStateError`.
+        """
         if not self._keeps_everything() or not isinstance(self.clock, SimClock):
-            raise SimStateError("this simulated station cannot restore a snapshot")
-        restore(self.gyro_port, state["gyro_port"])
-        self.clock.restore_s(float(state["clock_s"]))
-        restore(self.chamber_physics, state["chamber"])
-        restore(self.table_physics, state["table"])
-        restore(self.source, state["gyro"])
+            return False
+        try:
+            restore(self.gyro_port, state["gyro_port"])
+            self.clock.restore_s(float(state["clock_s"]))
+            restore(self.chamber_physics, state["chamber"])
+            restore(self.table_physics, state["table"])
+            restore(self.source, state["gyro"])
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            if isinstance(exc, SimStateError):
+                raise
+            raise SimStateError(f"{type(exc).__name__}: {exc}") from None
+        return True
 
     def _keeps_everything(self) -> bool:
         source = self.source

@@ -125,3 +125,34 @@ def _assert_equal_run(h, out: Path, name: str, expected, expected_results) -> No
         completed = next(e for e in events if e["seq"] == restored[0]["from_seq"])
         assert completed["event"] == "step_completed", name
         assert restored[0]["clock_s"] == completed["sim_state"]["clock_s"], name
+
+
+def test_what_a_simulated_station_keeps_and_refuses(h) -> None:
+    """The snapshot goes through the journal's JSON and back; a snapshot that does not fit
+    (an edited journal whose chain was re-hashed) is refused by name, not half-restored
+    silently; a station on a real-time clock (``resume --speed N``) keeps none."""
+    from gyrocal.instruments.sim.station_sim import SimulatedStation
+    from gyrocal.models.clock import RealClock, SimClock
+    from gyrocal.models.sim_state import SimStateError
+    from gyrocal.orchestrator.station import load_station
+
+    station = load_station(h.SIM_STATION)
+    with SimulatedStation(station, SimClock(), seed=3, sample_rate_hz=250.0) as sim:
+        sim.clock.sleep(12.5)
+        state = json.loads(json.dumps(sim.snapshot(), sort_keys=True, allow_nan=False))
+        assert state["clock_s"] == 12.5
+        sim.clock.sleep(30.0)
+        assert sim.restore(state) and sim.clock.now_s() == 12.5
+        assert sim.gyro_port.next_frame == state["gyro_port"]["custom"]["next_frame"]
+        edited = json.loads(json.dumps(state))
+        edited["table"]["custom"]["segments"] = {"dataclass": "os:system", "fields": {}}
+        with pytest.raises(SimStateError, match="not one of gyrocal's dataclasses"):
+            sim.restore(edited)
+        del edited["chamber"]
+        with pytest.raises(SimStateError, match="KeyError"):
+            sim.restore(edited)
+    real = SimulatedStation(station, RealClock(20.0), seed=3, sample_rate_hz=250.0)
+    try:
+        assert real.snapshot() is None and real.restore(state) is False
+    finally:
+        real.stop()
