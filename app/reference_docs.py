@@ -472,7 +472,8 @@ rate-limit step also carries `sim_state`: the simulated station's state at that 
 frame grid, every random stream). A resumed dry run restores the last one before its first
 remaining step and journals `sim_state_restored`, so it goes on exactly where the killed
 session was; a step cut mid-way is run again as a new attempt drawing the cut attempt's random
-streams. Its counted samples and results.json equal the uninterrupted run's.
+streams. Its counted samples and results.json equal the uninterrupted run's. (Not after a
+fault: a run that faulted resumes from its own re-soak, as on a station.)
 
 ## results.json
 

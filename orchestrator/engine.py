@@ -64,6 +64,10 @@ EXACT_RESUME_KINDS = frozenset({StepKind.RAMP, StepKind.SOAK, StepKind.STATIC, S
                                 StepKind.DWELL, StepKind.THRESHOLD, StepKind.RATE_LIMIT})
 
 
+#: events after which a run is no cut-short uninterrupted run (engine._restore_simulation)
+_NOT_CUT_SHORT = frozenset({JournalEvent.FAULT, JournalEvent.SIMULATOR_ERROR})
+
+
 class Rehearsal(Protocol):
     """A simulated station, as the engine sees it in a dry run (``station_sim.py``).
 
@@ -379,8 +383,11 @@ class RunEngine:
         """A dry run goes on from the simulated state its last completed step journaled.
 
         Only when that step is the one right before ``step`` in the plan (steps
-        complete in plan order) and journaled a state (``EXACT_RESUME_KINDS``);
-        otherwise the run goes on from its own re-soak, as on a real station.
+        complete in plan order) and journaled a state (``EXACT_RESUME_KINDS``), and
+        no fault came after it: a run that faulted (a rehearsed fault, a stuck
+        chamber) is not a cut-short uninterrupted run, and its journaled state may
+        hold the fault itself. Otherwise the run goes on from its own re-soak, as
+        on a real station.
         """
         if self.rehearsal is None:
             return
@@ -388,6 +395,9 @@ class RunEngine:
         completed = [e for e in events if e.get("event") == "step_completed"]
         if index == 0 or not completed or "sim_state" not in completed[-1] \
                 or completed[-1].get("step_id") != self.steps[index - 1].step_id:
+            return
+        after = events[events.index(completed[-1]) + 1:]
+        if any(e.get("event") in _NOT_CUT_SHORT for e in after):
             return
         try:
             if not self.rehearsal.restore(completed[-1]["sim_state"]):

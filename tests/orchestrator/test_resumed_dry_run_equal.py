@@ -29,8 +29,8 @@ import numpy as np
 import pytest
 
 from gyrocal.cli import main
-from gyrocal.orchestrator.record.crash import CRASH_AT_ENV
-from gyrocal.orchestrator.record.run_folder import RunFolder
+from gyrocal.record.crash import CRASH_AT_ENV
+from gyrocal.record.run_folder import RunFolder
 from tests.support.fork_server import ForkServer
 
 #: results.json keys that name the run, a wall time, a loopback address, or count the
