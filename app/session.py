@@ -216,7 +216,7 @@ def _engine(folder: RunFolder, journal, procedure: Procedure, plan: Plan,
                      before_step=before_step,
                      operator=_fixture_operator(procedure, folder, simulated),
                      mountings={m.name: m.up for m in procedure.mountings},
-                     on_attempt=None if simulated is None else simulated.begin_attempt)
+                     rehearsal=simulated)
 
 
 def _faulted(folder: RunFolder, journal, exc: Exception, simulated: Any) -> int:

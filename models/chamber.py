@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gyrocal.models.clock import Clock
+from gyrocal.models.sim_state import SIM_HISTORY_S, decode, encode
 
 
 @dataclass(frozen=True)
@@ -217,6 +218,27 @@ class ChamberPhysics:
     def reseed(self, seed: np.random.SeedSequence) -> None:
         """Measurement noise drawn from ``seed`` from now on (a dry run's attempt)."""
         self._rng = np.random.default_rng(seed)
+
+    def sim_state(self) -> dict:
+        """What a resumed dry run restores (``models/sim_state.py``): setpoint, stuck flag,
+        noise stream and the air's recent history (the segments of the last
+        :data:`SIM_HISTORY_S`: a simulated gyro asks for frames at most a block behind now)."""
+        with self._lock:
+            segments = list(self._segments)
+            since_s = self.clock.now_s() - SIM_HISTORY_S
+            first = max((i for i, seg in enumerate(segments) if seg.t0_s <= since_s), default=0)
+            return {"rng": encode(self._rng), "stuck": self._stuck,
+                    "setpoint_c": self._setpoint_c,
+                    "band_reached_before_segment": self._band_reached_before_segment,
+                    "segments": encode(segments[first:])}
+
+    def restore_sim_state(self, state: dict) -> None:
+        with self._lock:
+            self._rng = decode(state["rng"], self._rng)
+            self._stuck = bool(state["stuck"])
+            self._setpoint_c = float(state["setpoint_c"])
+            self._band_reached_before_segment = bool(state["band_reached_before_segment"])
+            self._segments = deque(decode(state["segments"]), maxlen=self._SEGMENTS_KEPT)
 
     def temperature_c(self, t_s: float | None = None) -> float:
         """Measured process value: air temperature plus measurement noise."""

@@ -135,6 +135,18 @@ class SimClock:
         for listener in listeners:
             listener(before_s, after_s, reading)
 
+    def restore_s(self, t_s: float) -> None:
+        """Set the time to ``t_s``, earlier or later, telling no listener.
+
+        Only for restoring a simulated station's snapshot (a resumed dry run
+        continues at the simulated time its interrupted session had reached,
+        not at the time its own preflight and re-soak brought it to); the
+        simulators are restored with it, so none of them sees time run back.
+        """
+        with self._cond:
+            self._now_s = float(t_s)
+            self._cond.notify_all()
+
     def wait_until(self, t_s: float, timeout_s: float | None = None) -> bool:
         """Block (in wall time) until someone advances the clock to ``t_s``.
 

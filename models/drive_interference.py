@@ -26,6 +26,9 @@ class DriveLine:
 class DriveInterference:
     """Input-referred interference (deg/h) at frame times, while the drive is powered."""
 
+    #: what a resumed dry run restores (models/sim_state.py)
+    SIM_STATE = ("_rng", "_phases")
+
     def __init__(self, lines: tuple[DriveLine, ...], noise_dph: float, fs_hz: float,
                  seed: int) -> None:
         self.lines = tuple(lines)

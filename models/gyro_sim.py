@@ -85,6 +85,9 @@ class GyroSimulator:
     gives the same record however it is cut into blocks.
     """
 
+    #: what a resumed dry run restores (models/sim_state.py)
+    SIM_STATE = ("_noise", "_counter", "_index", "_state")
+
     def __init__(self, model: GyroModel, fs_hz: float, seed: int | None = None, t0_s: float = 0.0) -> None:
         _check_sample_rate(model, fs_hz)
         self.model = model

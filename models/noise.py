@@ -55,6 +55,9 @@ def _rng(seed: int | np.random.SeedSequence | None) -> np.random.Generator:
 class WhiteRateNoise:
     """Angle random walk N: white rate noise, σ per sample = 60·N·√fs deg/h."""
 
+    #: what a resumed dry run restores (models/sim_state.py)
+    SIM_STATE = ("_rng",)
+
     def __init__(self, arw_deg_per_rth: float, fs_hz: float, seed=None) -> None:
         self.sigma_dph = 60.0 * arw_deg_per_rth * math.sqrt(fs_hz)
         self._rng = _rng(seed)
@@ -70,6 +73,9 @@ class WhiteAngleNoise:
     arcsec/s = deg/h. The Allan variance of such a rate is exactly 3Q²/τ².
     The last angle sample is the state, so blocks join without a seam.
     """
+
+    #: what a resumed dry run restores (models/sim_state.py)
+    SIM_STATE = ("_rng", "_last_arcsec")
 
     def __init__(self, quantization_arcsec: float, fs_hz: float, seed=None) -> None:
         self.q_arcsec = quantization_arcsec
@@ -88,6 +94,9 @@ class WhiteAngleNoise:
 
 class RateRandomWalk:
     """Rate random walk K: rate increments of std (K/60)·√(1/fs) deg/h per sample."""
+
+    #: what a resumed dry run restores (models/sim_state.py)
+    SIM_STATE = ("_rng", "_level_dph")
 
     def __init__(self, rrw_deg_per_h_rth: float, fs_hz: float, seed=None) -> None:
         self.step_dph = rrw_deg_per_h_rth / 60.0 / math.sqrt(fs_hz)
@@ -110,6 +119,9 @@ class RateRamp:
     exact for each one (a Gaussian slope would make it exact only on average).
     """
 
+    #: what a resumed dry run restores (models/sim_state.py)
+    SIM_STATE = ("_index",)
+
     def __init__(self, rate_ramp_dph_per_h: float, fs_hz: float, seed=None) -> None:
         sign = 1.0 if _rng(seed).random() < 0.5 else -1.0
         self.slope_dph_per_s = sign * rate_ramp_dph_per_h / 3600.0
@@ -128,6 +140,9 @@ class GaussMarkov:
     Exact discretisation x_k = a·x_{k-1} + σ·√(1−a²)·ε_k, a = exp(−1/(fs·T)),
     started from its stationary distribution so the record has no transient.
     """
+
+    #: what a resumed dry run restores (models/sim_state.py)
+    SIM_STATE = ("_rng", "_x")
 
     def __init__(self, sigma_dph: float, tau_s: float, fs_hz: float, seed=None) -> None:
         if not tau_s > 0:
@@ -194,6 +209,9 @@ class _DecimatedMarkovSum:
     Knot indices are absolute, so any split into blocks gives the same samples.
     """
 
+    #: what a resumed dry run restores (models/sim_state.py)
+    SIM_STATE = ("processes", "_knots", "_first_knot", "_index")
+
     def __init__(self, processes: list[GaussMarkov], decimation: int) -> None:
         self.processes = processes
         self.decimation = decimation
@@ -233,6 +251,9 @@ class FlickerNoise:
     which makes the bank ~3x cheaper at 200 Hz without changing its Allan floor.
     """
 
+    #: what a resumed dry run restores (models/sim_state.py)
+    SIM_STATE = ("groups",)
+
     def __init__(self, bias_instability_dph: float, fs_hz: float, seed=None) -> None:
         taus_s, sigmas_dph = flicker_bank(bias_instability_dph)
         base = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
@@ -261,6 +282,9 @@ class NoiseGenerator:
     Terms with a zero coefficient cost nothing. ``seed`` (int, SeedSequence or
     None) seeds one independent stream per term.
     """
+
+    #: what a resumed dry run restores (models/sim_state.py)
+    SIM_STATE = ("terms",)
 
     def __init__(
         self,

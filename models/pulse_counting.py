@@ -42,6 +42,9 @@ def count_pulses(
 class PulseCounter:
     """Stateful pulse counter: rate in, quantized rate out (both deg/s, input-referred)."""
 
+    #: what a resumed dry run restores (models/sim_state.py)
+    SIM_STATE = ("phase_pulses",)
+
     def __init__(self, pulse_arcsec: float, phase_pulses: float = 0.0) -> None:
         if not pulse_arcsec > 0:
             raise ValueError(f"quantization pulse must be > 0 arcsec, got {pulse_arcsec!r}")

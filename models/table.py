@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gyrocal.models.clock import Clock
+from gyrocal.models.sim_state import SIM_HISTORY_S, decode, encode
 
 MODE_OFF = "off"
 MODE_RATE = "rate"
@@ -332,6 +333,27 @@ class TablePhysics:
     def reseed(self, seed: np.random.SeedSequence) -> None:
         """Measurement noise drawn from ``seed`` from now on (a dry run's attempt)."""
         self._rng = np.random.default_rng(seed)
+
+    def sim_state(self) -> dict:
+        """What a resumed dry run restores (``models/sim_state.py``): mode, demand, limits,
+        interlock, readback noise stream and the motion of the last ``SIM_HISTORY_S``."""
+        with self._lock:
+            since_s = self.clock.now_s() - SIM_HISTORY_S
+            first = max((i for i, t0 in enumerate(self._starts_s) if t0 <= since_s), default=0)
+            return {"rng": encode(self._rng), "mode": self._mode, "demand_dps": self._demand_dps,
+                    "accel_limit_dps2": self._accel_limit_dps2,
+                    "interlock_closed": self._interlock_closed,
+                    "segments": encode(self._segments[first:])}
+
+    def restore_sim_state(self, state: dict) -> None:
+        with self._lock:
+            self._rng = decode(state["rng"], self._rng)
+            self._mode = str(state["mode"])
+            self._demand_dps = float(state["demand_dps"])
+            self._accel_limit_dps2 = float(state["accel_limit_dps2"])
+            self._interlock_closed = bool(state["interlock_closed"])
+            self._segments = list(decode(state["segments"]))
+            self._starts_s = [segment.t0_s for segment in self._segments]
 
     def read_rate_dps(self) -> float:
         """Rate readback now: the true rate plus the encoder electronics' noise."""

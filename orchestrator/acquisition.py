@@ -129,7 +129,8 @@ class Acquisition:
 
     def record(self, step: PlanStep, attempt: int, rate_dps: float,
                at_rate_since_wall_s: float | None = None,
-               reference: Sinusoid | None = None) -> StepResult:
+               reference: Sinusoid | None = None,
+               draw_attempt: int | None = None) -> StepResult:
         """Log ``step.duration_s`` of gyro samples with chamber and table context, in chunks.
 
         ``at_rate_since_wall_s``: when the table was confirmed at ``rate_dps``
@@ -137,6 +138,8 @@ class Acquisition:
         were sampled before it make the attempt implausible (stale data).
         ``reference``: the sinusoid the table turns (a frequency-response step); it is
         the logged table rate, and each readback is checked against it at that instant.
+        ``draw_attempt``: the attempt whose random streams a dry run draws from (the engine's
+        ``Rehearsal``: an attempt cut by a kill does not count); default ``attempt``.
         """
         fs = self.inst.sample_rate_hz
         n_total = int(round(step.duration_s * fs))
@@ -145,7 +148,7 @@ class Acquisition:
         result = StepResult(step.step_id, attempt)
         gyro = self.inst.gyro
         if self.on_attempt is not None:
-            self.on_attempt(step.step_id, attempt)
+            self.on_attempt(step.step_id, attempt if draw_attempt is None else draw_attempt)
         gyro.flush()
         plausible = self._plausibility(step, fs, at_rate_since_wall_s)
         t0 = self.clock.now_s()

@@ -28,7 +28,8 @@ class Conditions:
 
     def __init__(self, instruments: Instruments, clock: RealClock | SimClock,
                  machine: RunStateMachine, journal: Journal, progress: Progress,
-                 policy, elapsed_s: Callable[[], float]) -> None:
+                 policy, elapsed_s: Callable[[], float],
+                 completed_fields: Callable[[PlanStep], dict] | None = None) -> None:
         self.inst = instruments
         self.clock = clock
         self.machine = machine
@@ -36,6 +37,8 @@ class Conditions:
         self.progress = progress
         self.policy = policy          # EnginePolicy (poll_s, rate_tolerance_dps, spin_timeout_factor)
         self.elapsed_s = elapsed_s
+        #: what a step_completed line adds (a dry run's simulated state: engine.Rehearsal)
+        self.completed_fields = completed_fields or (lambda step: {})
         self.chamber_c: float | None = None    # last chamber reading
         self.table_dps: float | None = None    # last table rate readback
         # (rate, wall time) of the readback that confirmed the table at its present rate: a
@@ -78,7 +81,8 @@ class Conditions:
         self.machine.stable()
         if journal_done:
             self.journal.append(JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=1,
-                                ramp_s=self.clock.now_s() - t_start)
+                                ramp_s=self.clock.now_s() - t_start,
+                                **self.completed_fields(step))
 
     def soak(self, step: PlanStep, journal_done: bool = True) -> None:
         """Wait until the chamber stays within ±tolerance for the hold time, or fault."""
@@ -106,7 +110,8 @@ class Conditions:
         self.machine.stable()
         if journal_done:
             self.journal.append(JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=1,
-                                soak_s=self.clock.now_s() - t_start)
+                                soak_s=self.clock.now_s() - t_start,
+                                **self.completed_fields(step))
 
     def poll_chamber(self) -> float:
         status = self.inst.chamber.read_status()

@@ -18,13 +18,14 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from gyrocal.errors import NO_ROOM_ERRNOS
 from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments
 from gyrocal.instruments.interfaces import Identity
 from gyrocal.models.imu_model import Mounting
+from gyrocal.models.sim_state import SimStateError
 from gyrocal.orchestrator.acquisition import Acquisition, AcquisitionPolicy, StepResult
 from gyrocal.orchestrator.conditions import Conditions
 from gyrocal.orchestrator.interrupts import GatedChamber, GatedTable, InterruptGate
@@ -54,6 +55,50 @@ POSITION_BAND_DEG = 0.001
 MOVE_TIMEOUT_S = 120.0
 
 
+#: Step kinds whose executor ends with their ``step_completed`` line: the simulated state
+#: journaled there is the state the next step starts from. (A drive-off static closes
+#: the interlock after it, a frequency-response or tilt step returns the table to rate
+#: mode, a magnetic step switches the coil off, a remount checks the mount: a resumed
+#: dry run after one of those goes on from its own re-soak, as a real run does.)
+EXACT_RESUME_KINDS = frozenset({StepKind.RAMP, StepKind.SOAK, StepKind.STATIC, StepKind.ALLAN,
+                                StepKind.DWELL, StepKind.THRESHOLD, StepKind.RATE_LIMIT})
+
+
+#: events after which a run is no cut-short uninterrupted run (engine._restore_simulation)
+_NOT_CUT_SHORT = frozenset({JournalEvent.FAULT, JournalEvent.SIMULATOR_ERROR})
+
+
+class Rehearsal(Protocol):
+    """A simulated station, as the engine sees it in a dry run (``station_sim.py``).
+
+    Exactness of a seeded dry run rests on two things the engine tells it: which
+    attempt's random streams to draw from, and where a resumed run takes up.
+    The rule for a resumed run (issue 30): it equals the uninterrupted run step
+    for step. Every completed step's ``step_completed`` line of a dry run carries
+    the station's state at that moment (``sim_state``); a resumed run restores
+    the last one right before its first remaining step, after its own preflight
+    and re-soak, so that step starts from the state the uninterrupted run had.
+    A step cut mid-way is run again from its start; its new attempt draws from
+    the streams of the attempt the uninterrupted run would have been at (one
+    more than the step's ``step_bad`` attempts: an attempt cut by a kill is no
+    attempt of the uninterrupted run), though the journal numbers it after the
+    cut one, whose chunks stay as they are. So the attempt that counts in the
+    resumed run has the samples of the attempt that counts in the uninterrupted
+    one, value for value and time stamp for time stamp; only its number, the
+    lines recording the interruption and the resume, wall times and the run
+    identity differ.
+    """
+
+    def begin_attempt(self, step_id: str, attempt: int) -> None:
+        """Draw every random stream from (seed, ``step_id``, ``attempt``) from here."""
+
+    def snapshot(self) -> dict[str, Any] | None:
+        """The simulated state now (JSON data), or None when it cannot all be kept."""
+
+    def restore(self, state: dict[str, Any]) -> bool:
+        """Put the simulated station back into a snapshot's state (False: it keeps none)."""
+
+
 @dataclass(frozen=True)
 class EnginePolicy:
     """Tunables with lab-sensible defaults; procedures and stations may override them."""
@@ -77,6 +122,15 @@ class EnginePolicy:
 def completed_steps(events: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """step_id → its ``step_completed`` event, from the journal."""
     return {e["step_id"]: e for e in events if e.get("event") == JournalEvent.STEP_COMPLETED}
+
+
+def bad_attempts(events: list[dict[str, Any]]) -> dict[str, int]:
+    """step_id → how many of its attempts were journaled bad (``step_bad``)."""
+    bad: dict[str, int] = {}
+    for event in events:
+        if event.get("event") == "step_bad" and "step_id" in event:
+            bad[event["step_id"]] = bad.get(event["step_id"], 0) + 1
+    return bad
 
 
 def attempts_started(events: list[dict[str, Any]]) -> dict[str, int]:
@@ -103,7 +157,7 @@ class RunEngine:
         before_step: Callable[[PlanStep], None] | None = None,
         operator: FixtureOperator | None = None,
         mountings: Mapping[str, Mounting] | None = None,
-        on_attempt: Callable[[str, int], None] | None = None,
+        rehearsal: Rehearsal | None = None,
     ) -> None:
         self.folder = folder
         self.operator = operator            # who turns the IMU fixture (remount steps)
@@ -123,16 +177,19 @@ class RunEngine:
         self.before_step = before_step      # e.g. a dry run's planned fault injections
         self._step_id: str | None = None    # the plan step being executed (for fault events)
         self._attempts_before: dict[str, int] = {}  # step_id → last attempt journaled by earlier sessions
+        self._bad_before: dict[str, int] = {}  # step_id → its step_bad attempts in earlier sessions
+        self.rehearsal = rehearsal          # the simulated station of a dry run
         self._closing_from: int | None = None  # len(gate.deferred) when the close began
         self._t_run_start = self.clock.now_s()
         self._position_mode = False         # the table serves position mode (tilt steps)
         self.conditions = Conditions(instruments, self.clock, self.machine, self.journal,
-                                     self.progress, policy, elapsed_s=self._elapsed)
+                                     self.progress, policy, elapsed_s=self._elapsed,
+                                     completed_fields=self._completed_fields)
         self.acquisition = Acquisition(
             instruments, self.clock, folder, self.journal, self.progress,
             AcquisitionPolicy(policy.chunk_s, policy.block_s, policy.read_timeout_margin_s),
             poll_chamber=self.conditions.poll_chamber, elapsed_s=self._elapsed,
-            on_attempt=on_attempt)
+            on_attempt=None if rehearsal is None else rehearsal.begin_attempt)
         #: one executor per step kind (a registry, not a chain of string tests)
         self._executors: dict[StepKind, Callable[[PlanStep], None]] = {
             StepKind.RAMP: self.conditions.ramp,
@@ -170,12 +227,14 @@ class RunEngine:
                 events = self.folder.journal_events()
                 done = completed_steps(events)
                 self._attempts_before = attempts_started(events)
+                self._bad_before = bad_attempts(events)
                 remaining = [s for s in self.steps if s.step_id not in done]
                 if done and remaining:
                     self.journal.append(JournalEvent.RESUMED, from_step=remaining[0].step_id,
                                         completed=len(done))
                     self._step_id = remaining[0].step_id
                     self._restore_conditions(remaining[0])
+                    self._restore_simulation(events, remaining[0])
                 self.folder.update_manifest(state="running")
                 for index, step in enumerate(self.steps, start=1):
                     if step.step_id in done:
@@ -319,6 +378,46 @@ class RunEngine:
         self.conditions.ramp(step, journal_done=False)
         if step.kind != StepKind.SOAK:
             self.conditions.soak(step, journal_done=False)
+
+    def _restore_simulation(self, events: list[dict[str, Any]], step: PlanStep) -> None:
+        """A dry run goes on from the simulated state its last completed step journaled.
+
+        Only when that step is the one right before ``step`` in the plan (steps
+        complete in plan order) and journaled a state (``EXACT_RESUME_KINDS``), and
+        no fault came after it: a run that faulted (a rehearsed fault, a stuck
+        chamber) is not a cut-short uninterrupted run, and its journaled state may
+        hold the fault itself. Otherwise the run goes on from its own re-soak, as
+        on a real station.
+        """
+        if self.rehearsal is None:
+            return
+        index = self.steps.index(step)
+        completed = [e for e in events if e.get("event") == "step_completed"]
+        if index == 0 or not completed or "sim_state" not in completed[-1] \
+                or completed[-1].get("step_id") != self.steps[index - 1].step_id:
+            return
+        after = events[events.index(completed[-1]) + 1:]
+        if any(e.get("event") in _NOT_CUT_SHORT for e in after):
+            return
+        try:
+            if not self.rehearsal.restore(completed[-1]["sim_state"]):
+                return
+        except SimStateError as exc:
+            raise RunFaultError(
+                f"the simulated state journaled at line {completed[-1].get('seq')} "
+                f"({completed[-1].get('step_id')}) does not fit this station: {exc}; was the "
+                f"journal edited? `gyrocal verify {self.folder.path}` checks it") from None
+        self.journal.append(JournalEvent.SIM_STATE_RESTORED, step_id=step.step_id,
+                            from_seq=completed[-1].get("seq"),
+                            clock_s=completed[-1]["sim_state"].get("clock_s"))
+
+    def _completed_fields(self, step: PlanStep) -> dict[str, Any]:
+        """What a ``step_completed`` line adds in a dry run: the simulated state the next
+        step starts from (see :class:`Rehearsal`)."""
+        if self.rehearsal is None or step.kind not in EXACT_RESUME_KINDS:
+            return {}
+        state = self.rehearsal.snapshot()
+        return {} if state is None else {"sim_state": state}
 
     def _ramp_follows(self, step: PlanStep) -> bool:
         """A remount right before a ramp needs no temperature of its own."""
@@ -487,6 +586,8 @@ class RunEngine:
         first = self._attempts_before.get(step.step_id, 0) + 1
         attempts = first + self.policy.max_repeats
         for attempt in range(first, attempts + 1):
+            # the attempt the uninterrupted run would be at (Rehearsal): its random streams
+            draws = self._bad_before.get(step.step_id, 0) + attempt - first + 1
             self.journal.append(JournalEvent.STEP_STARTED, step_id=step.step_id, kind=step.kind,
                                 rate_dps=rate_dps, attempt=attempt)
             if reference is None:
@@ -496,7 +597,7 @@ class RunEngine:
             try:
                 result = self.acquisition.record(step, attempt, rate_dps,
                                                  self.conditions.at_rate_since_wall_s(),
-                                                 reference=reference)
+                                                 reference=reference, draw_attempt=draws)
             except InstrumentError as exc:
                 if not (exc.transient and exc.instrument == self._gyro_name()) or attempt == attempts:
                     raise
@@ -517,7 +618,8 @@ class RunEngine:
                     JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=attempt,
                     samples=result.samples, lost_frames=result.lost_frames,
                     crc_errors=result.crc_errors, flagged_samples=result.flagged_samples,
-                    chunks=result.chunks, table_rate_max_dev_dps=result.table_rate_max_dev_dps)
+                    chunks=result.chunks, table_rate_max_dev_dps=result.table_rate_max_dev_dps,
+                    **self._completed_fields(step))
                 return
             reason = _bad_reason(result, loss, self.policy.max_loss_fraction, rate_dps,
                                  self.conditions.rate_band(rate_dps))

@@ -12,10 +12,11 @@ from typing import Any
 
 from gyrocal.record.journal import JournalEvent
 
-#: Keys that identify or chain the event rather than say what happened.
+#: Keys that identify or chain the event rather than say what happened (``sim_state``: a
+#: dry run's simulated station, for a resumed run to restore, not for people).
 HIDDEN_KEYS = frozenset({"seq", "wall_time", "event", "prev_sha256", "step_id", "signature",
                          "identity", "inputs", "sha256", "plan_sha256", "signing_key",
-                         "before_step"})
+                         "before_step", "sim_state"})
 
 #: Unit suffixes of key names, longest first, and how the unit is written for people.
 UNIT_SUFFIXES = (

@@ -47,6 +47,9 @@ class JournalEvent(str, Enum):
     PREFLIGHT_OK = "preflight_ok"
     RESUMED = "resumed"
     RESTORE_CONDITIONS = "restore_conditions"
+    #: a resumed dry run put its simulated station back into the state a completed step
+    #: journaled (``sim_state`` of the step_completed line ``from_seq``; engine.Rehearsal)
+    SIM_STATE_RESTORED = "sim_state_restored"
     STEP_STARTED = "step_started"
     STEP_COMPLETED = "step_completed"
     STEP_BAD = "step_bad"

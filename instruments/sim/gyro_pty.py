@@ -87,6 +87,7 @@ from gyrocal.instruments.sim.gyro_frames import (
 )
 from gyrocal.instruments.sim.pty_port import PtyWriterPort
 from gyrocal.models.clock import RealClock, SimClock
+from gyrocal.models.sim_state import decode, encode
 
 FAULTS = ("corrupt_frames", "lose_frames", "garbage", "stall", "saturate")
 
@@ -292,6 +293,22 @@ class SimulatedGyroPort(PtyWriterPort):
         """Draw the injected garbage from ``seed`` from now on (a dry run's attempt)."""
         self._wait_made()
         self._rng = np.random.default_rng(seed)
+
+    def sim_state(self) -> dict:
+        """Where the frame grid is and the garbage stream (``models/sim_state.py``), once
+        every queued span is made."""
+        self._wait_made()
+        return {"next_frame": int(self.next_frame), "rng": encode(self._rng)}
+
+    def restore_sim_state(self, state: dict) -> None:
+        """Continue the grid at the snapshot's frame; what this session made and nobody
+        read is dropped, as a reader's flush would drop it."""
+        self._wait_made()
+        with self._out_lock:
+            self._out.clear()
+            termios.tcflush(self._slave_fd, termios.TCIFLUSH)
+        self.next_frame = int(state["next_frame"])
+        self._rng = decode(state["rng"], self._rng)
 
     def _make_idle_tail(self, k_end: int) -> None:
         """Nobody reads: only the last frames are in the UART; older ones are gone."""

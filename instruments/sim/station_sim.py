@@ -13,7 +13,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -30,6 +30,7 @@ from gyrocal.models.gyro_model import GyroModel
 from gyrocal.models.gyro_sim import GyroSimulator
 from gyrocal.models.imu_model import ImuModel, load_any_model
 from gyrocal.models.seeding import attempt_seed
+from gyrocal.models.sim_state import SimStateError, capture, restore
 from gyrocal.models.table import TablePhysics
 
 
@@ -84,6 +85,9 @@ _SEED_POWER = 707
 
 class GyroPhysicsSource:
     """Feeds the simulated gyro: model output for the table/chamber state at each frame time."""
+
+    #: what a resumed dry run restores (models/sim_state.py)
+    SIM_STATE = ("simulator", "interference", "skipped_s")
 
     def __init__(self, simulator: GyroSimulator, table: TablePhysics, chamber: ChamberPhysics,
                  start_s: float, skip_step_s: float = 1.0,
@@ -322,6 +326,54 @@ class SimulatedStation:
         self.gyro_port.reseed(pty)
         if self.supply_server is not None:
             self.supply_server.reseed(supply)
+
+    def snapshot(self) -> dict[str, Any] | None:
+        """The station's simulated state now, as JSON data; None when it cannot all be kept.
+
+        Taken when a step is journaled complete; a resumed dry run restores the
+        last one (:meth:`restore`) before its first remaining step, so it goes on
+        from the very state the interrupted session reached: the simulated time,
+        the chamber's air and setpoint, the table's motion and mode, the gyro's
+        noise, Markov and walk levels, thermal lag and hysteresis, the frame grid
+        and every random stream. What is not kept (a supply, a coil, a tilt force,
+        an IMU fixture, a replayed capture, a gyro other than the STIM300 pty) makes
+        it None: such a run resumes as a real one does, from its own re-soak.
+        """
+        if not self._keeps_everything():
+            return None
+        return {"clock_s": self.clock.now_s(),
+                "gyro_port": capture(self.gyro_port),   # first: waits for the frames in making
+                "chamber": capture(self.chamber_physics),
+                "table": capture(self.table_physics),
+                "gyro": capture(self.source)}
+
+    def restore(self, state: dict[str, Any]) -> bool:
+        """Put the station back into ``state`` (from :meth:`snapshot` of this station).
+
+        False (nothing restored) when this station keeps no snapshot (a resumed dry
+        run on a real-time clock, ``--speed N``). A snapshot that does not fit
+        (an edited journal) is a :class:`SimStateError`.
+        """
+        if not self._keeps_everything() or not isinstance(self.clock, SimClock):
+            return False
+        try:
+            restore(self.gyro_port, state["gyro_port"])
+            self.clock.restore_s(float(state["clock_s"]))
+            restore(self.chamber_physics, state["chamber"])
+            restore(self.table_physics, state["table"])
+            restore(self.source, state["gyro"])
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            if isinstance(exc, SimStateError):
+                raise
+            raise SimStateError(f"{type(exc).__name__}: {exc}") from None
+        return True
+
+    def _keeps_everything(self) -> bool:
+        source = self.source
+        return (isinstance(self.clock, SimClock) and self.seed is not None
+                and isinstance(source, GyroPhysicsSource) and source.power is None
+                and source.field is None and self.tilt is None and self.supply_server is None
+                and callable(getattr(self.gyro_port, "sim_state", None)))
 
     def _request(self, settings, faults: FaultInjector, seed_offset: int = 0) -> SimRequest:
         """What every simulator of this station sees: its settings and faults, and the shared bench."""

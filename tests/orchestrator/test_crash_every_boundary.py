@@ -7,8 +7,10 @@ journal line K is written, right after each is fsynced, and inside each
 atomic file write (temporary file complete, not renamed). After each kill:
 ``gyrocal resume`` must exit 0, ``gyrocal verify --key`` must pass, every
 line the killed run wrote must still open the history byte for byte, each
-plan step must be completed exactly once with the uninterrupted run's sample
-count and a mean within noise of it, and whatever the kill left unrecorded
+plan step must be completed exactly once, its counted attempt holding the
+uninterrupted run's samples value for value in every column and results.json
+the same numbers (the run is seeded: a resumed dry run equals the
+uninterrupted one, engine.Rehearsal), and whatever the kill left unrecorded
 (a chunk, a temporary file) must be set aside in ``orphans/``, named by
 verify, and read by nothing.
 
@@ -46,18 +48,33 @@ def killed_run(server: ForkServer, procedure: Path, out: Path, crash_at: str,
                       out.parent / f"{out.name}.err")
 
 
-def step_data(run: Path) -> dict[str, tuple[int, float, float]]:
-    """step_id → (samples, gyro mean, its standard error from 0.25 s block means)."""
+#: results.json keys that name the run, a wall time or a loopback address, or count the
+#: history (the journal block: its events, chunks, the hash over every chunk; the
+#: signature over the run identity and the journal's head)
+RESULTS_FREE = {"run_id", "started_at", "steps_started_at", "steps_done_at", "ended_at",
+                "report_built_at", "address", "journal", "signature"}
+
+
+def step_data(run: Path) -> dict[str, dict[str, bytes]]:
+    """step_id → its counted attempt's columns, each decoded to the bytes of its array."""
     folder = RunFolder(run)
     out = {}
     for event in folder.journal_events():
         if event.get("event") != "step_completed" or not event.get("chunks"):
             continue
-        gyro = folder.read_chunks(event["chunks"])["gyro"]
-        blocks = gyro[: len(gyro) // 62 * 62].reshape(-1, 62).mean(axis=1)
-        out[event["step_id"]] = (len(gyro), float(gyro.mean()),
-                                 float(blocks.std(ddof=1) / np.sqrt(len(blocks))))
+        columns = folder.read_chunks(event["chunks"])
+        out[event["step_id"]] = {name: np.asarray(columns[name]).dtype.str.encode()
+                                 + np.asarray(columns[name]).tobytes() for name in columns}
     return out
+
+
+def results_numbers(run: Path) -> dict:
+    """results.json without what names the run or counts its history (RESULTS_FREE)."""
+    def without(value):
+        if isinstance(value, dict):
+            return {k: without(v) for k, v in value.items() if k not in RESULTS_FREE}
+        return [without(v) for v in value] if isinstance(value, list) else value
+    return without(json.loads((run / "report" / "results.json").read_text()))
 
 
 def boundaries(reference: Path) -> list[str]:
@@ -92,7 +109,7 @@ def test_kill_at_every_boundary_resumes_to_a_history_that_verifies(h, tmp_path, 
     monkeypatch.setenv("GYROCAL_SIGNING_KEY", str(keys.private))   # run, resume: signed
     reference_run(procedure, reference)
     assert h.completed_ids(reference) == list(SHORT_PLAN)
-    expected = step_data(reference)
+    expected = (step_data(reference), results_numbers(reference))
     points = boundaries(reference)
     assert len(points) > 50, points
 
@@ -130,10 +147,11 @@ def _kill_resume_verify(server, h, procedure, out, point, keys, expected, outcom
     assert audit.ok, (point, audit.failure)
     assert h.completed_ids(out) == list(SHORT_PLAN), point         # each step once
     got = step_data(out)
-    assert set(got) == set(expected), point
-    for step_id, (samples, mean, se) in expected.items():
-        assert got[step_id][0] == samples, (point, step_id)
-        assert abs(got[step_id][1] - mean) < 6 * np.hypot(se, got[step_id][2]), (point, step_id)
+    assert set(got) == set(expected[0]), point
+    for step_id, columns in expected[0].items():         # equal to the uninterrupted run
+        assert got[step_id] == columns, (point, step_id,
+                                         [c for c in columns if got[step_id].get(c) != columns[c]])
+    assert results_numbers(out) == expected[1], point
     events = h.events(out)
     orphans = [e for e in events if e["event"] == "orphan_set_aside"]
     counted = {c for e in events if e["event"] == "step_completed" for c in e.get("chunks", [])}

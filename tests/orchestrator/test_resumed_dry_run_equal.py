@@ -1,0 +1,158 @@
+"""A seeded dry run killed and resumed equals the uninterrupted one (issues 30 and 28).
+
+What "equal" means (``engine.Rehearsal``): for every step, the attempt that
+counts in the resumed run has the uninterrupted run's counted samples, value
+for value in every column (time stamps, chamber and table context, gyro
+output, sensor temperature, status); results.json holds the same numbers. Only
+what records the interruption may differ: the run identity, wall times, the
+loopback addresses, the attempt's number (a step cut mid-way is run again as
+a new attempt, its cut attempt's chunks left as they are) and the journal's own
+account (its events, event and chunk counts, the hash over every chunk).
+
+Each run is killed by SIGKILL at one journal boundary (``GYROCAL_CRASH_AT``):
+mid-step (a dwell's chunk written, the step not yet complete), between two
+steps (the last dwell at 23 °C complete, the ramp to 27 °C not begun), and
+between ``run_completed`` and ``run_closed``; then ``gyrocal resume``, which
+takes the seed the run started with. (Every other boundary of a shorter run:
+test_crash_every_boundary.py.)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from gyrocal.cli import main
+from gyrocal.record.crash import CRASH_AT_ENV
+from gyrocal.record.run_folder import RunFolder
+from tests.support.fork_server import ForkServer
+
+#: results.json keys that name the run, a wall time, a loopback address, or count the
+#: history (the journal block: its events, chunks and the hash over every chunk)
+RESULTS_FREE = {"run_id", "started_at", "steps_started_at", "steps_done_at", "ended_at",
+                "report_built_at", "address", "journal"}
+
+
+def run_args(procedure: Path, out: Path) -> list[str]:
+    return ["run", str(procedure), "--sim", "--seed", "11", "--out", str(out),
+            "--allow-outside-paths"]
+
+
+def counted_samples(run: Path) -> dict[str, tuple[int, dict[str, np.ndarray]]]:
+    """step_id → (attempt, decoded columns of its counted attempt's chunks)."""
+    folder = RunFolder(run)
+    out = {}
+    for event in folder.journal_events():
+        if event.get("event") == "step_completed" and event.get("chunks"):
+            out[event["step_id"]] = (event["attempt"], dict(folder.read_chunks(event["chunks"])))
+    return out
+
+
+def without(value: Any, free: set[str]) -> Any:
+    if isinstance(value, dict):
+        return {k: without(v, free) for k, v in value.items() if k not in free}
+    if isinstance(value, list):
+        return [without(v, free) for v in value]
+    return value
+
+
+def kill_points(events: list[dict[str, Any]]) -> dict[str, str]:
+    """The boundaries of the reference run's journal this test kills at."""
+    def seq(event: str, step_id: str | None = None) -> int:
+        return next(e["seq"] for e in events
+                    if e["event"] == event and (step_id is None or e.get("step_id") == step_id))
+
+    return {
+        "mid-step": f"before:{seq('step_completed', 'T01.sf.+20dps')}",
+        "between-steps": f"after:{seq('step_completed', 'T01.sf.-20dps')}",
+        "after-run-completed": f"after:{seq('run_completed')}",
+    }
+
+
+@pytest.mark.timeout(240)
+def test_a_killed_and_resumed_dry_run_equals_the_uninterrupted_one(h, tmp_path, capsys):
+    procedure = h.write_procedure(tmp_path)
+    reference = tmp_path / "reference"
+    assert main(run_args(procedure, reference)) in (0, 1)
+    expected = counted_samples(reference)
+    assert set(expected) == {"T01.static", "T01.sf.+20dps", "T01.sf.-20dps",
+                             "T02.sf.+20dps", "T02.sf.-20dps"}
+    expected_results = json.loads((reference / "report" / "results.json").read_text())
+    # the state a resumed run restores is journaled where each step completed
+    assert all("sim_state" in e for e in h.events(reference) if e["event"] == "step_completed")
+    points = kill_points(h.events(reference))
+    with ForkServer(h.REPO_ROOT) as server:
+        for name, point in points.items():
+            out = tmp_path / name
+            status = server.run(run_args(procedure, out), {CRASH_AT_ENV: point},
+                                tmp_path / f"{name}.err")
+            assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, (name, status)
+            capsys.readouterr()
+            assert main(["resume", str(out)]) in (0, 1), (name, capsys.readouterr())
+            _assert_equal_run(h, out, name, expected, expected_results)
+
+
+def _assert_equal_run(h, out: Path, name: str, expected, expected_results) -> None:
+    events = h.events(out)
+    assert h.completed_ids(out) == list(h.SMALL_PLAN), name
+    got = counted_samples(out)
+    assert set(got) == set(expected), name
+    for step_id, (attempt, columns) in expected.items():
+        got_attempt, got_columns = got[step_id]
+        assert list(got_columns) == list(columns), (name, step_id)
+        for column, values in columns.items():
+            other = got_columns[column]
+            assert values.dtype == other.dtype and values.tobytes() == other.tobytes(), (
+                name, step_id, column)
+        if name == "mid-step" and step_id == "T01.sf.+20dps":
+            # cut mid-way: run again as a new attempt, with the cut attempt's draws
+            assert (attempt, got_attempt) == (1, 2), name
+    results = json.loads((out / "report" / "results.json").read_text())
+    assert results["run"]["run_id"] != expected_results["run"]["run_id"]
+    assert without(results, RESULTS_FREE) == without(expected_results, RESULTS_FREE), name
+    kinds = [e["event"] for e in events]
+    if name == "after-run-completed":
+        assert "resumed" not in kinds and kinds[-1] == "run_closed", name
+    else:       # the resumed session went on from the state the killed one had journaled
+        restored = [e for e in events if e["event"] == "sim_state_restored"]
+        assert len(restored) == 1 and "resumed" in kinds, name
+        completed = next(e for e in events if e["seq"] == restored[0]["from_seq"])
+        assert completed["event"] == "step_completed", name
+        assert restored[0]["clock_s"] == completed["sim_state"]["clock_s"], name
+
+
+def test_what_a_simulated_station_keeps_and_refuses(h) -> None:
+    """The snapshot goes through the journal's JSON and back; a snapshot that does not fit
+    (an edited journal whose chain was re-hashed) is refused by name, not half-restored
+    silently; a station on a real-time clock (``resume --speed N``) keeps none."""
+    from gyrocal.instruments.sim.station_sim import SimulatedStation
+    from gyrocal.models.clock import RealClock, SimClock
+    from gyrocal.models.sim_state import SimStateError
+    from gyrocal.orchestrator.station import load_station
+
+    station = load_station(h.SIM_STATION)
+    with SimulatedStation(station, SimClock(), seed=3, sample_rate_hz=250.0) as sim:
+        sim.clock.sleep(12.5)
+        state = json.loads(json.dumps(sim.snapshot(), sort_keys=True, allow_nan=False))
+        assert state["clock_s"] == 12.5
+        sim.clock.sleep(30.0)
+        assert sim.restore(state) and sim.clock.now_s() == 12.5
+        assert sim.gyro_port.next_frame == state["gyro_port"]["custom"]["next_frame"]
+        edited = json.loads(json.dumps(state))
+        edited["table"]["custom"]["segments"] = {"dataclass": "os:system", "fields": {}}
+        with pytest.raises(SimStateError, match="not one of gyrocal's dataclasses"):
+            sim.restore(edited)
+        del edited["chamber"]
+        with pytest.raises(SimStateError, match="KeyError"):
+            sim.restore(edited)
+    real = SimulatedStation(station, RealClock(20.0), seed=3, sample_rate_hz=250.0)
+    try:
+        assert real.snapshot() is None and real.restore(state) is False
+    finally:
+        real.stop()
