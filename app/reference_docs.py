@@ -437,6 +437,16 @@ def _metrics_table() -> str:
     return "\n".join(rows)
 
 
+_DRY_RUN_RESUME = """In a dry run each `step_completed` line of a ramp, soak, static, dwell, Allan, threshold or
+rate-limit step also carries `sim_state`: the simulated station's state at that moment
+(simulated time, chamber air and setpoint, table motion, the gyro's noise and model state, the
+frame grid, every random stream). A resumed dry run restores the last one before its first
+remaining step and journals `sim_state_restored`, so it goes on exactly where the killed
+session was; a step cut mid-way is run again as a new attempt drawing the cut attempt's random
+streams. Its counted samples and results.json equal the uninterrupted run's. (Not after a
+fault: a run that faulted resumes from its own re-soak, as on a station.)"""
+
+
 def run_folder_doc() -> str:
     samples = ", ".join(f"`{c}`" for c in SAMPLE_COLUMNS)
     optional = ", ".join(f"`{c}`" for c in OPTIONAL_SAMPLE_COLUMNS)
@@ -466,14 +476,7 @@ Sample columns: {samples}; when the gyro gives them also {optional}. Units are i
 
 Journal events: {events}.
 
-In a dry run each `step_completed` line of a ramp, soak, static, dwell, Allan, threshold or
-rate-limit step also carries `sim_state`: the simulated station's state at that moment
-(simulated time, chamber air and setpoint, table motion, the gyro's noise and model state, the
-frame grid, every random stream). A resumed dry run restores the last one before its first
-remaining step and journals `sim_state_restored`, so it goes on exactly where the killed
-session was; a step cut mid-way is run again as a new attempt drawing the cut attempt's random
-streams. Its counted samples and results.json equal the uninterrupted run's. (Not after a
-fault: a run that faulted resumes from its own re-soak, as on a station.)
+{_DRY_RUN_RESUME}
 
 ## results.json
 

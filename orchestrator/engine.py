@@ -190,8 +190,11 @@ class RunEngine:
             AcquisitionPolicy(policy.chunk_s, policy.block_s, policy.read_timeout_margin_s),
             poll_chamber=self.conditions.poll_chamber, elapsed_s=self._elapsed,
             on_attempt=None if rehearsal is None else rehearsal.begin_attempt)
-        #: one executor per step kind (a registry, not a chain of string tests)
-        self._executors: dict[StepKind, Callable[[PlanStep], None]] = {
+        self._executors = self._executor_registry()
+
+    def _executor_registry(self) -> dict[StepKind, Callable[[PlanStep], None]]:
+        """One executor per step kind (a registry, not a chain of string tests)."""
+        executors: dict[StepKind, Callable[[PlanStep], None]] = {
             StepKind.RAMP: self.conditions.ramp,
             StepKind.SOAK: self.conditions.soak,
             StepKind.STATIC: self._log_step,
@@ -206,8 +209,9 @@ class RunEngine:
             StepKind.TURN_ON: self._turn_on_step,
             StepKind.TURN_ON_CYCLE: self._turn_on_step,
         }
-        if operator is not None:
-            self._executors[StepKind.REMOUNT] = self._remount_executor().execute
+        if self.operator is not None:
+            executors[StepKind.REMOUNT] = self._remount_executor().execute
+        return executors
 
     def _remount_executor(self) -> RemountExecutor:
         if self.operator is None:
