@@ -43,6 +43,7 @@ from gyrocal.orchestrator.turn_on import power_cycle, wait_first_frame
 from gyrocal.orchestrator.unit_power import UnitPowerPolicy, power_on
 from gyrocal.orchestrator.unit_power import check as check_power
 from gyrocal.record.journal import JournalEvent
+from gyrocal.record.logged_steps import attempts_started, counted_attempts
 from gyrocal.record.run_folder import RunFolder
 from gyrocal.record.step_kind import StepKind
 
@@ -72,21 +73,6 @@ class EnginePolicy:
     table_hold: bool = False            # safe state holds the axis under servo (horizontal table)
     pause_poll_s: float = 0.5           # wall seconds between looks at RUN_DIR/PAUSE while paused
     unit_power: UnitPowerPolicy | None = None   # the station's supply for the unit, if any
-
-
-def completed_steps(events: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
-    """step_id → its ``step_completed`` event, from the journal."""
-    return {e["step_id"]: e for e in events if e.get("event") == JournalEvent.STEP_COMPLETED}
-
-
-def attempts_started(events: list[dict[str, Any]]) -> dict[str, int]:
-    """step_id → the highest attempt number any ``step_started`` event gave it."""
-    last: dict[str, int] = {}
-    for event in events:
-        if event.get("event") == JournalEvent.STEP_STARTED and "step_id" in event:
-            step_id = event["step_id"]
-            last[step_id] = max(last.get(step_id, 0), int(event.get("attempt", 1)))
-    return last
 
 
 class RunEngine:
@@ -168,7 +154,7 @@ class RunEngine:
             try:
                 self._connect_and_preflight()
                 events = self.folder.journal_events()
-                done = completed_steps(events)
+                done = counted_attempts(events)
                 self._attempts_before = attempts_started(events)
                 remaining = [s for s in self.steps if s.step_id not in done]
                 if done and remaining:

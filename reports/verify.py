@@ -75,8 +75,8 @@ from gyrocal.reports.results import RECOMPUTED_KEYS, finite_or_none, results_byt
 
 #: Events a finished run may still gain after ``run_closed``: report rebuilds, certificates,
 #: what a cut-off session left set aside, and their seals.
-AFTER_CLOSE = ("report_written", "certificate_written", "orphan_set_aside",
-               "torn_tail_set_aside", SEAL_EVENT)
+AFTER_CLOSE = (JournalEvent.REPORT_WRITTEN, JournalEvent.CERTIFICATE_WRITTEN,
+               JournalEvent.ORPHAN_SET_ASIDE, JournalEvent.TORN_TAIL_SET_ASIDE, SEAL_EVENT)
 #: Relative tolerance of the recomputation (the same code on the same samples: rounding only).
 RECOMPUTE_RTOL = 1e-9
 

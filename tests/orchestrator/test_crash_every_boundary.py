@@ -30,6 +30,7 @@ import pytest
 from gyrocal.cli import EXIT_BAD_INPUT, EXIT_OK, main
 from gyrocal.record.crash import CRASH_AT_ENV
 from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.samples import read_chunks
 from gyrocal.record.signing import generate_key_pair
 from gyrocal.reports.verify import verify_run_folder
 from tests.support.fork_server import ForkServer
@@ -53,7 +54,7 @@ def step_data(run: Path) -> dict[str, tuple[int, float, float]]:
     for event in folder.journal_events():
         if event.get("event") != "step_completed" or not event.get("chunks"):
             continue
-        gyro = folder.read_chunks(event["chunks"])["gyro"]
+        gyro = read_chunks(folder.path, event["chunks"])["gyro"]
         blocks = gyro[: len(gyro) // 62 * 62].reshape(-1, 62).mean(axis=1)
         out[event["step_id"]] = (len(gyro), float(gyro.mean()),
                                  float(blocks.std(ddof=1) / np.sqrt(len(blocks))))

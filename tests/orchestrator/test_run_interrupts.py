@@ -23,6 +23,7 @@ import pytest
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
 from gyrocal.record.journal import read_journal
 from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.samples import read_chunks
 
 pytestmark = pytest.mark.timeout(90)
 
@@ -98,7 +99,7 @@ def step_summary(run_dir: Path) -> dict[str, dict[str, Any]]:
     for event in folder.journal_events():
         if event["event"] != "step_completed" or "chunks" not in event:
             continue
-        gyro = folder.read_chunks(event["chunks"])["gyro"]
+        gyro = read_chunks(folder.path, event["chunks"])["gyro"]
         # Standard error from 0.25 s segment means: honest for correlated (1/f, RRW) noise too.
         segments = gyro[: len(gyro) // 62 * 62].reshape(-1, 62).mean(axis=1)
         summary[event["step_id"]] = {

@@ -49,7 +49,7 @@ def _hand_made_run(folder: Path, *, last_event: str, age_s: float) -> Path:
     (folder / "manifest.json").write_text(json.dumps(
         {"run_id": "R1", "state": "running", "pid": os.getpid(),
          "unit_under_test": {"serial": "SN-9"}}))
-    (folder / "plan.json").write_text(json.dumps({"steps": [
+    (folder / "plan.json").write_text(json.dumps({"sample_rate_hz": 200.0, "steps": [
         {"step_id": "T01.ramp", "kind": "ramp", "setpoint_c": 30.0, "rate_dps": 0.0,
          "expected_s": 600.0},
         {"step_id": "T01.soak", "kind": "soak", "setpoint_c": 30.0, "rate_dps": 0.0,
