@@ -112,6 +112,9 @@ class RunEngine:
         self._closing_from: int | None = None  # len(gate.deferred) when the close began
         self._t_run_start = self.clock.now_s()
         self._position_mode = False         # the table serves position mode (tilt steps)
+        #: whether this session has commanded an instrument yet: a fault before the first
+        #: command (identify, preflight's reads) leaves the rig as found, and says so
+        self._commanded = False
         self.conditions = Conditions(instruments, self.clock, self.machine, self.journal,
                                      self.progress, policy, elapsed_s=self._elapsed)
         self.acquisition = Acquisition(
@@ -250,6 +253,7 @@ class RunEngine:
         self.folder.update_manifest(instruments=identities)
         if self.inst.supply is not None and self.policy.unit_power is not None:
             powered_s = self.clock.now_s()
+            self._commanded = True
             power_on(self.inst.supply, self.policy.unit_power, self.journal)
             # a unit just switched on sends after its start-up delay (turn_on.py)
             wait_first_frame(self.inst.gyro, self.clock, powered_s, "preflight")
@@ -263,9 +267,11 @@ class RunEngine:
                                 "then start (or resume) the run")
         table = self.inst.table
         if not table.interlock_closed():
+            self._commanded = True
             table.close_interlock()
             if not table.interlock_closed():
                 raise RunFaultError("table: preflight: interlock is open and did not close")
+        self._commanded = True          # from here on the rig is ours: faults make it safe
         table.set_rate_mode()
         probe = self.inst.gyro
         probe.flush()
@@ -581,8 +587,11 @@ class RunEngine:
                             self.policy.table_retries, power.safe_action if power else None,
                             power.attempts if power else 3, table_hold=self.policy.table_hold)
         with self._gate.shielded():
-            outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock,
-                                self.inst.supply, self.inst.coil)
+            if self._commanded:
+                outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock,
+                                    self.inst.supply, self.inst.coil)
+            else:   # nothing to undo: commanding a rig we never drove would be the first move
+                outcome = SafeOutcome.nothing_commanded()
             outcome.print()
             if self.machine.state == "safing":
                 self.machine.safed()
@@ -591,7 +600,9 @@ class RunEngine:
                                     step_id=self._step_id, **fields)
                 self.journal.append(JournalEvent.SAFE_STATE, **outcome.journal_fields())
                 self.folder.update_manifest(state="faulted", ended_at=_now_text(),
-                                            last_fault=message, safe_confirmed=outcome.confirmed)
+                                            last_fault=message,
+                                            safe_confirmed=outcome.confirmed if outcome.commanded
+                                            else None)
             except OSError as exc:
                 # A full disk may refuse these lines too: the rig is safe already, and the
                 # console (above) is the record of it; the fault itself is still reported.
