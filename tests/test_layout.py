@@ -197,7 +197,6 @@ PYARROW_OUTSIDE_THE_RECORD = {
     "gyrocal.analysis.allan.sources": "streams external logs for `analyze allan`",
     "gyrocal.analysis.log_contract": "checks an external Parquet log's column types",
     "gyrocal.app.decode_capture": "writes the measured log decoded from a capture",
-    "discrepancy_scenarios": "writes synthetic logs (tests and benchmarks)",
 }
 
 

@@ -121,8 +121,8 @@ def test_a_simulator_error_is_shown_as_a_fault(tmp_path: Path) -> None:
     """Issue 28: the live page listed ``simulator_crashed`` as a fault while the run journals
     ``simulator_error`` (commands.py, when a simulated gyro dies), so the page never flagged
     it. The fault list is now JournalEvent members: what the run writes is what is matched."""
-    from gyrocal.orchestrator.record.journal import JournalEvent
-    from gyrocal.orchestrator.watch.snapshot import FAULT_EVENTS, read_snapshot
+    from gyrocal.app.watch.snapshot import FAULT_EVENTS, read_snapshot
+    from gyrocal.record.journal import JournalEvent
 
     run = _hand_made_run(tmp_path / "run", last_event="resumed", age_s=1)
     with Journal(run / "journal.jsonl") as journal:

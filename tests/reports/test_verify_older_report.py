@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from gyrocal.cli import main
-from gyrocal.orchestrator.signing import generate_key_pair
+from gyrocal.record.signing import generate_key_pair
 from gyrocal.reports.results import Results
 
 pytestmark = pytest.mark.timeout(300)
