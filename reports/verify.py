@@ -21,7 +21,8 @@ follows from the samples. In order, first failure wins:
    ``report_written`` with its hash; the report's own signature block (over
    the chain head that ``report_written`` chains to and the numbers); and the
    report's numbers recomputed from the samples (a report that does not
-   follow from the data fails);
+   follow from the data fails; a key the report lacks because an older
+   gyrocal built it is named, not compared);
    then every certificate (``certificate_written``) and every file set aside
    in ``orphans/`` after a crash (``orphan_set_aside``) on disk with its
    hash — named in the account, never counted — and no file in the folder
