@@ -22,8 +22,7 @@ from gyrocal.analysis.log_contract import (
     check_values,
 )
 from gyrocal.inputs import check_text_head, require_regular_file
-from gyrocal.record.journal import JournalEvent
-from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.samples import RunSamples
 
 __all__ = ["LogFormatError", "MeasuredLog", "read_measured_log", "validate_columns"]
 
@@ -163,16 +162,14 @@ def read_run_folder_log(run_dir: Path) -> MeasuredLog:
     chunks of bad or interrupted attempts stay on disk (nothing is deleted)
     but do not enter the analysis.
     """
-
-    folder = RunFolder.open(run_dir)
-    steps = [event for event in folder.journal_events()
-             if event.get("event") == JournalEvent.STEP_COMPLETED and event.get("chunks")]
+    record = RunSamples(run_dir)
+    steps = list(record.logged)
     if not steps:
         raise LogFormatError(f"{run_dir}: the run folder has no completed logged steps")
     # one read of every chunk (not one per step: on an overnight folder the per-step
     # copies and the per-sample label fill were half of the 10 s it took)
-    data, rows = folder.read_chunk_groups([event["chunks"] for event in steps], optional=("status",))
-    labels = np.repeat(np.array([event["step_id"] for event in steps], dtype=object), rows)
+    data, rows = record.steps_joined(steps, optional=("status",))
+    labels = np.repeat(np.array(steps, dtype=object), rows)
     status = data.pop("status", None)   # the only optional column read
     columns: dict[str, np.ndarray | None] = dict(data)
     if status is not None:

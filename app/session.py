@@ -18,6 +18,7 @@ from gyrocal.app.verdict import print_verdict
 from gyrocal.errors import EXIT_FAULT, BadInput
 from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments, open_instruments
+from gyrocal.instruments.sim.fault_plan import FaultPlan
 from gyrocal.instruments.sim.station_sim import SimulatedStation
 from gyrocal.orchestrator.engine import EnginePolicy, RunEngine
 from gyrocal.orchestrator.interrupts import ClosingSignals
@@ -206,10 +207,10 @@ def _engine(folder: RunFolder, journal, procedure: Procedure, plan: Plan,
             on_finished: Callable[[], None]) -> RunEngine:
     before_step = None
     if fault_plan is not None and simulated is not None:
-        fault_plan.arm_due(simulated, None, journal)
+        _arm_faults(fault_plan, simulated, None, journal)
 
         def before_step(step: Any) -> None:
-            fault_plan.arm_due(simulated, step.step_id, journal)
+            _arm_faults(fault_plan, simulated, step.step_id, journal)
 
     return RunEngine(folder, list(plan.steps), instruments, _policy(procedure),
                      progress=Progress(), on_finished=on_finished,
@@ -217,6 +218,15 @@ def _engine(folder: RunFolder, journal, procedure: Procedure, plan: Plan,
                      operator=_fixture_operator(procedure, folder, simulated),
                      mountings={m.name: m.up for m in procedure.mountings},
                      rehearsal=simulated)
+
+
+def _arm_faults(fault_plan: FaultPlan, simulated: Any, step_id: str | None, journal) -> None:
+    """Arm the dry run's injections due before ``step_id``; each one armed is journaled, so
+    the audit trail says which troubles were deliberate."""
+    for injection in fault_plan.arm_due(simulated, step_id):
+        journal.append(JournalEvent.FAULT_INJECTED, instrument=injection.role,
+                       fault=injection.fault, count=injection.count, params=injection.params,
+                       before_step=step_id, spec=injection.text)
 
 
 def _faulted(folder: RunFolder, journal, exc: Exception, simulated: Any) -> int:

@@ -44,6 +44,7 @@ from gyrocal.orchestrator.turn_on import power_cycle, wait_first_frame
 from gyrocal.orchestrator.unit_power import UnitPowerPolicy, power_on
 from gyrocal.orchestrator.unit_power import check as check_power
 from gyrocal.record.journal import JournalEvent
+from gyrocal.record.logged_steps import attempts_started, bad_attempts, counted_attempts
 from gyrocal.record.run_folder import RunFolder
 from gyrocal.record.step_kind import StepKind
 
@@ -119,30 +120,6 @@ class EnginePolicy:
     unit_power: UnitPowerPolicy | None = None   # the station's supply for the unit, if any
 
 
-def completed_steps(events: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
-    """step_id → its ``step_completed`` event, from the journal."""
-    return {e["step_id"]: e for e in events if e.get("event") == JournalEvent.STEP_COMPLETED}
-
-
-def bad_attempts(events: list[dict[str, Any]]) -> dict[str, int]:
-    """step_id → how many of its attempts were journaled bad (``step_bad``)."""
-    bad: dict[str, int] = {}
-    for event in events:
-        if event.get("event") == "step_bad" and "step_id" in event:
-            bad[event["step_id"]] = bad.get(event["step_id"], 0) + 1
-    return bad
-
-
-def attempts_started(events: list[dict[str, Any]]) -> dict[str, int]:
-    """step_id → the highest attempt number any ``step_started`` event gave it."""
-    last: dict[str, int] = {}
-    for event in events:
-        if event.get("event") == JournalEvent.STEP_STARTED and "step_id" in event:
-            step_id = event["step_id"]
-            last[step_id] = max(last.get(step_id, 0), int(event.get("attempt", 1)))
-    return last
-
-
 class RunEngine:
     """Executes the steps of a plan that the journal does not list as completed."""
 
@@ -182,6 +159,9 @@ class RunEngine:
         self._closing_from: int | None = None  # len(gate.deferred) when the close began
         self._t_run_start = self.clock.now_s()
         self._position_mode = False         # the table serves position mode (tilt steps)
+        #: whether this session has commanded an instrument yet: a fault before the first
+        #: command (identify, preflight's reads) leaves the rig as found, and says so
+        self._commanded = False
         self.conditions = Conditions(instruments, self.clock, self.machine, self.journal,
                                      self.progress, policy, elapsed_s=self._elapsed,
                                      completed_fields=self._completed_fields)
@@ -229,7 +209,7 @@ class RunEngine:
             try:
                 self._connect_and_preflight()
                 events = self.folder.journal_events()
-                done = completed_steps(events)
+                done = counted_attempts(events)
                 self._attempts_before = attempts_started(events)
                 self._bad_before = bad_attempts(events)
                 remaining = [s for s in self.steps if s.step_id not in done]
@@ -327,6 +307,7 @@ class RunEngine:
         self.folder.update_manifest(instruments=identities)
         if self.inst.supply is not None and self.policy.unit_power is not None:
             powered_s = self.clock.now_s()
+            self._commanded = True
             power_on(self.inst.supply, self.policy.unit_power, self.journal)
             # a unit just switched on sends after its start-up delay (turn_on.py)
             wait_first_frame(self.inst.gyro, self.clock, powered_s, "preflight")
@@ -340,9 +321,11 @@ class RunEngine:
                                 "then start (or resume) the run")
         table = self.inst.table
         if not table.interlock_closed():
+            self._commanded = True
             table.close_interlock()
             if not table.interlock_closed():
                 raise RunFaultError("table: preflight: interlock is open and did not close")
+        self._commanded = True          # from here on the rig is ours: faults make it safe
         table.set_rate_mode()
         probe = self.inst.gyro
         probe.flush()
@@ -701,8 +684,11 @@ class RunEngine:
                             self.policy.table_retries, power.safe_action if power else None,
                             power.attempts if power else 3, table_hold=self.policy.table_hold)
         with self._gate.shielded():
-            outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock,
-                                self.inst.supply, self.inst.coil)
+            if self._commanded:
+                outcome = make_safe(self.inst.table, self.inst.chamber, policy, self.clock,
+                                    self.inst.supply, self.inst.coil)
+            else:   # nothing to undo: commanding a rig we never drove would be the first move
+                outcome = SafeOutcome.nothing_commanded()
             outcome.print()
             if self.machine.state == "safing":
                 self.machine.safed()
@@ -711,7 +697,9 @@ class RunEngine:
                                     step_id=self._step_id, **fields)
                 self.journal.append(JournalEvent.SAFE_STATE, **outcome.journal_fields())
                 self.folder.update_manifest(state="faulted", ended_at=_now_text(),
-                                            last_fault=message, safe_confirmed=outcome.confirmed)
+                                            last_fault=message,
+                                            safe_confirmed=outcome.confirmed if outcome.commanded
+                                            else None)
             except OSError as exc:
                 # A full disk may refuse these lines too: the rig is safe already, and the
                 # console (above) is the record of it; the fault itself is still reported.

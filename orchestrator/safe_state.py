@@ -68,9 +68,21 @@ class SafeAction:
     attempts: int          # how many attempts it took (or were spent)
 
 
+#: What the console and the journal say when a run stops before it commanded anything.
+NOTHING_COMMANDED = ("nothing was commanded: the instruments are as they were found "
+                     "(no safe state was needed)")
+
+
 @dataclass(frozen=True)
 class SafeOutcome:
     actions: tuple[SafeAction, ...]
+    #: False when the run stopped before its first command (identify and preflight reads
+    #: only): no safe state was commanded, and "NOT CONFIRMED SAFE" would be untrue
+    commanded: bool = True
+
+    @classmethod
+    def nothing_commanded(cls) -> SafeOutcome:
+        return cls((), commanded=False)
 
     @property
     def confirmed(self) -> bool:
@@ -79,15 +91,21 @@ class SafeOutcome:
     def journal_fields(self) -> dict[str, Any]:
         return {"actions": {a.instrument: a.text for a in self.actions},
                 "confirmed": {a.instrument: a.confirmed for a in self.actions},
-                "attempts": {a.instrument: a.attempts for a in self.actions}}
+                "attempts": {a.instrument: a.attempts for a in self.actions},
+                **({} if self.commanded else {"commanded": False})}
 
     def summary(self) -> str:
+        if not self.commanded:
+            return NOTHING_COMMANDED
         if self.confirmed:
             return "instruments safe (confirmed by read-back)"
         return "INSTRUMENTS NOT CONFIRMED SAFE — check them by hand"
 
     def print(self, stream: TextIO | None = None) -> None:
         stream = stream if stream is not None else sys.stderr
+        if not self.commanded:
+            print(f"gyrocal: safe state: {NOTHING_COMMANDED}", file=stream, flush=True)
+            return
         colour = stream.isatty()
         for action in self.actions:
             text = action.text if action.confirmed or not colour else f"{RED}{action.text}{RESET}"

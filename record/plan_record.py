@@ -12,13 +12,14 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
 from typing import Any
 
 from gyrocal.models.gravity import STANDARD_GRAVITY_MPS2, local_gravity_g
 from gyrocal.record.atomic import write_bytes_atomic
+from gyrocal.record.run_folder import RunFolderError
 from gyrocal.record.step_kind import StepKind
 
 PLAN_RECORD = "plan.json"
@@ -81,10 +82,6 @@ def write_plan_record(run_dir: Path, procedure, plan) -> Path:
     return path
 
 
-def read_plan_record(run_dir: Path) -> dict[str, Any]:
-    return json.loads((Path(run_dir) / PLAN_RECORD).read_text())
-
-
 # -- reading, typed ----------------------------------------------------------------------------
 
 
@@ -113,6 +110,7 @@ class RecordedStep:
     angle_deg: float | None = None            # tilt steps: the table angle, deg
     band_dph: float | None = None             # turn-on steps: the stated band, deg/h
     off_s: float | None = None                # turn-on cycles: the cool-down, s
+    expected_s: float | None = None           # the plan's expected duration (ETA, live page)
 
     @classmethod
     def of(cls, raw: dict[str, Any]) -> RecordedStep:
@@ -124,7 +122,7 @@ class RecordedStep:
                    raw.get("linearity_tolerance_pct"), raw.get("fit_rates"),
                    raw.get("freq_hz"), raw.get("amplitude_dps"), raw.get("phase_at_hz"),
                    raw.get("field_t"), raw.get("angle_deg"), raw.get("band_dph"),
-                   raw.get("off_s"))
+                   raw.get("off_s"), raw.get("expected_s"))
 
 
 @dataclass(frozen=True)
@@ -146,11 +144,24 @@ class PlanRecord:
     unit_under_test_axis: str
     height_m: float = 0.0                 # the station's height (local gravity)
     gravity_mps2: float | None = None     # a measured local gravity, if the station gives one
+    #: the acceptance limits as the procedure gave them ({name, metric, max|min, unit, …})
+    acceptance: tuple[dict[str, Any], ...] = ()
+    #: the unit under test as the procedure declared it (serial, model, nominal SF…)
+    unit_under_test: dict[str, Any] = field(default_factory=dict)
+    procedure_name: str = ""
+    #: the run's sanity bound on the scale factor against the nominal (data_quality)
+    sf_tolerance_pct: float | None = None
+    #: the JSON as written: the report's provenance copies parts of it verbatim (procedure,
+    #: station site, instrument identities, uncertainty inputs), and only through here
+    raw: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
     def of(cls, raw: dict[str, Any]) -> PlanRecord:
-        site = (raw.get("station") or {}).get("site") or {}
+        station = raw.get("station") or {}
+        site = station.get("site") or {}
         latitude = site.get("latitude_deg")
+        sanity = raw.get("sanity") or {}
+        tolerance = sanity.get("sf_tolerance_pct")
         return cls(
             sample_rate_hz=float(raw["sample_rate_hz"]),
             steps=tuple(RecordedStep.of(s) for s in raw.get("steps", [])),
@@ -161,10 +172,20 @@ class PlanRecord:
             unit_under_test_axis=str(raw.get("unit_under_test_axis") or "x"),
             height_m=float(site.get("height_m") or 0.0),
             gravity_mps2=None if site.get("gravity_mps2") is None else float(site["gravity_mps2"]),
+            acceptance=tuple(dict(a) for a in raw.get("acceptance") or []),
+            unit_under_test=dict(raw.get("unit_under_test") or {}),
+            procedure_name=str((raw.get("procedure") or {}).get("name") or ""),
+            sf_tolerance_pct=None if tolerance is None else float(tolerance),
+            raw=raw,
         )
 
     def step(self, step_id: str) -> RecordedStep | None:
         return next((s for s in self.steps if s.step_id == step_id), None)
+
+    @property
+    def kinds(self) -> dict[str, StepKind]:
+        """step_id → kind (the Allan record is chosen among the holds)."""
+        return {s.step_id: s.kind for s in self.steps}
 
     @property
     def gravity_g(self) -> float:
@@ -174,6 +195,35 @@ class PlanRecord:
         return local_gravity_g(self.latitude_deg or 0.0, self.height_m)
 
 
+class PlanRecordError(RunFolderError):
+    """plan.json is missing or malformed (names the file); a bad-input error: exit 2."""
+
+
+class PlanRecordMissing(PlanRecordError):
+    """The run has no plan.json (yet: a run folder just created, or a damaged one)."""
+
+
 def load_plan_record(run_dir: Path) -> PlanRecord:
-    """plan.json of a run folder, typed (KeyError/ValueError name a malformed record)."""
-    return PlanRecord.of(read_plan_record(run_dir))
+    """plan.json of a run folder, typed: the one reader of the file.
+
+    Raises :class:`PlanRecordMissing` when there is none, :class:`PlanRecordError`
+    naming the file when it is not JSON or not a plan record.
+    """
+    path = Path(run_dir) / PLAN_RECORD
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise PlanRecordMissing(f"{path}: missing; the run wrote no plan record") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise PlanRecordError(f"{path}: cannot be read: {exc}") from None
+    try:
+        raw = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise PlanRecordError(f"{path}: not valid JSON: {exc}") from None
+    if not isinstance(raw, dict):
+        raise PlanRecordError(f"{path}: not a plan record (a JSON {type(raw).__name__}, "
+                              "expected an object)")
+    try:
+        return PlanRecord.of(raw)
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise PlanRecordError(f"{path}: malformed plan record: {exc!r}") from None

@@ -1,10 +1,11 @@
-"""The run folder: manifest, journal, sample chunks (see interfaces.md, "Run folder").
+"""The run folder: manifest, journal, sample chunks written (see interfaces.md, "Run folder").
 
 Everything an auditor needs to re-derive the report lives here: copies of the
 procedure and station as they were run (with SHA-256), the hash-chained
 journal, and the gyro samples in Parquet chunks whose hashes the journal
 records. Chunks are written atomically, so a crash loses at most the chunk
 being written; the journal says which chunks belong to which completed step.
+Chunks are read back through ``samples.py`` (the one reader of run chunks).
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ import json
 import shutil
 import time
 import uuid
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,7 +26,7 @@ from gyrocal import __version__
 from gyrocal.errors import BadInput
 from gyrocal.instruments.gyro.channels import CHANNEL_COLUMNS, CHANNEL_STATUS_COLUMNS
 from gyrocal.record.atomic import write_atomic, write_bytes_atomic
-from gyrocal.record.journal import Journal, read_journal, sha256_file
+from gyrocal.record.journal import Journal, JournalEvent, read_journal, sha256_file
 
 MANIFEST = "manifest.json"
 JOURNAL = "journal.jsonl"
@@ -51,8 +51,6 @@ OPTIONAL_SAMPLE_COLUMNS = ("gyro_x", "gyro_y", "gyro_z", "gyro_status", "status"
 #: (``gyro_temp_x_c``…) and each cluster's status byte. Not read unless asked for.
 SENSOR_COLUMNS = CHANNEL_COLUMNS + CHANNEL_STATUS_COLUMNS
 _UINT8_COLUMNS = frozenset(("gyro_status", "status") + CHANNEL_STATUS_COLUMNS)
-#: Chunk files read side by side.
-READ_THREADS = 2
 
 #: ``status`` bits: the gyro's status byte marks the sample saturated / in error
 #: for the unit under test. Analyses use only rows with ``status == 0``.
@@ -74,7 +72,7 @@ def identified_instruments(events: list[dict[str, Any]]) -> dict[str, dict[str, 
     """
     found: dict[str, dict[str, str]] = {}
     for event in events:
-        if event.get("event") == "instrument_identified" and event.get("role"):
+        if event.get("event") == JournalEvent.INSTRUMENT_IDENTIFIED and event.get("role"):
             found[str(event["role"])] = {key: event.get(key)
                                          for key in ("driver", "address", "description")}
     return found
@@ -216,36 +214,6 @@ class RunFolder:
         write_atomic(self.path / rel, lambda tmp: pq.write_table(table, tmp, compression="zstd"),
                      durable=self.durable)
         return ChunkRecord(str(rel), sha256_file(self.path / rel), rows)
-
-    def read_chunks(self, records: list[str]) -> dict[str, np.ndarray]:
-        """Concatenate the named chunks (relative paths) column by column."""
-        return self.read_chunk_groups([records])[0]
-
-    def read_chunk_groups(self, groups: list[list[str]], optional: tuple[str, ...] = OPTIONAL_SAMPLE_COLUMNS,
-                          ) -> tuple[dict[str, np.ndarray], list[int]]:
-        """Every group's chunks concatenated in one table, and the rows each group gave.
-
-        One read for a whole folder (a step's chunks are a group): per-step reads and
-        concatenations copied an overnight folder's 10 M samples twice more. Of the
-        optional columns only ``optional`` are read (those every chunk has).
-        """
-        records = [rel for group in groups for rel in group]
-        if not records:
-            return {name: np.empty(0) for name in SAMPLE_COLUMNS}, [0] * len(groups)
-
-        def read(rel: str) -> pa.Table:
-            chunk = pq.ParquetFile(self.path / rel)
-            names = set(chunk.schema_arrow.names)
-            return chunk.read(columns=[*SAMPLE_COLUMNS, *(n for n in optional if n in names)])
-
-        # parquet decoding releases the GIL: two readers share an overnight folder's ~700 files
-        with ThreadPoolExecutor(READ_THREADS) as pool:
-            tables = list(pool.map(read, records))
-        optional = tuple(name for name in optional if all(name in t.column_names for t in tables))
-        table = pa.concat_tables([t.select([*SAMPLE_COLUMNS, *optional]) for t in tables])
-        sizes = iter(t.num_rows for t in tables)
-        rows = [sum(next(sizes) for _ in group) for group in groups]
-        return {name: table.column(name).to_numpy() for name in (*SAMPLE_COLUMNS, *optional)}, rows
 
     def journal_events(self) -> list[dict[str, Any]]:
         path = self.path / JOURNAL

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import datetime as dt
 import hashlib
-import json
 import math
 import time
 from collections import defaultdict
@@ -36,8 +35,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from gyrocal.analysis.allan.summary import allan_curve, fit_curve
 from gyrocal.analysis.rate import rate_limits
@@ -54,12 +51,9 @@ from gyrocal.models.rate_units import output_to_dph
 from gyrocal.record.atomic import write_bytes_atomic
 from gyrocal.record.journal import Journal, JournalEvent, sha256_bytes
 from gyrocal.record.logged_steps import HOLD_KINDS, completed_attempts, longest_hold
-from gyrocal.record.plan_record import PLAN_RECORD, PlanRecord, RecordedStep
-from gyrocal.record.run_folder import (
-    RunFolder,
-    RunFolderError,
-    identified_instruments,
-)
+from gyrocal.record.plan_record import PlanRecord, RecordedStep, load_plan_record
+from gyrocal.record.run_folder import RunFolder, identified_instruments
+from gyrocal.record.samples import RunSamples
 from gyrocal.record.signing import Signer
 from gyrocal.record.step_kind import StepKind
 from gyrocal.record.strays import set_aside
@@ -91,8 +85,9 @@ REPORT_DIR = "report"
 RESULTS_FILE = "report/results.json"
 HTML_FILE = "report/report.html"
 _READ_COLUMNS = ["gyro", "sensor_temp_c", "chamber_temp_c"]
-_JOURNAL_SHOWN = ("retry", "fault", "step_bad", "interrupted", "safe_state", "resumed",
-                  "restore_conditions")
+_JOURNAL_SHOWN = (JournalEvent.RETRY, JournalEvent.FAULT, JournalEvent.STEP_BAD,
+                  JournalEvent.INTERRUPTED, JournalEvent.SAFE_STATE, JournalEvent.RESUMED,
+                  JournalEvent.RESTORE_CONDITIONS)
 
 
 @dataclass
@@ -118,7 +113,7 @@ class StepSummary:
 class RunData:
     folder: RunFolder
     manifest: dict[str, Any]
-    plan: dict[str, Any]
+    plan: dict[str, Any]          # plan.json as written (record.raw): the parts sections copy
     events: list[dict[str, Any]]
     record: PlanRecord            # plan.json, typed (the steps, rate, mountings, site)
     steps: list[StepSummary] = field(default_factory=list)
@@ -128,36 +123,9 @@ class RunData:
 
 # -- reading ------------------------------------------------------------------------------
 
-def _read_plan(folder: RunFolder) -> dict[str, Any]:
-    path = folder.path / PLAN_RECORD
-    if not path.is_file():
-        raise RunFolderError(f"{path}: missing; the report needs the plan record the run wrote")
-    try:
-        return json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise RunFolderError(f"{path}: not valid JSON: {exc}") from None
-
-
-def _read_columns(folder: RunFolder, chunks: list[str],
-                  names_read: tuple[str, ...] = tuple(_READ_COLUMNS)) -> dict[str, np.ndarray]:
-    """The analysed columns of a step's chunks, good samples only.
-
-    A chunk's ``status`` column (0 = good) marks the samples the gyro itself
-    flagged as saturated or in error; they are bad data, never averaged in.
-    Chunks written before the column existed have every sample good.
-    """
-    names = list(names_read)
-    schemas = [pq.read_schema(folder.path / rel).names for rel in chunks]
-    if all("status" in schema for schema in schemas):
-        names.append("status")
-    tables = [pq.read_table(folder.path / rel, columns=names) for rel in chunks]
-    table = pa.concat_tables(tables) if len(tables) > 1 else tables[0]
-    columns = {name: table.column(name).to_numpy() for name in names}
-    status = columns.pop("status", None)
-    if status is not None and np.any(status != 0):
-        good = status == 0
-        columns = {name: values[good] for name, values in columns.items()}
-    return columns
+def _good_columns(data: RunData, step_id: str, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """A step's counted attempt, the named columns, the samples the gyro flagged left out."""
+    return dict(RunSamples(data.folder.path, data.events).step(step_id, names).columns)
 
 
 def _unit_under_test_mountings(record: PlanRecord) -> set[str]:
@@ -216,26 +184,23 @@ def _mean_sem(kept: np.ndarray, step_id: str, notes: list[str]) -> tuple[float, 
 def read_run(run_dir: Path, notes: list[str]) -> RunData:
     """Read and reduce every completed logged step; keep the longest hold's samples."""
     folder = RunFolder.open(Path(run_dir))
-    plan = _read_plan(folder)
-    try:
-        record = PlanRecord.of(plan)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise RunFolderError(f"{folder.path / PLAN_RECORD}: malformed plan record: {exc!r}") from None
-    data = RunData(folder, folder.read_manifest(), plan, folder.journal_events(), record)
+    record = load_plan_record(folder.path)
+    data = RunData(folder, folder.read_manifest(), record.raw, folder.journal_events(), record)
     fs_hz = data.record.sample_rate_hz
     plan_steps = {s.step_id: s for s in data.record.steps}
-    done = completed_attempts(data.events)
-    hold = longest_hold(data.plan.get("steps", []), data.events)
+    run_samples = RunSamples(folder.path, data.events)
+    hold = longest_hold(data.record.kinds, data.events)
     longest = None if hold is None else hold["step_id"]
     own = _unit_under_test_mountings(data.record)
-    for step_id, event in done.items():
+    for step_id in run_samples.logged:
         step = plan_steps.get(step_id)
         if step is None:
             notes.append(f"step {step_id}: logged but not in plan.json; ignored")
             continue
         if step.mounting is not None and step.mounting not in own:
             continue    # another IMU axis up: only the ``imu`` section uses it
-        columns = _read_columns(folder, event["chunks"])
+        # good samples only: those the gyro flagged (saturated, in error) are never averaged in
+        columns = run_samples.step(step_id, _READ_COLUMNS).columns
         output = columns["gyro"]
         if output.size == 0:
             continue
@@ -291,7 +256,7 @@ def _scale_factor(data: RunData, notes: list[str]) -> list[ScaleFactorEntry]:
 
 def _imu(data: RunData, notes: list[str]) -> dict[str, Any] | None:
     latitude = ((data.plan.get("station") or {}).get("site") or {}).get("latitude_deg")
-    return imu_section(data.folder.path, data.plan, data.events, float(latitude or 0.0), notes)
+    return imu_section(data.folder.path, data.record, data.events, float(latitude or 0.0), notes)
 
 
 def _earth_rate_dph(plan: dict[str, Any], notes: list[str]) -> float:
@@ -364,15 +329,15 @@ def _allan(data: RunData, nominal_sf: float, notes: list[str]) -> AllanSection |
 def _journal_summary(events: list[dict[str, Any]]) -> dict[str, Any]:
     shown = [{k: v for k, v in e.items() if k != "prev_sha256"}
              for e in events if e.get("event") in _JOURNAL_SHOWN]
-    chunks = [e for e in events if e.get("event") == "chunk_written"]
+    chunks = [e for e in events if e.get("event") == JournalEvent.CHUNK_WRITTEN]
     digest = hashlib.sha256()
     for e in chunks:
         digest.update(f"{e['path']} {e['sha256']}\n".encode())
     return {
         "events": shown,
-        "retries": sum(1 for e in events if e.get("event") == "retry"),
-        "faults": sum(1 for e in events if e.get("event") == "fault"),
-        "bad_steps": sum(1 for e in events if e.get("event") == "step_bad"),
+        "retries": sum(1 for e in events if e.get("event") == JournalEvent.RETRY),
+        "faults": sum(1 for e in events if e.get("event") == JournalEvent.FAULT),
+        "bad_steps": sum(1 for e in events if e.get("event") == JournalEvent.STEP_BAD),
         "chunks": len(chunks),
         "samples_sha256": digest.hexdigest(),
         "event_count": len(events),
@@ -382,7 +347,7 @@ def _journal_summary(events: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def _recorded_identity(data: RunData) -> dict[str, Any]:
-    started = next((e for e in data.events if e.get("event") == "run_started"), {})
+    started = next((e for e in data.events if e.get("event") == JournalEvent.RUN_STARTED), {})
     identity = started.get("identity")
     return identity if isinstance(identity, dict) else dict(data.manifest)
 
@@ -471,10 +436,10 @@ def _other_sections(data: RunData, nominal_sf: float, notes: list[str]) -> dict[
     """imu … turn_on_repeatability: JSON-ready sections of their own modules, in file order."""
     return {
         "imu": _imu(data, notes),
-        "table_interference": interference_section(data.folder.path, data.plan, data.events,
+        "table_interference": interference_section(data.folder.path, data.record, data.events,
                                                    nominal_sf, notes),
         "magnetic": magnetic_section(data.steps, data.plan, data.events, nominal_sf, notes),
-        "tilt_linearity": tilt_section(data.folder.path, data.plan, data.events,
+        "tilt_linearity": tilt_section(data.folder.path, data.record, data.events,
                                        data.record.gravity_g, notes),
         "threshold": _threshold(data, nominal_sf, notes),
         "rate_limits": _rate_limits(data, notes),
@@ -547,15 +512,13 @@ def _threshold(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, 
 def _frequency_response(data: RunData, nominal_sf: float, notes: list[str]
                         ) -> dict[str, Any] | None:
     """Gain, phase, −3 dB bandwidth from the frequency steps' samples (reports/sections/frequency.py)."""
-    done = completed_attempts(data.events)
     order = {s.step_id: i for i, s in enumerate(data.record.steps)}
     dwells = []
     for s in sorted(data.steps, key=lambda s: order[s.step.step_id]):
         step = s.step
         if step.kind != StepKind.FREQUENCY_RESPONSE or step.freq_hz is None:
             continue
-        columns = _read_columns(data.folder, done[step.step_id]["chunks"],
-                                ("t_s", "gyro", "table_rate_dps"))
+        columns = _good_columns(data, step.step_id, ("t_s", "gyro", "table_rate_dps"))
         dwells.append(frequency_section.FrequencyDwell(
             step.step_id, step.setpoint_c, float(step.freq_hz), float(step.amplitude_dps or 0.0),
             float(step.phase_at_hz or step.freq_hz), columns["t_s"], columns["gyro"],
@@ -578,7 +541,7 @@ def _turn_on(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, An
         if cycle is None:
             notes.append(f"turn_on {step.step_id}: the journal has no power cycle; not reduced")
             continue
-        columns = _read_columns(data.folder, done[step.step_id]["chunks"], ("t_s", "gyro"))
+        columns = _good_columns(data, step.step_id, ("t_s", "gyro"))
         records.append(TurnOnRecord(
             step.step_id, step.setpoint_c, float(step.band_dph or 0.0),
             float(cycle["on_clock_s"]), float(cycle["first_frame_after_s"]),
@@ -592,7 +555,7 @@ def _repeatability(data: RunData, nominal_sf: float, notes: list[str]) -> dict[s
     cycles = []
     for step in data.record.steps:
         if step.kind == StepKind.TURN_ON_CYCLE and step.step_id in done:
-            columns = _read_columns(data.folder, done[step.step_id]["chunks"], ("t_s", "gyro"))
+            columns = _good_columns(data, step.step_id, ("t_s", "gyro"))
             cycles.append(CycleRecord(step.step_id, step.setpoint_c, columns["t_s"],
                                       columns["gyro"] / nominal_sf * 3600.0))
     return repeatability_section(cycles, notes)
@@ -680,14 +643,14 @@ def _run_info(data: RunData) -> RunInfo:
     manifest = data.manifest
     identity = _recorded_identity(data)
     recorded = {key: identity.get(key, manifest.get(key)) for key in IDENTITY_KEYS}
-    started = next((e for e in data.events if e.get("event") == "run_started"), {})
-    completed = [e for e in data.events if e.get("event") == "run_completed"]
+    started = next((e for e in data.events if e.get("event") == JournalEvent.RUN_STARTED), {})
+    completed = [e for e in data.events if e.get("event") == JournalEvent.RUN_COMPLETED]
     # The report of a run is built when its last step is done, before the run closes (the
     # report's hash goes into the closing line), so ended_at is not known yet: the time the
     # steps were done is, and it is what a certificate's "date of calibration" means.
-    done = [e for e in data.events if e.get("event") == "steps_done" and e.get("wall_time")]
+    done = [e for e in data.events if e.get("event") == JournalEvent.STEPS_DONE and e.get("wall_time")]
     # ... and the calibration began with its first step, not with connecting the instruments
-    first = next((e for e in data.events if e.get("event") == "step_started"
+    first = next((e for e in data.events if e.get("event") == JournalEvent.STEP_STARTED
                   and e.get("wall_time")), None)
     return RunInfo(
         recorded, run_mode(recorded["mode"]),
@@ -763,7 +726,7 @@ def _build(run_dir: Path, journal: Journal, signer: Signer | None) -> dict[str, 
 def _write_report(data: RunData, results: Results, journal: Journal,
                   signer: Signer | None) -> dict[str, Any]:
     """Sign (when a signer is given), write results.json and report.html; the file's object."""
-    started = next((e for e in data.events if e.get("event") == "run_started"), {})
+    started = next((e for e in data.events if e.get("event") == JournalEvent.RUN_STARTED), {})
     if signer is not None:
         unsigned = sha256_bytes(results_bytes(results.to_json()))
         signature = {"signed": True, **signer.sign_report(

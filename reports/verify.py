@@ -21,7 +21,8 @@ follows from the samples. In order, first failure wins:
    ``report_written`` with its hash; the report's own signature block (over
    the chain head that ``report_written`` chains to and the numbers); and the
    report's numbers recomputed from the samples (a report that does not
-   follow from the data fails);
+   follow from the data fails; a key the report lacks because an older
+   gyrocal built it is named, not compared);
    then every certificate (``certificate_written``) and every file set aside
    in ``orphans/`` after a crash (``orphan_set_aside``) on disk with its
    hash — named in the account, never counted — and no file in the folder
@@ -75,8 +76,8 @@ from gyrocal.reports.results import RECOMPUTED_KEYS, finite_or_none, results_byt
 
 #: Events a finished run may still gain after ``run_closed``: report rebuilds, certificates,
 #: what a cut-off session left set aside, and their seals.
-AFTER_CLOSE = ("report_written", "certificate_written", "orphan_set_aside",
-               "torn_tail_set_aside", SEAL_EVENT)
+AFTER_CLOSE = (JournalEvent.REPORT_WRITTEN, JournalEvent.CERTIFICATE_WRITTEN,
+               JournalEvent.ORPHAN_SET_ASIDE, JournalEvent.TORN_TAIL_SET_ASIDE, SEAL_EVENT)
 #: Relative tolerance of the recomputation (the same code on the same samples: rounding only).
 RECOMPUTE_RTOL = 1e-9
 
@@ -94,6 +95,9 @@ class VerifyResult:
     certificates: list[str] = field(default_factory=list)
     #: files a crash left unrecorded, set aside in orphans/ and never counted
     orphans: list[str] = field(default_factory=list)
+    #: results keys this gyrocal computes that the report lacks (built by an older gyrocal):
+    #: not compared, named
+    not_in_report: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -106,6 +110,9 @@ class VerifyResult:
                  f"the samples: {counts}{extra}"]
         lines += [f"  certificate {c}" for c in self.certificates]
         lines += [f"  set aside, never counted: {o}" for o in self.orphans]
+        if self.not_in_report:
+            lines.append(f"  not in this report (older gyrocal), not compared: "
+                         f"{', '.join(self.not_in_report)}")
         return "\n".join([*lines, f"  {self.authenticity}"])
 
 
@@ -395,21 +402,47 @@ def _report_signature(stored: dict[str, Any], path: Path, events: list[dict[str,
 
 def _recompute(folder: RunFolder, stored: dict[str, Any], results_path: Path,
                result: VerifyResult) -> None:
+    """Step 5: the report's numbers recomputed from the samples with this gyrocal.
+
+    What both the report and this gyrocal have must agree (a changed value fails). A key
+    this gyrocal computes but the report lacks was added after the report was built (an
+    older gyrocal wrote it): it cannot be compared, so it is named, not failed. A key the
+    report has and this gyrocal does not compute fails: the report states a number that
+    cannot be confirmed from the samples.
+    """
     notes: list[str] = []
     computed = compute_results(read_run(folder.path, notes), notes)
     fresh = json.loads(json.dumps(finite_or_none(computed.to_json())))
+    absent: list[str] = []
     for key in RECOMPUTED_KEYS:
-        difference = _first_difference(stored.get(key), fresh.get(key), key)
+        difference = _first_difference(stored.get(key, _ABSENT), fresh.get(key, _ABSENT),
+                                       key, absent)
         if difference is not None:
             raise _Mismatch(f"{results_path}: {difference}: the report does not follow from "
                             "the samples")
     result.checked["numbers recomputed"] = len(RECOMPUTED_KEYS)
+    result.not_in_report = absent
 
 
-def _first_difference(stored: Any, fresh: Any, where: str) -> str | None:
+#: A key one side of the comparison does not have (unlike a key whose value is null).
+_ABSENT = object()
+
+
+def _first_difference(stored: Any, fresh: Any, where: str, absent: list[str]) -> str | None:
+    """The first value the report and the recomputation disagree on, or None.
+
+    Keys only the recomputation has are appended to ``absent`` (see :func:`_recompute`).
+    """
+    if stored is _ABSENT and fresh is not _ABSENT:
+        absent.append(where)
+        return None
+    if fresh is _ABSENT:
+        return None if stored is None else \
+            f"{where} is {stored!r}, which this gyrocal does not compute"
     if isinstance(fresh, dict) and isinstance(stored, dict):
         for key in sorted(set(fresh) | set(stored)):
-            found = _first_difference(stored.get(key), fresh.get(key), f"{where}.{key}")
+            found = _first_difference(stored.get(key, _ABSENT), fresh.get(key, _ABSENT),
+                                      f"{where}.{key}", absent)
             if found:
                 return found
         return None
@@ -417,7 +450,7 @@ def _first_difference(stored: Any, fresh: Any, where: str) -> str | None:
         if len(fresh) != len(stored):
             return f"{where} has {len(stored)} entries, recomputed {len(fresh)}"
         for index, (a, b) in enumerate(zip(stored, fresh, strict=True)):
-            found = _first_difference(a, b, f"{where}[{index}]")
+            found = _first_difference(a, b, f"{where}[{index}]", absent)
             if found:
                 return found
         return None

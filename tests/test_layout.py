@@ -187,3 +187,38 @@ def test_no_product_module_sets_the_plotting_backend():
                 if any(n == "matplotlib.pyplot" or n == "pyplot" for n in names):
                     found.append(f"{module}: imports pyplot")
     assert found == []
+
+
+#: Product modules that may import pyarrow outside the run record (``record/``:
+#: ``samples.py`` reads run chunks, ``run_folder.py`` writes them). Each reads or writes a
+#: measured log a lab brings or gyrocal hands out, never a run's chunks:
+PYARROW_OUTSIDE_THE_RECORD = {
+    "gyrocal.analysis.measured_log": "reads an external measured log (CSV/Parquet)",
+    "gyrocal.analysis.allan.sources": "streams external logs for `analyze allan`",
+    "gyrocal.analysis.log_contract": "checks an external Parquet log's column types",
+    "gyrocal.app.decode_capture": "writes the measured log decoded from a capture",
+}
+
+
+def _pyarrow_importers() -> set[str]:
+    found = set()
+    for module, path in _modules().items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            if any(n == "pyarrow" or n.startswith("pyarrow.") for n in names):
+                found.add(module)
+    return found
+
+
+def test_only_the_run_record_reads_run_chunks_with_pyarrow():
+    """Issue 27: run chunks are read in one place (``record/samples.py``: the counted attempt,
+    flagged samples left out); no other product module imports pyarrow but the external-log
+    readers and writers named above."""
+    importers = _pyarrow_importers()
+    outside = sorted(m for m in importers if not m.startswith("gyrocal.record.")
+                     and m not in PYARROW_OUTSIDE_THE_RECORD)
+    assert outside == []
+    # not vacuous: the reader and the writer are found, and every exception still needs one
+    assert {"gyrocal.record.samples", "gyrocal.record.run_folder"} <= importers
+    assert sorted(set(PYARROW_OUTSIDE_THE_RECORD) - importers) == []

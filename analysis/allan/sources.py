@@ -36,8 +36,8 @@ from gyrocal.analysis.log_contract import (
 )
 from gyrocal.inputs import check_text_head, require_regular_file
 from gyrocal.record.logged_steps import longest_hold
-from gyrocal.record.plan_record import read_plan_record
-from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.plan_record import load_plan_record
+from gyrocal.record.samples import RunSamples
 
 #: Column names taken for time, in order of preference (the spec's first).
 TIME_NAMES = ("t_s", "time_s", "time", "t", "timestamp", "seconds", "sec")
@@ -320,20 +320,27 @@ def _rate_from_time(file: _File) -> float:
 
 
 def open_run_folder(run_dir: Path, column: str | None = None) -> RateRecord:
-    """The longest completed static/allan hold of a run folder, streamed from its chunks."""
+    """The longest completed static/allan hold of a run folder, streamed from its chunks.
 
-    folder = RunFolder.open(run_dir)
-    try:
-        steps = read_plan_record(run_dir).get("steps", [])
-    except (OSError, ValueError) as exc:
-        raise LogFormatError(f"{run_dir}: plan.json unreadable: {exc}") from None
-    longest = longest_hold(steps, folder.journal_events())
+    Through the run record (the counted attempt, samples the gyro flagged left out, as the
+    report's Allan curve reads them); the sample rate is the plan's.
+    """
+    record = load_plan_record(run_dir)
+    run = RunSamples(run_dir)
+    longest = longest_hold(record.kinds, list(run.logged.values()))
     if longest is None:
         raise LogFormatError(f"{run_dir}: no completed static or allan hold to analyse")
-    paths = [run_dir / rel for rel in longest["chunks"]]
-    record = open_log_files(paths, column or "gyro")
-    return RateRecord(f"{run_dir} step {longest['step_id']}", record.column, record.n_samples,
-                      record.rate_hz, record.blocks)
+    step_id, name = str(longest["step_id"]), column or "gyro"
+    source = f"{run_dir} step {step_id}"
+
+    def blocks() -> Iterator[np.ndarray]:
+        row0 = 0
+        for values in run.blocks(step_id, name):
+            check_values(values, source, name, 1, row0, line_word="sample")   # finite, physical
+            row0 += values.size
+            yield values
+
+    return RateRecord(source, name, run.count(step_id), record.sample_rate_hz, blocks)
 
 
 def open_record(paths: list[str | Path], column: str | None = None,

@@ -1,9 +1,10 @@
 """What the live page plots, read from the run's Parquet chunks as they land.
 
 Conditions (chamber temperature, table rate) come from each chunk's Parquet
-column statistics — the footer, not the data — so a night of chunks costs a
-few kilobytes per look; the gyro signal of the current step comes from its
-latest chunks, decimated to what a browser can draw.
+column statistics (the footer, not the data), so a night of chunks costs a few
+kilobytes per look; the gyro signal of the current step comes from its latest
+chunks, decimated to what a browser can draw. Both are read through the run
+record's one chunk reader (``record/samples.py``).
 """
 
 from __future__ import annotations
@@ -13,12 +14,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from gyrocal.app.watch.snapshot import PlanStep
 from gyrocal.record.journal import JournalEvent
 from gyrocal.record.run_folder import RunFolderError
+from gyrocal.record.samples import chunk_columns, chunk_ranges
 
 
 @dataclass(frozen=True)
@@ -43,37 +43,23 @@ def _chunk_stats(path: Path, step_id: str) -> ChunkStats | None:
     if key not in _stats_cache:
         try:
             _stats_cache[key] = _read_stats(path, step_id)
-        except (OSError, pa.ArrowException, TypeError, ValueError) as exc:
-            raise _damaged(path, exc) from None
+        except FileNotFoundError:
+            return None
     return _stats_cache[key]
 
 
-def _damaged(path: Path, exc: BaseException) -> RunFolderError:
-    """A chunk the journal names that cannot be read: name it, and what reading it said."""
-    text = str(exc).strip()
-    why = getattr(exc, "strerror", None) or (text.splitlines()[0] if text else type(exc).__name__)
-    return RunFolderError(f"{path}: cannot be read as a sample chunk ({why}); "
-                          "the run folder is damaged")
+def _damaged(path: Path, exc: OSError) -> RunFolderError:
+    """A chunk the journal names that cannot be reached: name it, and what the system said."""
+    return RunFolderError(f"{path}: cannot be read as a sample chunk "
+                          f"({exc.strerror or type(exc).__name__}); the run folder is damaged")
 
 
 def _read_stats(path: Path, step_id: str) -> ChunkStats | None:
-    meta = pq.ParquetFile(path).metadata
-    names = [meta.schema.column(i).name for i in range(meta.num_columns)]
-    lo: dict[str, float] = {}
-    hi: dict[str, float] = {}
-    for g in range(meta.num_row_groups):
-        group = meta.row_group(g)
-        for i, name in enumerate(names):
-            stats = group.column(i).statistics
-            if stats is None or not stats.has_min_max:
-                continue
-            lo[name] = min(lo.get(name, np.inf), float(stats.min))
-            hi[name] = max(hi.get(name, -np.inf), float(stats.max))
-    if not {"t_s", "chamber_temp_c", "table_rate_dps"} <= lo.keys():
+    ranges = chunk_ranges(path)
+    if not {"t_s", "chamber_temp_c", "table_rate_dps"} <= ranges.keys():
         return None
-    return ChunkStats(step_id, lo["t_s"], hi["t_s"],
-                      0.5 * (lo["chamber_temp_c"] + hi["chamber_temp_c"]),
-                      0.5 * (lo["table_rate_dps"] + hi["table_rate_dps"]))
+    (t0, t1), (c0, c1), (r0, r1) = (ranges[n] for n in ("t_s", "chamber_temp_c", "table_rate_dps"))
+    return ChunkStats(step_id, t0, t1, 0.5 * (c0 + c1), 0.5 * (r0 + r1))
 
 
 #: Chunks of one logged step follow each other within a sample period; a longer pause
@@ -126,13 +112,13 @@ def step_signal(run_dir: Path, events: list[dict[str, Any]], max_points: int = 1
     t_parts, g_parts = [], []
     for path in paths:
         try:
-            table = pq.read_table(path, columns=["t_s", "gyro"])
-            t_parts.append(np.asarray(table.column("t_s").to_numpy(), dtype=float))
-            g_parts.append(np.asarray(table.column("gyro").to_numpy(), dtype=float))
+            columns = chunk_columns(path, ("t_s", "gyro"))
         except FileNotFoundError:
             continue               # a chunk being replaced right now: the next look has it
-        except (OSError, pa.ArrowException, TypeError, ValueError, KeyError) as exc:
+        except OSError as exc:     # e.g. `samples` is a file
             raise _damaged(path, exc) from None
+        t_parts.append(columns["t_s"])
+        g_parts.append(columns["gyro"])
     if not t_parts:
         return {"step_id": step_id, "t_s": [], "gyro": []}
     t_s, gyro = np.concatenate(t_parts), np.concatenate(g_parts)

@@ -21,12 +21,13 @@ from typing import Any
 from gyrocal.record.event_text import describe_event
 from gyrocal.record.journal import JournalEvent
 from gyrocal.record.locks import LockHolder, holder
+from gyrocal.record.logged_steps import counted_attempts
+from gyrocal.record.plan_record import PlanRecordMissing, load_plan_record
 from gyrocal.record.run_folder import JOURNAL, MANIFEST, RunFolderError
 
-PLAN_FILE = "plan.json"
-
 #: Journal events a person watching the run must see at once.
-FAULT_EVENTS = frozenset({"fault", "interrupted", "step_bad", "simulator_crashed"})
+FAULT_EVENTS = frozenset({JournalEvent.FAULT, JournalEvent.INTERRUPTED, JournalEvent.STEP_BAD,
+                          JournalEvent.SIMULATOR_ERROR})
 #: With the controller alive, this long without a journal event is worth a warning.
 STALE_AFTER_S = 15 * 60.0
 
@@ -132,13 +133,13 @@ def _list_of(path: Path, key: str, value: Any, item: type) -> list[Any]:
 
 
 def read_plan(run_dir: Path) -> list[PlanStep]:
-    path = Path(run_dir) / PLAN_FILE
-    if not path.exists():
+    """The plan's steps from plan.json (through the record's one reader); none before it exists."""
+    try:
+        record = load_plan_record(run_dir)
+    except PlanRecordMissing:
         return []
-    steps = _list_of(path, "steps", read_json_object(path).get("steps"), dict)
-    return [PlanStep(str(s.get("step_id")), str(s.get("kind")), _num(s.get("setpoint_c")),
-                     _num(s.get("rate_dps")) or 0.0, _num(s.get("expected_s")) or 0.0)
-            for s in steps]
+    return [PlanStep(s.step_id, str(s.kind), s.setpoint_c, s.rate_dps, s.expected_s or 0.0)
+            for s in record.steps]
 
 
 def read_snapshot(run_dir: Path, *, now: float | None = None, last_events: int = 20) -> RunSnapshot:
@@ -152,8 +153,7 @@ def read_snapshot(run_dir: Path, *, now: float | None = None, last_events: int =
     plan = read_plan(run_dir)
     step_ids = [s.step_id for s in plan] or [
         str(s) for s in _list_of(manifest_path, "steps", manifest.get("steps"), str)]
-    done = [str(e["step_id"]) for e in events
-            if e.get("event") == JournalEvent.STEP_COMPLETED and "step_id" in e]
+    done = list(counted_attempts(events))     # the engine's rule: a completed step counts once
     done_set = set(done)
     remaining = [s for s in step_ids if s not in done_set]
     current = remaining[0] if remaining else None

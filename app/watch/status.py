@@ -14,6 +14,7 @@ from pathlib import Path
 
 from gyrocal.app.watch.snapshot import RunSnapshot, read_snapshot
 from gyrocal.orchestrator.engine import PAUSE_FILE
+from gyrocal.record.journal import JournalEvent
 from gyrocal.units import format_hms
 
 #: How every view of a dry run says what it is (status, the live page, the report's banner).
@@ -50,7 +51,7 @@ def status_text(snap: RunSnapshot) -> str:
         lines.append(f"  held by: {snap.lock.describe()}")
     else:
         lines.append("  held by: " + ("a live controller" if snap.live else "nobody"))
-    retries = sum(1 for e in snap.events if e.event == "retry")
+    retries = sum(1 for e in snap.events if e.event == JournalEvent.RETRY)
     lines.append(f"  faults: {len(snap.faults)}; retries (last {len(snap.events)} events): "
                  f"{retries}")
     if snap.last_fault:

@@ -96,18 +96,21 @@ class FaultPlan:
                     f"--inject {injection.text!r}: the plan has no step {injection.before_step!r}; "
                     f"see `gyrocal plan` for the step ids")
 
-    def arm_due(self, simulated, step_id: str | None, journal=None) -> None:
-        """Arm every injection whose step has come (``step_id`` None: the ones from the start)."""
+    def arm_due(self, simulated, step_id: str | None) -> list[FaultInjection]:
+        """Arm every injection whose step has come (``step_id`` None: the ones from the start).
+
+        Returns what was armed, for the run to journal (``fault_injected``): the run record
+        is the orchestrator's, not the simulators'.
+        """
         injectors = {"chamber": simulated.chamber_faults, "table": simulated.table_faults,
                      "gyro": simulated.gyro_faults, "fixture": simulated.fixture_faults,
                      "supply": simulated.supply_faults}
+        armed = []
         for index, injection in enumerate(self.injections):
             if index in self._armed or injection.before_step not in (None, step_id):
                 continue
             injectors[injection.role].arm(injection.fault, count=injection.count,
                                           **injection.params)
             self._armed.add(index)
-            if journal is not None:
-                journal.append("fault_injected", instrument=injection.role,
-                               fault=injection.fault, count=injection.count,
-                               params=injection.params, before_step=step_id, spec=injection.text)
+            armed.append(injection)
+        return armed

@@ -17,6 +17,12 @@ from typing import Any
 
 import duckdb
 
+from gyrocal.record.plan_record import (
+    PlanRecord,
+    PlanRecordError,
+    PlanRecordMissing,
+    load_plan_record,
+)
 from gyrocal.reports.runs.metrics import metric_values
 
 SCHEMA = """
@@ -63,6 +69,16 @@ def _read_json(path: Path) -> dict[str, Any] | None:
     return data if isinstance(data, dict) else None
 
 
+def _plan(folder: Path) -> PlanRecord | None:
+    """The run's plan record (the record's one reader), None when the run wrote none."""
+    try:
+        return load_plan_record(folder)
+    except PlanRecordMissing:
+        return None
+    except PlanRecordError as exc:
+        raise RunsDatabaseError(str(exc)) from None
+
+
 def connect(db_path: Path) -> duckdb.DuckDBPyConnection:
     con = duckdb.connect(str(db_path))
     con.execute(SCHEMA)
@@ -80,16 +96,16 @@ def index_runs(db_path: Path, roots: list[Path]) -> IndexSummary:
             run_id = str(manifest.get("run_id") or folder.name)
             uut = (results or {}).get("unit_under_test") or manifest.get("unit_under_test") or {}
             serial = str(uut.get("serial", "")) if isinstance(uut, dict) else ""
-            plan = _read_json(folder / "plan.json") or {}
-            if not serial:
-                serial = str((plan.get("unit_under_test") or {}).get("serial", ""))
+            plan = _plan(folder)
+            if not serial and plan is not None:
+                serial = str(plan.unit_under_test.get("serial", ""))
             started = _timestamp(manifest.get("started_at"))
             con.execute("DELETE FROM runs WHERE run_id = ?", [run_id])
             con.execute("DELETE FROM metrics WHERE run_id = ?", [run_id])
             con.execute(
                 "INSERT INTO runs VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, current_timestamp::TIMESTAMP)",
                 [run_id, str(folder), serial, str(uut.get("model", "")) if isinstance(uut, dict)
-                 else "", str((plan.get("procedure") or {}).get("name", "")),
+                 else "", plan.procedure_name if plan is not None else "",
                  str(manifest.get("station_name") or ""), str(manifest.get("state") or ""),
                  str(manifest.get("mode") or ""), manifest.get("seed") if isinstance(
                      manifest.get("seed"), int) else None,

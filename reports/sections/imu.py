@@ -39,17 +39,14 @@ def read_imu_dwells(run_dir: Path, plan: PlanRecord, events: list[dict[str, Any]
     dwells = []
     for logged in mounted_steps(run_dir, plan, events, StepKind.DWELL, _AXIS_COLUMNS, notes,
                                 "imu: step {step_id} has no three-axis columns; left out"):
-        table, step = logged.table, logged.step
-        if "status" in table.column_names:
-            good = table.column("status").to_numpy() == 0
-        else:
-            good = np.ones(table.num_rows, dtype=bool)
+        samples, step = logged.samples, logged.step
+        good = logged.good(("status",))
         turns = step.revolutions
         whole = int(turns) if turns and float(turns).is_integer() else "all"
-        means = [dwell_mean(table.column(c).to_numpy()[good], fs_hz, 0.0, step.rate_dps,
+        means = [dwell_mean(samples[c][good], fs_hz, 0.0, step.rate_dps,
                             revolutions=whole) for c in _AXIS_COLUMNS]
         dwells.append(ImuDwell(logged.step_id, step.temp_index, step.setpoint_c,
-                               unit_temp_c(table, good), logged.mounting, step.rate_dps,
+                               unit_temp_c(samples, good), logged.mounting, step.rate_dps,
                                np.array([m.mean for m in means]), means[0].n_samples))
     return dwells
 
@@ -106,12 +103,11 @@ def _check_table(fits: list[MatrixFit]) -> list[dict[str, Any]]:
     return check_rows(fits, lambda f: f.bias_output, residual, summary)
 
 
-def imu_section(run_dir: Path, plan: dict[str, Any], events: list[dict[str, Any]],
+def imu_section(run_dir: Path, record: PlanRecord, events: list[dict[str, Any]],
                 latitude_deg: float, notes: list[str]) -> dict[str, Any] | None:
     """The ``imu`` block of results.json, or None for a single-axis plan."""
-    if not plan.get("mountings"):
+    if not record.mountings:
         return None
-    record = PlanRecord.of(plan)
     accelerometers = accelerometer_section(run_dir, record, events, notes)
     dwells = read_imu_dwells(run_dir, record, events, notes)
     if not dwells:
@@ -126,8 +122,8 @@ def imu_section(run_dir: Path, plan: dict[str, Any], events: list[dict[str, Any]
     if len(fits) < 3:
         notes.append(f"imu compensation: {len(fits)} temperature(s); tables need ≥ 3")
     return {
-        "mountings": plan.get("mountings"),
-        "mounting_order": plan.get("mounting_order"),
+        "mountings": record.raw.get("mountings"),
+        "mounting_order": record.raw.get("mounting_order"),
         "definitions": {
             "sensitivity": "S_ij: output units per deg/s of body rate about axis j",
             "misalignment_urad": "E_ij = S_ij / S_ii (axis i senses E_ij of the rate about j)",

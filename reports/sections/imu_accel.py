@@ -58,15 +58,11 @@ def read_statics(run_dir: Path, plan: PlanRecord, events: list[dict[str, Any]],
     statics = []
     for logged in mounted_steps(run_dir, plan, events, StepKind.STATIC, _ACC_COLUMNS, notes,
                                 "imu accelerometers: step {step_id} logged no acc_x_g…; left out"):
-        table, step = logged.table, logged.step
-        good = np.ones(table.num_rows, dtype=bool)
-        if "acc_status" in table.column_names:
-            good &= table.column("acc_status").to_numpy() == 0
-        if "status" in table.column_names:
-            good &= table.column("status").to_numpy() == 0
-        means = [static_mean(table.column(c).to_numpy()[good]) for c in _ACC_COLUMNS]
+        samples, step = logged.samples, logged.step
+        good = logged.good(("acc_status", "status"))
+        means = [static_mean(samples[c][good]) for c in _ACC_COLUMNS]
         statics.append(AccStatic(logged.step_id, step.temp_index, step.setpoint_c,
-                                 unit_temp_c(table, good),
+                                 unit_temp_c(samples, good),
                                  logged.mounting, np.array([m for m, _ in means]),
                                  np.array([u for _, u in means]), int(good.sum())))
     return statics

@@ -12,29 +12,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow.parquet as pq
 
 from gyrocal.analysis.environment.interference import compare
 from gyrocal.models.rate_units import output_to_dph
-from gyrocal.record.logged_steps import completed_attempts
 from gyrocal.record.plan_record import PlanRecord
+from gyrocal.record.samples import RunSamples
 from gyrocal.record.step_kind import StepKind
 
 
-def _gyro(run_dir: Path, event: dict[str, Any]) -> np.ndarray:
-    parts = []
-    for rel in event["chunks"]:
-        table = pq.read_table(Path(run_dir) / rel, columns=["gyro", "status"])
-        good = table.column("status").to_numpy() == 0
-        parts.append(table.column("gyro").to_numpy()[good])
-    return np.concatenate(parts)
-
-
-def interference_section(run_dir: Path, plan: dict[str, Any], events: list[dict[str, Any]],
+def interference_section(run_dir: Path, record: PlanRecord, events: list[dict[str, Any]],
                          nominal_sf: float, notes: list[str]) -> list[dict[str, Any]] | None:
     """One entry per compared pair, or None when the plan has no drive-off step."""
-    record = PlanRecord.of(plan)
-    done = completed_attempts(events)
+    done = RunSamples(run_dir, events)
     out = []
     for step in record.steps:
         if step.kind != StepKind.DRIVE_OFF:
@@ -43,8 +32,9 @@ def interference_section(run_dir: Path, plan: dict[str, Any], events: list[dict[
         if step.step_id not in done or powered_id not in done:
             notes.append(f"table interference: {step.step_id} or {powered_id} not completed")
             continue
-        powered = output_to_dph(_gyro(run_dir, done[powered_id]), nominal_sf)
-        off = output_to_dph(_gyro(run_dir, done[step.step_id]), nominal_sf)
+        # good samples only: those the gyro flagged are never analysed
+        powered = output_to_dph(done.step(powered_id, ("gyro",))["gyro"], nominal_sf)
+        off = output_to_dph(done.step(step.step_id, ("gyro",))["gyro"], nominal_sf)
         try:
             result = compare(np.asarray(powered), np.asarray(off), record.sample_rate_hz)
         except ValueError as exc:

@@ -16,38 +16,32 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow.parquet as pq
 
 from gyrocal.analysis.environment.tilt_linearity import (
     lateral_sensitivity_pct,
     linearity,
     zero_stability,
 )
-from gyrocal.record.logged_steps import completed_attempts
 from gyrocal.record.plan_record import PlanRecord
+from gyrocal.record.samples import RunSamples
 from gyrocal.record.step_kind import StepKind
 
 SENSITIVE, LATERAL = "incl_x_g", "incl_y_g"
 
 
-def _columns(run_dir: Path, event: dict[str, Any]) -> dict[str, np.ndarray]:
-    parts: dict[str, list[np.ndarray]] = {SENSITIVE: [], LATERAL: []}
-    for rel in event["chunks"]:
-        table = pq.read_table(Path(run_dir) / rel)
-        if SENSITIVE not in table.column_names:
-            raise ValueError(f"{rel} has no {SENSITIVE} column (the gyro datagram carries no "
-                             "inclinometers)")
-        good = table.column("status").to_numpy() == 0
-        for name in parts:
-            parts[name].append(table.column(name).to_numpy()[good])
-    return {name: np.concatenate(values) for name, values in parts.items()}
+def _columns(run: RunSamples, step_id: str) -> dict[str, np.ndarray]:
+    """The two inclinometer channels of a step's counted attempt, good samples only."""
+    logged = run.step(step_id, (SENSITIVE, LATERAL))
+    if SENSITIVE not in logged or LATERAL not in logged:
+        raise ValueError(f"step {step_id} has no {SENSITIVE} column (the gyro datagram carries "
+                         "no inclinometers)")
+    return {SENSITIVE: logged[SENSITIVE], LATERAL: logged[LATERAL]}
 
 
-def tilt_section(run_dir: Path, plan: dict[str, Any], events: list[dict[str, Any]],
+def tilt_section(run_dir: Path, record: PlanRecord, events: list[dict[str, Any]],
                  gravity_g: float, notes: list[str]) -> list[dict[str, Any]] | None:
     """One entry per tilt_linearity test, or None when the plan has none."""
-    record = PlanRecord.of(plan)
-    done = completed_attempts(events)
+    done = RunSamples(run_dir, events)
     groups: dict[str, list] = {}
     for step in record.steps:
         if step.kind == StepKind.TILT:
@@ -59,22 +53,22 @@ def tilt_section(run_dir: Path, plan: dict[str, Any], events: list[dict[str, Any
             notes.append(f"tilt linearity {head}: not completed: {', '.join(missing)}")
             continue
         try:
-            out.append(_entry(run_dir, head, steps, done, record.sample_rate_hz, gravity_g))
+            out.append(_entry(done, head, steps, record.sample_rate_hz, gravity_g))
         except ValueError as exc:
             notes.append(f"tilt linearity {head}: {exc}")
     return out or None
 
 
-def _entry(run_dir: Path, head: str, steps, done, fs_hz: float, gravity_g: float) -> dict:
+def _entry(run: RunSamples, head: str, steps, fs_hz: float, gravity_g: float) -> dict:
     points = [s for s in steps if not s.step_id.endswith(".zero")]
     zero = next(s for s in steps if s.step_id.endswith(".zero"))
-    means = [{k: float(np.mean(v)) for k, v in _columns(run_dir, done[s.step_id]).items()}
+    means = [{k: float(np.mean(v)) for k, v in _columns(run, s.step_id).items()}
              for s in points]
     angles = [float(s.angle_deg) for s in points]
     fit = linearity(angles, [m[SENSITIVE] for m in means], gravity_g)
     lateral = lateral_sensitivity_pct(angles, [m[LATERAL] for m in means], fit.sensitivity,
                                       gravity_g)
-    held = _columns(run_dir, done[zero.step_id])[SENSITIVE]
+    held = _columns(run, zero.step_id)[SENSITIVE]
     per_s = max(1, int(round(fs_hz)))
     seconds = held[: held.size // per_s * per_s].reshape(-1, per_s).mean(axis=1)
     return {"test": head, "angles_deg": angles,

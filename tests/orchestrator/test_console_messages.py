@@ -10,6 +10,7 @@ closed loopback ports, a loopback TCP server that answers HTTP, a pty for the gy
 from __future__ import annotations
 
 import io
+import json
 import os
 import socket
 import threading
@@ -131,3 +132,81 @@ def test_describe_reply_and_the_retry_console_collapse() -> None:
     assert out.getvalue().splitlines() == [
         "gyrocal: table: *IDN?: no reply; retried 8 times",
         "gyrocal: chamber: read 100: no reply; retried once"]
+
+
+class CutAfterProxy:
+    """A loopback TCP relay to ``target`` that goes silent from the first request starting
+    with ``cut_at`` on: that request and every later one (on any connection) get no reply,
+    as a chamber whose cable is pulled at that moment."""
+
+    def __init__(self, target: tuple[str, int], cut_at: bytes) -> None:
+        self.target, self.cut_at = target, cut_at
+        self.cut = threading.Event()
+        self.server = socket.create_server(("127.0.0.1", 0))
+        self.port = self.server.getsockname()[1]
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self) -> None:
+        while True:
+            try:
+                client, _ = self.server.accept()
+                upstream = socket.create_connection(self.target)
+            except OSError:
+                return
+            threading.Thread(target=self._pipe, args=(client, upstream, True), daemon=True).start()
+            threading.Thread(target=self._pipe, args=(upstream, client, False), daemon=True).start()
+
+    def _pipe(self, source: socket.socket, sink: socket.socket, requests: bool) -> None:
+        try:
+            while data := source.recv(65536):
+                if requests and data.startswith(self.cut_at):
+                    self.cut.set()
+                if not self.cut.is_set():
+                    sink.sendall(data)
+        except OSError:
+            pass
+
+    def close(self) -> None:
+        self.server.close()
+
+
+#: The first request of the chamber's preflight status read, after identify (which reads
+#: registers 0-2, 606 and 901): Modbus RTU, unit 1, function 0x03 "Read Holding Registers"
+#: from register 200 (0x00C8) — Modbus Application Protocol V1.1b3 §6.3 (function code,
+#: starting address hi/lo); Modbus over Serial Line V1.02 §2.5.1 (address field first).
+#: Register 200 is the F4's run state (instruments/chamber/watlow_f4.py, "profile_state").
+READ_RUN_STATE = bytes([0x01, 0x03, 0x00, 0xC8])
+
+
+def test_a_chamber_lost_in_preflight_after_identify_says_nothing_was_commanded(
+        tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 28: the instruments identified, then the chamber stops answering at preflight's
+    first status read. Nothing has been commanded yet, so the console says so (and the run
+    commands no safe state into a rig it never drove), never "NOT CONFIRMED SAFE"."""
+    from tests.orchestrator.test_locks import write_live_procedure
+    from tests.support.sim_serve import served_station
+
+    monkeypatch.setenv(LOCK_DIR_ENV, str(tmp_path / "locks"))
+    with served_station(tmp_path / "live-station.yaml") as live:
+        station = yaml.safe_load(live.read_text())
+        chamber_port = int(station["chamber"]["address"].rsplit(":", 1)[1])
+        proxy = CutAfterProxy(("127.0.0.1", chamber_port), READ_RUN_STATE)
+        station["chamber"]["address"] = f"socket://127.0.0.1:{proxy.port}"
+        cut = tmp_path / "cut-station.yaml"
+        cut.write_text(yaml.safe_dump(station, sort_keys=False))
+        try:
+            capsys.readouterr()
+            code = main(["run", str(write_live_procedure(tmp_path, live)), "--station", str(cut),
+                         "--out", str(tmp_path / "run")])
+            err = capsys.readouterr().err
+        finally:
+            proxy.close()
+    assert proxy.cut.is_set(), err           # the chamber went silent where the test meant
+    assert code == EXIT_FAULT, err
+    assert "nothing was commanded" in err and "NOT CONFIRMED SAFE" not in err, err
+    events = [json.loads(line)["event"] for line in
+              (tmp_path / "run" / "journal.jsonl").read_text().splitlines()]
+    assert events.count("instrument_identified") == 3 and "preflight_ok" not in events
+    safe = [json.loads(line) for line in (tmp_path / "run" / "journal.jsonl").read_text()
+            .splitlines() if '"event":"safe_state"' in line]
+    assert len(safe) == 1 and safe[0]["commanded"] is False and safe[0]["actions"] == {}

@@ -32,6 +32,7 @@ import pytest
 from gyrocal.cli import EXIT_BAD_INPUT, EXIT_OK, main
 from gyrocal.record.crash import CRASH_AT_ENV
 from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.samples import read_chunks
 from gyrocal.record.signing import generate_key_pair
 from gyrocal.reports.verify import verify_run_folder
 from tests.support.fork_server import ForkServer
@@ -62,7 +63,7 @@ def step_data(run: Path) -> dict[str, dict[str, bytes]]:
     for event in folder.journal_events():
         if event.get("event") != "step_completed" or not event.get("chunks"):
             continue
-        columns = folder.read_chunks(event["chunks"])
+        columns = read_chunks(folder.path, event["chunks"])
         out[event["step_id"]] = {name: np.asarray(columns[name]).dtype.str.encode()
                                  + np.asarray(columns[name]).tobytes() for name in columns}
     return out

@@ -24,6 +24,7 @@ from gyrocal.orchestrator.engine import EnginePolicy, RunEngine
 from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.run_errors import RunFaultError
 from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.samples import read_chunks
 from gyrocal.record.step_kind import StepKind
 
 FS_HZ = 100.0
@@ -215,7 +216,7 @@ def test_a_clean_plan_runs_every_step_once_and_logs_the_table_rate(tmp_path: Pat
     assert completed(folder) == [s.step_id for s in PLAN]
     chunks = [e for e in events(folder) if e["event"] == "chunk_written"
               and e["step_id"] == "T01.sf.-20dps"]
-    data = folder.read_chunks([c["path"] for c in chunks])
+    data = read_chunks(folder.path, [c["path"] for c in chunks])
     assert len(data["gyro"]) == 200                        # 2 s at 100 Hz
     assert np.all(data["gyro"] == -20.0) and np.all(data["gyro_x"] == -20.0)
     assert np.all(data["status"] == 0) and np.all(data["gyro_status"] == 0)

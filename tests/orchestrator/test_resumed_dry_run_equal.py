@@ -31,6 +31,7 @@ import pytest
 from gyrocal.cli import main
 from gyrocal.record.crash import CRASH_AT_ENV
 from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.samples import read_chunks
 from tests.support.fork_server import ForkServer
 
 #: results.json keys that name the run, a wall time, a loopback address, or count the
@@ -50,7 +51,7 @@ def counted_samples(run: Path) -> dict[str, tuple[int, dict[str, np.ndarray]]]:
     out = {}
     for event in folder.journal_events():
         if event.get("event") == "step_completed" and event.get("chunks"):
-            out[event["step_id"]] = (event["attempt"], dict(folder.read_chunks(event["chunks"])))
+            out[event["step_id"]] = (event["attempt"], dict(read_chunks(folder.path, event["chunks"])))
     return out
 
 

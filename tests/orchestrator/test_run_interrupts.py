@@ -24,6 +24,7 @@ import pytest
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
 from gyrocal.record.journal import read_journal
 from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.samples import read_chunks
 
 pytestmark = pytest.mark.timeout(90)
 
@@ -99,7 +100,7 @@ def step_summary(run_dir: Path) -> dict[str, dict[str, Any]]:
     for event in folder.journal_events():
         if event["event"] != "step_completed" or "chunks" not in event:
             continue
-        columns = folder.read_chunks(event["chunks"])
+        columns = read_chunks(folder.path, event["chunks"])
         gyro = np.asarray(columns["gyro"])
         summary[event["step_id"]] = {
             "samples": event["samples"], "rows": len(gyro), "gyro": gyro.tobytes(),

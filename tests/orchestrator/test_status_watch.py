@@ -49,7 +49,7 @@ def _hand_made_run(folder: Path, *, last_event: str, age_s: float) -> Path:
     (folder / "manifest.json").write_text(json.dumps(
         {"run_id": "R1", "state": "running", "pid": os.getpid(),
          "unit_under_test": {"serial": "SN-9"}}))
-    (folder / "plan.json").write_text(json.dumps({"steps": [
+    (folder / "plan.json").write_text(json.dumps({"sample_rate_hz": 200.0, "steps": [
         {"step_id": "T01.ramp", "kind": "ramp", "setpoint_c": 30.0, "rate_dps": 0.0,
          "expected_s": 600.0},
         {"step_id": "T01.soak", "kind": "soak", "setpoint_c": 30.0, "rate_dps": 0.0,
@@ -115,3 +115,20 @@ def test_watch_is_read_only_and_needs_a_token_off_loopback(tmp_path: Path) -> No
         assert _get(f"http://127.0.0.1:{port}/api/snapshot?token={shared.token}")[0] == 200
     finally:
         shared.stop()
+
+
+def test_a_simulator_error_is_shown_as_a_fault(tmp_path: Path) -> None:
+    """Issue 28: the live page listed ``simulator_crashed`` as a fault while the run journals
+    ``simulator_error`` (commands.py, when a simulated gyro dies), so the page never flagged
+    it. The fault list is now JournalEvent members: what the run writes is what is matched."""
+    from gyrocal.app.watch.snapshot import FAULT_EVENTS, read_snapshot
+    from gyrocal.record.journal import JournalEvent
+
+    run = _hand_made_run(tmp_path / "run", last_event="resumed", age_s=1)
+    with Journal(run / "journal.jsonl") as journal:
+        journal.append(JournalEvent.SIMULATOR_ERROR,
+                       message="simulated gyro stopped: OSError: pty closed")
+    snap = read_snapshot(run)
+    assert [(f.event, f.fault) for f in snap.faults] == [("simulator_error", True)]
+    assert "simulated gyro stopped" in (snap.last_fault or "")
+    assert all(isinstance(name, JournalEvent) for name in FAULT_EVENTS)
