@@ -47,8 +47,12 @@ PROFILES = {
            dict(duration_s=5400.0, fs_hz=20.0, setpoints_c=(20.0, 50.0, 0.0, 30.0),
                 ramps_c_per_min=(1.5, 4.0, 2.5), rates_dps=(1.0, 5.0, 30.0, 150.0), dwell_s=25.0,
                 static_s=100.0, slow_rate_dps=5.0, accel_dps2=20.0)),
-    "Q2": ("Q2 (45 min, 50 Hz, 25 → 60 → 25 °C at 5 °C/min, ±0.2…300 deg/s)",
-           dict(duration_s=2700.0, fs_hz=50.0, setpoints_c=(25.0, 60.0, 25.0), ramps_c_per_min=(5.0, 5.0),
+    # Q2 soaks at three temperatures: with two (25 and 60 °C, the reference at one of them) every
+    # dwell sits at ΔT = 0 or 35 °C, where ΔT² = 35·ΔT and sf_temp_quadratic is the refitted linear
+    # SF tempco exactly; what was left of it to "size" was slew timing, named 0 of 2
+    "Q2": ("Q2 (45 min, 50 Hz, 25 → 60 → 5 → 25 °C at 5 °C/min, ±0.2…300 deg/s)",
+           dict(duration_s=2700.0, fs_hz=50.0, setpoints_c=(25.0, 60.0, 5.0, 25.0),
+                ramps_c_per_min=(5.0, 5.0, 5.0),
                 rates_dps=(0.2, 3.0, 20.0, 300.0), dwell_s=15.0, static_s=60.0, slow_rate_dps=6.0,
                 accel_dps2=50.0)),
     "Q3": ("Q3 (3 h, 10 Hz, cooling first 30 → −20 → 45 → 25 °C, 20-minute Allan hold)",

@@ -7,9 +7,10 @@ every named effect gets its own metrics, in its own domain:
 
 * **quantization**: the Allan deviation of the full-rate residual at the
   shortest τ (1, 2, 4, 8 samples), held against the gyro model's noise (before:
-  the model as given; after: with the found pulse's white angle noise
-  q/√12, IEEE Std 952 / 647); RMS over τ of ln(measured / model). Floor: the
-  same statistic on white noise of the model's level and the same length.
+  the model as given; after: the pulse counter run on the model's predicted
+  rate plus its white noise, simulated — a 0/1-pulse readout is not white angle
+  noise of q/√12); RMS over τ of ln(measured / model). Floor: the same
+  statistic of each simulated draw against the others.
 * **periodic_interference**: the spectrum peak (periodic.py), **markov_bias**:
   the Allan mismatch of the bin means (gap.py); both already in ``metrics``.
 * every other (deterministic) effect: the segments where its fitted signature
@@ -30,13 +31,14 @@ every named effect gets its own metrics, in its own domain:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from gyrocal.analysis.allan.deviation import overlapping_adev
 from gyrocal.analysis.discrepancy.gap import Metric, SegmentGeometry
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
+from gyrocal.models.pulse_counting import PulseCounter
 
 #: Share of an effect's Σz² over segments that its segments must hold.
 SHARE = 0.9
@@ -133,27 +135,52 @@ def pattern_metrics(effect: str, pattern: Pattern, before: Residuals, after: Res
     return EffectGap(effect, {head: amplitude, f"{effect}_segment_g1": g1_metric}, head)
 
 
-def _short_tau_mismatch(resid_dph: np.ndarray, fs_hz: float, noise: NoiseModel) -> float:
+def _short_tau_adev(resid_dph: np.ndarray, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
     result = overlapping_adev(resid_dph, fs_hz, m=SHORT_M, confidence=None)
-    return float(np.sqrt(np.mean(np.log(result.adev / noise.allan_deviation_dph(result.tau_s)) ** 2)))
+    return result.tau_s, result.adev
 
 
-def quantization_metrics(resid_full_dph: np.ndarray, fs_hz: float, given: NoiseModel, pulse_arcsec: float,
-                         rng: np.random.Generator) -> EffectGap:
-    """Short-τ Allan deviation of the full-rate residual against the model without and with the pulse."""
-    resid = resid_full_dph[:SHORT_TAU_SAMPLES]
-    with_pulse = replace(given, quantization_arcsec=max(given.quantization_arcsec,
-                                                        pulse_arcsec / math.sqrt(12.0)))
-    # floor: white rate noise (N) plus white angle noise (Q: a differenced white sequence, arcsec/s = deg/h)
-    white_dph = with_pulse.white_sigma_dph(fs_hz)
-    q_dph = with_pulse.quantization_arcsec * fs_hz
-    draws = []
-    for _ in range(SHORT_TAU_DRAWS):
-        angle = rng.standard_normal(len(resid) + 1) * q_dph
-        draws.append(_short_tau_mismatch(rng.standard_normal(len(resid)) * white_dph + np.diff(angle),
-                                         fs_hz, with_pulse))
-    metric = Metric(_short_tau_mismatch(resid, fs_hz, given), _short_tau_mismatch(resid, fs_hz, with_pulse),
-                    float(np.mean(draws)), float(np.std(draws)), "1 (RMS of ln ratio)",
+def _ln_rms(adev: np.ndarray, reference: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.log(adev / reference) ** 2)))
+
+
+def counted_residual_dph(predicted_dph: np.ndarray, fs_hz: float, white_sigma_dph: float,
+                         pulse_arcsec: float, rng: np.random.Generator) -> np.ndarray:
+    """One draw of the residual a pulse-counting gyro leaves against the model's prediction.
+
+    The model's white rate noise on the predicted rate, counted in whole pulses
+    (models/pulse_counting.py, random initial phase), minus the prediction. Not white
+    angle noise of q/√12: at 20–50 Hz a 1″ pulse advances by a fraction of a pulse per
+    sample while the table is still, so each readout is 0 or 1 pulse with variance
+    f(1 − f) and the count error is correlated from sample to sample; only the counter
+    itself run on the record's own rate history gives the short-τ Allan curve it leaves.
+    """
+    noisy_dps = (predicted_dph + rng.standard_normal(len(predicted_dph)) * white_sigma_dph) / 3600.0
+    counter = PulseCounter(pulse_arcsec, float(rng.uniform()))
+    return counter.quantize(noisy_dps, 1.0 / fs_hz) * 3600.0 - predicted_dph
+
+
+def quantization_metrics(resid_full_dph: np.ndarray, predicted_dph: np.ndarray, fs_hz: float,
+                         given: NoiseModel, pulse_arcsec: float, rng: np.random.Generator) -> EffectGap:
+    """Short-τ Allan deviation of the full-rate residual against the model without and with the pulse.
+
+    Before: against the given noise model's Allan curve (no pulse). After: against the
+    mean curve of ``SHORT_TAU_DRAWS`` simulated residuals of the pulse counter run on
+    the model's predicted rate (``counted_residual_dph``). Floor: the same statistic of
+    each simulated draw against the mean of the others (leave one out).
+    """
+    n = min(len(resid_full_dph), SHORT_TAU_SAMPLES)
+    resid, predicted = resid_full_dph[:n], predicted_dph[:n]
+    white_dph = given.white_sigma_dph(fs_hz)
+    curves = np.array([_short_tau_adev(counted_residual_dph(predicted, fs_hz, white_dph, pulse_arcsec, rng),
+                                       fs_hz)[1] for _ in range(SHORT_TAU_DRAWS)])
+    tau_s, measured = _short_tau_adev(resid, fs_hz)
+    total = curves.sum(axis=0)
+    floor = [_ln_rms(curve, (total - curve) / (len(curves) - 1)) for curve in curves]
+    metric = Metric(_ln_rms(measured, given.allan_deviation_dph(tau_s)),
+                    _ln_rms(measured, total / len(curves)),
+                    float(np.mean(floor)), float(np.std(floor)), "1 (RMS of ln ratio)",
                     "quantization: Allan deviation of the full-rate residual at τ = 1, 2, 4, 8 samples "
-                    "against the gyro model's noise, RMS over τ of ln(measured / model)")
+                    "against the gyro model's noise (before) and against the pulse counter run on the "
+                    "model's predicted rate (after), RMS over τ of ln(measured / model)")
     return EffectGap("quantization", {"quantization_short_tau_allan": metric}, "quantization_short_tau_allan")

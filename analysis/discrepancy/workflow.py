@@ -922,7 +922,8 @@ def _effect_gaps(analysis: _Analysis, search: _Search, before: Fit, after: Fit,
     full = None
     for f in search.found:
         if f.name == "quantization":
-            gaps.append(quantization_metrics(analysis.resid_full(after), analysis.fs_hz,
+            gaps.append(quantization_metrics(analysis.resid_full(after),
+                                             analysis.builder.rate_dph(after.model), analysis.fs_hz,
                                              NoiseModel.of_model(search.model),
                                              after.model.effect(f.name)["pulse_arcsec"], analysis.rng))
             continue

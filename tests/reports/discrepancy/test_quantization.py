@@ -6,12 +6,18 @@ module a 1″ pulse at 200 Hz was reported as periodic_interference at a
 spurious 13.8 Hz and a 0.5″ pulse crashed the noise fit (OverflowError).
 """
 
+from dataclasses import replace
+
 import discrepancy_scenarios as scenarios
 import numpy as np
 import pytest
 
+from gyrocal.analysis.allan.deviation import overlapping_adev
+from gyrocal.analysis.discrepancy.noise_model import NoiseModel
+from gyrocal.analysis.discrepancy.own_gap import quantization_metrics
 from gyrocal.analysis.discrepancy.quantization import detect_pulse, line_within_quantization
 from gyrocal.models.gyro_model import EffectSpec
+from gyrocal.models.pulse_counting import PulseCounter
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -58,3 +64,26 @@ def test_a_line_bounded_in_angle_by_the_pulse_is_its_beat():
     assert line_within_quantization(0.46, 13.8, 1.0)
     # 12.48 Hz table interference of 500 deg/h moves it by 6.4″: not quantization
     assert not line_within_quantization(500.0, 12.48, 1.0)
+
+
+def test_own_gap_closes_against_the_counter_not_white_angle_noise():
+    """At 20 Hz a 1″ pulse is counted 0 or 1 per readout while the table is still: its residual's
+    short-τ Allan curve is not q/√12 white angle noise, and only the counter run on the record's
+    own rate history closes the gap (the white-angle reading left it at ~26× its floor in every
+    20 and 50 Hz validation run)."""
+    fs_hz, pulse_arcsec = 20.0, 1.0
+    rng = np.random.default_rng(3)
+    rate_dps = np.concatenate([np.zeros(6000), np.full(2000, 5.0), np.full(2000, -30.0), np.zeros(6000)])
+    predicted_dph = rate_dps * 3600.0 + 2.0
+    given = NoiseModel(arw_deg_per_rth=0.01)
+    noisy_dps = (predicted_dph + rng.standard_normal(rate_dps.size) * given.white_sigma_dph(fs_hz)) / 3600.0
+    resid_dph = PulseCounter(pulse_arcsec, 0.3).quantize(noisy_dps, 1.0 / fs_hz) * 3600.0 - predicted_dph
+    gap = quantization_metrics(resid_dph, predicted_dph, fs_hz, given, pulse_arcsec, rng)
+    metric = gap.metrics[gap.headline]
+    assert metric.before >= 2.0 * metric.noise_floor
+    assert metric.after <= 1.5 * metric.noise_floor
+    # the white-angle-noise reading of the same residual stays far off: the model this replaced
+    white_angle = replace(given, quantization_arcsec=pulse_arcsec / np.sqrt(12.0))
+    adev = overlapping_adev(resid_dph, fs_hz, m=np.array([1, 2, 4, 8]), confidence=None)
+    mismatch = np.sqrt(np.mean(np.log(adev.adev / white_angle.allan_deviation_dph(adev.tau_s)) ** 2))
+    assert mismatch > 10.0 * metric.noise_floor
