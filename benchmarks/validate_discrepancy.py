@@ -219,6 +219,8 @@ Regenerate with
 
     .venv/bin/python benchmarks/validate_discrepancy.py --seeds {args.seeds} --controls {args.controls}
 
+Measured with {args.seeds} seed(s) per row and {args.controls} controls per profile{_COUNTS_NOTE if args.seeds < 10 else ""}.
+
 Data: the project's simulator (`models/gyro_sim.py`), nominal FOG model (N = 0.01 deg/√h,
 B = 0.03 deg/h) whose base numbers are also off in the truth (bias +0.4 deg/h, tempco ×1.3,
 SF +15 ppm, SF tempco ×0.8), on two profiles:
@@ -257,9 +259,12 @@ effect was hidden in the data.
 |---|---|---|---|
 """ + "\n".join(reliability) + f"""
 
-Total time: {elapsed / 60:.1f} min on 2 worker processes.
+Total time: {elapsed / 60:.1f} min on {args.workers} worker process(es).
 """ + _METHOD
 
+
+_COUNTS_NOTE = (" — reduced counts: the 2-core machine was shared by about 8 people; rows of one or two "
+                "runs say whether an effect is named, not at what rate")
 
 _METHOD = """
 ## Method (what the numbers mean)

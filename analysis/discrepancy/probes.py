@@ -25,8 +25,11 @@ with time, or a ramp in |t − t0|, drew markov_bias at 1.0). The probes:
 * a **bias by rate sign** (deg/h, +1 for ω > 0, −1 for ω < 0);
 * two **terms in dT/dt** of the chamber: |dT/dt| (deg/h per °C/min, the same
   sign heating and cooling) and dT/dt·(T − T̄) (deg/h per °C·°C/min);
-* a **bias cubic in temperature** (deg/h per °C³ about the record's mean), the
-  next order beyond the catalogue's quadratic law;
+* a **bias cubic in temperature** (ΔT² and ΔT³ about the record's mean, deg/h
+  per °C² and °C³), the next order beyond the catalogue's quadratic law: with
+  its own quadratic, as the cubic in time has its own lower orders (a cubic law
+  about any other temperature is a cubic and a quadratic about the mean; the
+  cubic column alone left the quadratic part to a Markov bias at 1.0);
 * a **scale factor drifting with time** (ppm per hour).
 
 Each is scored like a catalogue effect (the Δχ² of its columns after the
@@ -146,7 +149,8 @@ def _sample_shape(kind: ProbeKind, where: float, x: ProbeInputs) -> np.ndarray:
     if kind is ProbeKind.ABS_TEMP_RATE:
         return x.reduce(np.abs(x.temp_rate_c_per_min))[:, None]
     if kind is ProbeKind.TEMP_CUBIC:
-        return x.reduce((x.temp_c - float(np.mean(x.temp_c))) ** 3)[:, None]
+        dt = x.temp_c - float(np.mean(x.temp_c))
+        return np.column_stack([x.reduce(dt * dt), x.reduce(dt ** 3)])
     return x.reduce(x.temp_rate_c_per_min * (x.temp_c - float(np.mean(x.temp_c))))[:, None]
 
 
@@ -195,6 +199,8 @@ class Probe:
         """The amplitude of the shape (deg/h, ppm, deg/h per hour ...; see ``describe``)."""
         if self.kind is ProbeKind.SLOW_SINE:
             return math.hypot(*self.coeffs)
+        if self.kind is ProbeKind.TEMP_CUBIC:
+            return self.coeffs[1]
         if self.kind is ProbeKind.TIME_CUBIC:
             u = np.linspace(-1.0, 1.0, 201)
             curve = self.coeffs[0] * u + self.coeffs[1] * u * u + self.coeffs[2] * u ** 3
@@ -217,6 +223,9 @@ class Probe:
             a, b, c = self.coeffs
             return (f"a bias curving in time (cubic over the record: {a:+.3g}·u {b:+.3g}·u² "
                     f"{c:+.3g}·u³ deg/h, u = −1…+1; {s:.3g} deg/h peak to peak)")
+        if k is ProbeKind.TEMP_CUBIC:
+            return (f"a bias cubic in temperature, {self.coeffs[0]:+.3g}·ΔT² {s:+.3g}·ΔT³ deg/h "
+                    "(ΔT in degC about the record's mean)")
         if k is ProbeKind.ONE_SIGN_RATE2:
             sign = "positive" if self.where > 0 else "negative"
             return f"a rate² term on {sign} rates only of {s:+.3g} deg/h per (deg/s)²"
@@ -232,8 +241,6 @@ _DESCRIPTIONS: dict[ProbeKind, str] = {
     ProbeKind.ABS_TIME_RAMP:
         "a bias ramp in |t − t0| of {s:+.3g} deg/h per hour turning at t0 = {where:.0f} s",
     ProbeKind.SF_TIME_RAMP: "a scale factor drifting by {s:+.3g} ppm per hour",
-    ProbeKind.TEMP_CUBIC:
-        "a bias cubic in temperature, {s:+.3g} deg/h per degC³ (about the record's mean)",
     ProbeKind.ABS_TEMP_RATE:
         "a bias in |dT/dt| of {s:+.3g} deg/h per degC/min (same sign heating and cooling)",
     ProbeKind.TEMP_RATE_X_TEMP: "a bias in dT/dt·(T − mean T) of {s:+.3g} deg/h per degC·degC/min",
