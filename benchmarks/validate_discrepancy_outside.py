@@ -88,8 +88,7 @@ UNKNOWN = {
 #: session): never looked at while changing it, so with profile Q3 they are the held-out part
 FRESH = {
     "bias in log(1 + t/600 s) (no probe, fresh)": lambda p: np.log1p(p.t_s / 600.0),
-    "bias in ω·dT/dt (no probe, fresh)":
-        lambda p: p.table_rate_dps * temperature_trend_c_per_min(p.t_s, p.chamber_temp_c),
+    "bias in |ω|·ΔT (no probe, fresh)": lambda p: np.abs(p.table_rate_dps) * (p.chamber_temp_c - 25.0),
     "bias step at 70 % decaying with τ 600 s (no probe, fresh)":
         lambda p: np.where(p.t_s >= 0.7 * p.t_s[-1], np.exp(-(p.t_s - 0.7 * p.t_s[-1]) / 600.0), 0.0),
     "scale factor in ΔT³ (no probe, fresh)": lambda p: p.table_rate_dps * ((p.chamber_temp_c - 25.0) / 10.0) ** 3,
