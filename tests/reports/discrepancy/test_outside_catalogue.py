@@ -22,6 +22,7 @@ import pytest
 
 from gyrocal.analysis.discrepancy import workflow
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
+from gyrocal.analysis.discrepancy.probes import ProbeInputs, ProbeKind, probe_columns
 from gyrocal.analysis.discrepancy.segments import make_bins
 from gyrocal.analysis.discrepancy.stochastic import WhittleTest, stationarity_test
 from gyrocal.models.gyro_model import EffectSpec
@@ -72,6 +73,29 @@ def test_rate_squared_on_one_sign_is_unexplained_not_the_catalogue_nonlinearitie
     result = run_extra(np.where(rate > 0, rate**2, 0.0), 25)
     assert_unexplained_without_a_confident_name(result, "positive rates only")
     assert not {"sf_nonlinearity_quadratic", "sf_nonlinearity_cubic"} & {f.name for f in result.found}
+
+
+def test_the_temperature_cubic_probe_spans_a_cubic_law_about_any_temperature():
+    """(T − 10 °C)³ is a cubic and a quadratic about the record's mean: the probe must carry both.
+
+    With the cubic column alone the quadratic part was left over (here 20 % of the shape's
+    variance), and on a 25 → 60 → 5 → 25 °C profile a ΔT³ about 25 °C was named markov_bias
+    at 1.0; with it the validation's 2 of 2 such runs were unexplained with no claim.
+    """
+    prof = profile()
+    x = ProbeInputs(prof.t_s, prof.table_rate_dps, prof.chamber_temp_c, np.zeros_like(prof.t_s))
+    shape = (prof.chamber_temp_c - 10.0) ** 3
+    base = np.column_stack([np.ones_like(shape), prof.chamber_temp_c])   # bias and linear tempco
+
+    def left_over(columns: np.ndarray) -> float:
+        design = np.column_stack([base, columns])
+        coef, *_ = np.linalg.lstsq(design, shape, rcond=None)
+        return float(np.var(shape - design @ coef) / np.var(shape))
+
+    columns = probe_columns(ProbeKind.TEMP_CUBIC, 0.0, x)
+    assert columns.shape[1] == 2
+    assert left_over(columns) < 1e-12
+    assert left_over(columns[:, 1:]) > 0.1        # the cubic column alone, as before
 
 
 @pytest.mark.timeout(120)

@@ -49,4 +49,6 @@ def test_search_pass_names_the_hidden_effect_and_gap_pass_shows_the_gap_shrink(s
     gap = result.metrics["g1_segment_mean"]
     assert gap.after < gap.before
     assert not result.unexplained
+    # the named effect's own gap comes from its kind in the registry and heads the story
+    assert result.primary == result.effect_gaps["temp_hysteresis"] == "temp_hysteresis_pattern_dph"
     assert np.isfinite(result.metrics["allan_mismatch"].after)
