@@ -298,7 +298,8 @@ _METHOD = """
 - Out of catalogue (`probes.py`, issue 29): a bias step and a scale-factor step at any of
   150 positions, a slow sinusoid of at least two periods in the record, a cubic in time, a
   ramp in |t − t0| (t0 at 20–80 %), a rate² on one rate sign, a bias by rate sign, terms in
-  |dT/dt| and dT/dt·ΔT, a bias cubic in temperature, a scale factor drifting with time. A
+  |dT/dt| and dT/dt·ΔT, a bias cubic in temperature (ΔT² and ΔT³ about the mean), a scale
+  factor drifting with time. A
   significant probe beats a catalogue effect when the effect adds nothing significant once
   the probe is fitted (library threshold) and the probe either still adds significantly
   once the effect is fitted (its own threshold) or alone explains more after its search
@@ -307,7 +308,8 @@ _METHOD = """
   result is `unexplained` with the probe's description in `where`. A probe that explains
   nearly as much joins the claim's look-alike split (flat prior on the same penalised
   Δχ²), so an ambiguous claim cannot be stated at 0.99. After the loop, G1 above the 99 %
-  quantile of its effect-free distribution is `unexplained` too.
+  quantile of its effect-free distribution is `unexplained` too, and so is any probe still
+  significant at α/11 (the family of probe kinds) in the final residual, whatever was named.
 - Stationarity (`stochastic.stationarity_test`): before a Markov bias is named, its power is
   profiled separately in each half of the record and jointly (Whittle, τ and the white and
   flicker levels held); a gain of the separate fit above its (1 − α) point on halves
@@ -317,8 +319,12 @@ _METHOD = """
   own metric: for a deterministic effect the GLS amplitude (deg/h) of its base-projected
   pattern in the residual over the segments that hold 90 % of its signature (with G1 over
   those segments beside it), for quantization the short-τ Allan deviation of the full-rate
-  residual against the model's noise, for interference the spectrum peak, for a Markov bias
-  the Allan mismatch. Every metric carries its unit.
+  residual against the model's noise (before) and against the pulse counter run on the
+  model's predicted rate plus its white noise (after; a 0/1-pulse readout at 20–50 Hz is
+  not q/√12 white angle noise), for interference the spectrum peak, for a Markov bias the
+  Allan mismatch. Every metric carries its unit. The effects sit behind one interface
+  (`candidates.py`: each kind proposes candidates, scores its null, is admitted, measures
+  its own gap); the rules between them are in `arbitration.py`.
 """
 
 
