@@ -308,8 +308,7 @@ _METHOD = """
   result is `unexplained` with the probe's description in `where`. A probe that explains
   nearly as much joins the claim's look-alike split (flat prior on the same penalised
   Δχ²), so an ambiguous claim cannot be stated at 0.99. After the loop, G1 above the 99 %
-  quantile of its effect-free distribution is `unexplained` too, and so is any probe still
-  significant at α/11 (the family of probe kinds) in the final residual, whatever was named.
+  quantile of its effect-free distribution is `unexplained` too.
 - Stationarity (`stochastic.stationarity_test`): before a Markov bias is named, its power is
   profiled separately in each half of the record and jointly (Whittle, τ and the white and
   flicker levels held); a gain of the separate fit above its (1 − α) point on halves

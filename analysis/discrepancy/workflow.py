@@ -87,11 +87,6 @@ __all__ = ["ALPHA", "DiscrepancyResult", "FoundEffect", "Iteration", "analyse"]
 
 #: G1 after the refit above this quantile of its effect-free distribution is "unexplained".
 UNEXPLAINED_LEVEL = 0.99
-#: A probe still significant after the final refit at this family-wise level (Bonferroni over
-#: the probe kinds) is structure the named effects left: "unexplained", whatever was named (a
-#: claim that leaves a generic shape behind has not explained the data; before, only G1 of the
-#: whole record and a preempting probe could say so).
-LEFTOVER_ALPHA = ALPHA / len(ProbeKind)
 
 
 def analyse(model: GyroModel, log: MeasuredLog, seed: int = 0, n_null: int = 500,
@@ -335,8 +330,8 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     heads = [gap.headline for gap in gaps if gap.headline in metrics]
     primary = heads[0] if heads else choose_primary(metrics, bool(found))
     last_probe = strongest(all_probes(after, ctx.whitener, ctx.bins, ctx.probe_bins,
-                                      ctx.rng.standard_normal((ctx.bins.n_bins, ctx.n_null)), LEFTOVER_ALPHA))
-    unexplained = (search.preempted is not None or search.nonstationary is not None or last_probe is not None
+                                      ctx.rng.standard_normal((ctx.bins.n_bins, ctx.n_null)), ALPHA))
+    unexplained = (search.preempted is not None or search.nonstationary is not None
                    or metrics["g1_segment_mean"].after > order_statistic_quantile(null_g1, UNEXPLAINED_LEVEL))
     signals = _signals(ctx, after.model)
     where, notes = "", list(state.notes)
