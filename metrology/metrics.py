@@ -19,8 +19,39 @@ import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
+from enum import Enum
 
 from gyrocal.models.noise_terms import NOISE_TERMS
+
+
+class Need(str, Enum):
+    """What a procedure must measure for a metric to be computed (a metric's ``needs``).
+
+    The one spelling of these words: procedure validation (what the sequence will
+    measure), the report (what the completed steps measured) and the acceptance
+    evaluation compare them as members of this enum.
+    """
+
+    SWEEP = "sweep"
+    SWEEP_TEMPS = "sweep_temps"
+    BIAS_TEMPS = "bias_temps"
+    ALLAN = "allan"
+    THRESHOLD = "threshold"
+    RATE_LIMIT_POSITIVE = "rate_limit_positive"
+    RATE_LIMIT_NEGATIVE = "rate_limit_negative"
+    FREQUENCY_RESPONSE = "frequency_response"
+    TURN_ON = "turn_on"
+    TURN_ON_REPEATABILITY = "turn_on_repeatability"
+
+    @property
+    def text(self) -> str:
+        """What the procedure must contain, in a sentence's words."""
+        return NEEDS_TEXT[self]
+
+    @classmethod
+    def rate_limit(cls, sign: float) -> Need:
+        """The rate-limit walk of one direction (sign of the rate)."""
+        return cls.RATE_LIMIT_POSITIVE if sign > 0 else cls.RATE_LIMIT_NEGATIVE
 
 
 @dataclass(frozen=True)
@@ -44,7 +75,7 @@ class Trend:
 class Metric:
     key: str               # key path in results.json
     unit: str | None       # canonical unit; None when it is the unit under test's own output unit
-    needs: str             # what the sequence must contain: "sweep", "sweep_temps", "bias_temps", "allan"
+    needs: Need            # what the sequence must contain
     #: the sign is physical: a max limit bounds the magnitude (every other metric with a
     #: max limit is a size or a spread, and a negative value of it is impossible)
     signed: bool = False
@@ -65,13 +96,6 @@ class Metric:
         return self.key.removeprefix("allan.fit.") if self.key.startswith("allan.fit.") else None
 
 
-_SWEEP, _SWEEP_TEMPS, _BIAS_TEMPS, _ALLAN = "sweep", "sweep_temps", "bias_temps", "allan"
-_THRESHOLD = "threshold"
-_FREQUENCY = "frequency_response"
-_TURN_ON = "turn_on"
-_REPEATABILITY = "turn_on_repeatability"
-_LIMIT_POS, _LIMIT_NEG = "rate_limit_positive", "rate_limit_negative"
-
 _IEEE = "IEEE Std 952 / 1431"
 _NOISE_TRENDS = {"N": Trend(7, "angle random walk\n(deg/√h)"),
                  "B": Trend(8, "bias instability\n(deg/h)")}
@@ -79,59 +103,59 @@ _NOISE_TRENDS = {"N": Trend(7, "angle random walk\n(deg/√h)"),
 METRICS: dict[str, Metric] = {
     m.key: m
     for m in (
-        Metric("nonlinearity.rms_pct", "%", _SWEEP, db_name="nonlinearity_rms_pct",
+        Metric("nonlinearity.rms_pct", "%", Need.SWEEP, db_name="nonlinearity_rms_pct",
                certified=Certified(2, "Nonlinearity (RMS of SF over rates)", "%"),
                trend=Trend(5, "SF nonlinearity\nRMS (%)")),
-        Metric("nonlinearity.max_ppm_fs", "ppm", _SWEEP, db_name="nonlinearity_max_ppm_fs",
+        Metric("nonlinearity.max_ppm_fs", "ppm", Need.SWEEP, db_name="nonlinearity_max_ppm_fs",
                certified=Certified(3, "Nonlinearity (max residual)", "ppm of full scale")),
-        Metric("asymmetry_ppm", "ppm", _SWEEP, signed=True, db_name="asymmetry_ppm",
+        Metric("asymmetry_ppm", "ppm", Need.SWEEP, signed=True, db_name="asymmetry_ppm",
                certified=Certified(4, "Scale-factor asymmetry", "ppm"),
                trend=Trend(6, "SF asymmetry\n(ppm)")),
-        Metric("scale_factor_ls.sf", None, _SWEEP, db_name="sf", certified=Certified(
+        Metric("scale_factor_ls.sf", None, Need.SWEEP, db_name="sf", certified=Certified(
             1, "Scale factor, LS line at the reference temperature", "output/(deg/s)"),
             trend=Trend(1, "scale factor\n(output/(deg/s))")),
-        Metric("scale_factor_ls.bias", None, _SWEEP, signed=True, db_name="bias_dps_ls"),
-        Metric("sf_temperature.instability_pct", "%", _SWEEP_TEMPS, db_name="sf_instability_pct",
+        Metric("scale_factor_ls.bias", None, Need.SWEEP, signed=True, db_name="bias_dps_ls"),
+        Metric("sf_temperature.instability_pct", "%", Need.SWEEP_TEMPS, db_name="sf_instability_pct",
                certified=Certified(6, "SF temperature instability", "%")),
-        Metric("sf_temperature.sensitivity_ppm_per_c", "ppm/°C", _SWEEP_TEMPS, signed=True,
+        Metric("sf_temperature.sensitivity_ppm_per_c", "ppm/°C", Need.SWEEP_TEMPS, signed=True,
                db_name="sf_tempco_ppm_per_c",
                certified=Certified(5, "SF temperature sensitivity", "ppm/°C"),
                trend=Trend(2, "SF temp. coeff.\n(ppm/°C)")),
-        Metric("bias_temperature.sensitivity_dph_per_c", "deg/h/°C", _BIAS_TEMPS, signed=True,
+        Metric("bias_temperature.sensitivity_dph_per_c", "deg/h/°C", Need.BIAS_TEMPS, signed=True,
                db_name="bias_tempco_dph_per_c",
                certified=Certified(7, "Bias temperature sensitivity", "deg/h per °C"),
                trend=Trend(4, "bias temp. coeff.\n(deg/h/°C)")),
         # the noise terms; in the database under their model-file names (models/noise_terms.py)
-        *(Metric(f"allan.fit.{t.fit_key}", t.unit, _ALLAN, db_name=t.model_key,
+        *(Metric(f"allan.fit.{t.fit_key}", t.unit, Need.ALLAN, db_name=t.model_key,
                  trend=_NOISE_TRENDS.get(t.symbol)) for t in NOISE_TERMS),
-        Metric("allan.fit.markov.sigma_dph", "deg/h", _ALLAN),
-        Metric("allan.fit.markov.tau_s", "s", _ALLAN),
-        Metric("threshold.threshold_dps", "deg/s", _THRESHOLD, certified=Certified(
+        Metric("allan.fit.markov.sigma_dph", "deg/h", Need.ALLAN),
+        Metric("allan.fit.markov.tau_s", "s", Need.ALLAN),
+        Metric("threshold.threshold_dps", "deg/s", Need.THRESHOLD, certified=Certified(
             8, f"Threshold, {_IEEE} (smallest resolved increment at zero rate; U from the "
                "increment grid)", "deg/s")),
-        Metric("threshold.resolution_dps", "deg/s", _THRESHOLD, certified=Certified(
+        Metric("threshold.resolution_dps", "deg/s", Need.THRESHOLD, certified=Certified(
             9, f"Resolution, {_IEEE} (smallest resolved increment at the set rates; U from "
                "the increment grid)", "deg/s")),
-        Metric("rate_limits.max_positive_dps", "deg/s", _LIMIT_POS, certified=Certified(
+        Metric("rate_limits.max_positive_dps", "deg/s", Need.RATE_LIMIT_POSITIVE, certified=Certified(
             10, f"Maximum input rate, positive, {_IEEE} (U from the rate walk)", "deg/s")),
-        Metric("rate_limits.max_negative_dps", "deg/s", _LIMIT_NEG, certified=Certified(
+        Metric("rate_limits.max_negative_dps", "deg/s", Need.RATE_LIMIT_NEGATIVE, certified=Certified(
             11, f"Maximum input rate, negative, {_IEEE} (U from the rate walk)", "deg/s")),
-        Metric("frequency_response.bandwidth_hz", "Hz", _FREQUENCY, certified=Certified(
+        Metric("frequency_response.bandwidth_hz", "Hz", Need.FREQUENCY_RESPONSE, certified=Certified(
             12, f"Bandwidth (−3 dB), {_IEEE} frequency response test (table in synthesis "
                 "mode; U from the sine fits and the interpolation)", "Hz")),
-        Metric("frequency_response.phase_deg", "deg", _FREQUENCY, certified=Certified(
+        Metric("frequency_response.phase_deg", "deg", Need.FREQUENCY_RESPONSE, certified=Certified(
             13, f"Phase at the stated frequency, {_IEEE} frequency response test (U from the "
                 "sine fits and the sample timing)", "deg")),
-        Metric("turn_on.time_to_first_data_s", "s", _TURN_ON, certified=Certified(
+        Metric("turn_on.time_to_first_data_s", "s", Need.TURN_ON, certified=Certified(
             14, f"Turn-on time, {_IEEE} turn-on test (output-on to first valid data; U from "
                 "the poll interval)", "s")),
-        Metric("turn_on.time_to_band_s", "s", _TURN_ON, certified=Certified(
+        Metric("turn_on.time_to_band_s", "s", Need.TURN_ON, certified=Certified(
             17, f"Warm-up time to the stated band of the settled bias, {_IEEE}", "s")),
-        Metric("turn_on.warmup_tau_s", "s", _TURN_ON, certified=Certified(
+        Metric("turn_on.warmup_tau_s", "s", Need.TURN_ON, certified=Certified(
             15, f"Warm-up time constant, {_IEEE} warm-up test (fit of b∞ + A·e^(−t/τ))", "s")),
-        Metric("turn_on.warmup_amplitude_dph", "deg/h", _TURN_ON, certified=Certified(
+        Metric("turn_on.warmup_amplitude_dph", "deg/h", Need.TURN_ON, certified=Certified(
             16, f"Warm-up amplitude, {_IEEE} warm-up test", "deg/h")),
-        Metric("turn_on_repeatability.std_dph", "deg/h", _REPEATABILITY, certified=Certified(
+        Metric("turn_on_repeatability.std_dph", "deg/h", Need.TURN_ON_REPEATABILITY, certified=Certified(
             18, f"Turn-on-to-turn-on bias repeatability, {_IEEE} (standard deviation of the "
                 "cycles' biases; U from N)", "deg/h")),
     )
@@ -156,17 +180,17 @@ CERTIFIED_METRICS: tuple[Metric, ...] = tuple(sorted(
     (m for m in METRICS.values() if m.certified is not None),
     key=lambda m: m.certified.row if m.certified is not None else 0))
 
-NEEDS_TEXT = {
-    _SWEEP: "an sf_sweep test",
-    _SWEEP_TEMPS: "sf_sweep tests at two or more temperatures",
-    _BIAS_TEMPS: "static or allan tests at two or more temperatures",
-    _ALLAN: "an allan test",
-    _THRESHOLD: "a threshold test",
-    _LIMIT_POS: "a rate_limit test walking the positive direction",
-    _LIMIT_NEG: "a rate_limit test walking the negative direction",
-    _FREQUENCY: "a frequency_response test",
-    _TURN_ON: "a turn_on test",
-    _REPEATABILITY: "a turn_on_repeatability test",
+NEEDS_TEXT: dict[Need, str] = {
+    Need.SWEEP: "an sf_sweep test",
+    Need.SWEEP_TEMPS: "sf_sweep tests at two or more temperatures",
+    Need.BIAS_TEMPS: "static or allan tests at two or more temperatures",
+    Need.ALLAN: "an allan test",
+    Need.THRESHOLD: "a threshold test",
+    Need.RATE_LIMIT_POSITIVE: "a rate_limit test walking the positive direction",
+    Need.RATE_LIMIT_NEGATIVE: "a rate_limit test walking the negative direction",
+    Need.FREQUENCY_RESPONSE: "a frequency_response test",
+    Need.TURN_ON: "a turn_on test",
+    Need.TURN_ON_REPEATABILITY: "a turn_on_repeatability test",
 }
 
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 from gyrocal.instruments.driver_spec import DriverSpec, Role, Setting, SettingKind
 from gyrocal.instruments.registry import registry
-from gyrocal.metrology.metrics import METRICS, NEEDS_TEXT
+from gyrocal.metrology.metrics import METRICS
 from gyrocal.models.effects import EFFECTS
 from gyrocal.models.gyro_model import OUTPUT_UNITS as MODEL_OUTPUT_UNITS
 from gyrocal.models.imu_model import AXES
@@ -932,7 +932,7 @@ MODEL = Language(
 LANGUAGES = (PROCEDURE, STATION, MODEL)
 
 #: what each acceptance metric needs from the sequence, in words (for the results reference)
-METRIC_NEEDS = {key: NEEDS_TEXT[metric.needs] for key, metric in METRICS.items()}
+METRIC_NEEDS = {key: metric.needs.text for key, metric in METRICS.items()}
 
 
 def section_at(root: Shape, path: tuple[str | int, ...], data: object = None

@@ -16,8 +16,8 @@ from typing import Any
 from gyrocal.metrology.decision import DEFAULT_RULE, Decision, DecisionRule, decide
 from gyrocal.metrology.metrics import (
     METRICS,
-    NEEDS_TEXT,
     Metric,
+    Need,
     as_number,
     metric_number,
     reported_uncertainty,
@@ -73,7 +73,7 @@ class AcceptanceVerdict:
 
 
 def evaluate_acceptance(results: Mapping[str, Any], limits: list[Mapping[str, Any]],
-                        notes: list[str], measured: frozenset[str] | None = None
+                        notes: list[str], measured: frozenset[Need] | None = None
                         ) -> list[AcceptanceVerdict]:
     """One verdict per limit, in the limits' order.
 
@@ -105,11 +105,11 @@ def evaluate_acceptance(results: Mapping[str, Any], limits: list[Mapping[str, An
 
 
 def _judge(results: Mapping[str, Any], metric: Metric, pending: AcceptanceVerdict,
-           measured: frozenset[str] | None, notes: list[str]) -> AcceptanceVerdict:
+           measured: frozenset[Need] | None, notes: list[str]) -> AcceptanceVerdict:
     """The verdict for one limit: its decision, value, guard band and any ``why``."""
     label = pending.name
     if measured is not None and metric.needs not in measured:
-        why = f"not measured: it needs {NEEDS_TEXT[metric.needs]}, completed"
+        why = f"not measured: it needs {metric.needs.text}, completed"
         notes.append(f"acceptance {label!r}: {metric.key} NOT EVALUATED ({why})")
         return replace(pending, why=why)
     number = metric_number(results, metric)

@@ -45,6 +45,7 @@ from gyrocal.analysis.thermal import bias as bias_mod
 from gyrocal.analysis.thermal import compensation as comp
 from gyrocal.metrology.decision import instrument_blockers, overall_verdict
 from gyrocal.metrology.gum import batch_mean_sem
+from gyrocal.metrology.metrics import Need
 from gyrocal.metrology.sanity import check_physics
 from gyrocal.metrology.uncertainty import MeanU
 from gyrocal.models.rate_units import output_to_dph
@@ -449,8 +450,8 @@ def _other_sections(data: RunData, nominal_sf: float, notes: list[str]) -> dict[
     }
 
 
-def measured_needs(data: RunData) -> frozenset[str]:
-    """What the completed steps measured, in the terms of ``metrology/metrics.py`` ``needs``.
+def measured_needs(data: RunData) -> frozenset[Need]:
+    """What the completed steps measured, in the terms of the catalogue's :class:`Need`.
 
     An acceptance limit whose metric needs more is NOT EVALUATED: a report
     rebuilt on an interrupted run must not grade the noise terms on a short
@@ -462,29 +463,28 @@ def measured_needs(data: RunData) -> frozenset[str]:
     hold_temps = {s.setpoint_c for s in done if s.kind in (StepKind.STATIC, StepKind.ALLAN)}
     needs = set()
     if sweep_temps:
-        needs.add("sweep")
+        needs.add(Need.SWEEP)
     if len(sweep_temps) >= 2:
-        needs.add("sweep_temps")
+        needs.add(Need.SWEEP_TEMPS)
     if len(hold_temps) >= 2:
-        needs.add("bias_temps")
+        needs.add(Need.BIAS_TEMPS)
     planned = [s for s in data.record.steps if s.kind == StepKind.ALLAN
                and (s.mounting is None or s.mounting in _unit_under_test_mountings(data.record))]
     longest = max(planned, key=lambda s: s.duration_s, default=None)
     if (longest is not None and data.allan_step is not None
             and data.allan_step.step.step_id == longest.step_id):
-        needs.add("allan")
-    if _all_done(data, StepKind.THRESHOLD):
-        needs.add("threshold")
-    if _all_done(data, StepKind.FREQUENCY_RESPONSE):
-        needs.add("frequency_response")
-    if _all_done(data, StepKind.TURN_ON):
-        needs.add("turn_on")
-    if _all_done(data, StepKind.TURN_ON_CYCLE):
-        needs.add("turn_on_repeatability")
-    for sign, way in ((1.0, "positive"), (-1.0, "negative")):
-        if _all_done(data, StepKind.RATE_LIMIT, sign):
-            needs.add(f"rate_limit_{way}")
+        needs.add(Need.ALLAN)
+    needs.update(need for kind, need in _KIND_NEEDS if _all_done(data, kind))
+    needs.update(Need.rate_limit(sign) for sign in (1.0, -1.0)
+                 if _all_done(data, StepKind.RATE_LIMIT, sign))
     return frozenset(needs)
+
+
+#: step kinds whose every planned step completing measures a need
+_KIND_NEEDS = ((StepKind.THRESHOLD, Need.THRESHOLD),
+               (StepKind.FREQUENCY_RESPONSE, Need.FREQUENCY_RESPONSE),
+               (StepKind.TURN_ON, Need.TURN_ON),
+               (StepKind.TURN_ON_CYCLE, Need.TURN_ON_REPEATABILITY))
 
 
 def _all_done(data: RunData, kind: StepKind, sign: float | None = None) -> bool:

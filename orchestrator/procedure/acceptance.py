@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import difflib
 
-from gyrocal.metrology.metrics import METRICS, NEEDS_TEXT, units_match
+from gyrocal.metrology.metrics import METRICS, Need, units_match
 from gyrocal.orchestrator.procedure.reading import Reading
 from gyrocal.orchestrator.procedure.types import (
     AcceptanceLimit,
@@ -47,7 +47,7 @@ def read_acceptance(reading: Reading, parent: Fields,
     return tuple(limits)
 
 
-def _limit(reading: Reading, fields: Fields, names: dict[str, int], measured: set[str],
+def _limit(reading: Reading, fields: Fields, names: dict[str, int], measured: set[Need],
            has_sequence: bool) -> AcceptanceLimit | None:
     """One limit; None when its metric is not known (already reported).
 
@@ -82,7 +82,7 @@ def _limit(reading: Reading, fields: Fields, names: dict[str, int], measured: se
         unit = spec.unit if spec.unit is not None else reading.output_units
     if spec.needs not in measured and has_sequence:
         reading.report(fields.child("metric"), f"{metric} cannot be computed: it needs "
-                       f"{NEEDS_TEXT[spec.needs]} in the sequence")
+                       f"{spec.needs.text} in the sequence")
     return AcceptanceLimit(name, metric, maximum, minimum, unit, rule or "simple")
 
 
@@ -102,14 +102,14 @@ def _metric(value: object) -> str:
     raise UnitError(f"unknown metric {shown}; {hint}known metrics: {', '.join(METRICS)}")
 
 
-def what_is_measured(sequence: tuple[TemperatureStep, ...]) -> set[str]:
-    """What the sequence measures, in the words of the metrics' ``needs``."""
+def what_is_measured(sequence: tuple[TemperatureStep, ...]) -> set[Need]:
+    """What the sequence measures, in the terms of the metrics' ``needs``."""
     sweep_temps: set[float] = set()
     bias_temps: set[float] = set()
-    measured: set[str] = set()
-    plain = {SweepTest: "sweep", ThresholdTest: "threshold",
-             FrequencyResponseTest: "frequency_response", TurnOnTest: "turn_on",
-             TurnOnRepeatabilityTest: "turn_on_repeatability"}
+    measured: set[Need] = set()
+    plain = {SweepTest: Need.SWEEP, ThresholdTest: Need.THRESHOLD,
+             FrequencyResponseTest: Need.FREQUENCY_RESPONSE, TurnOnTest: Need.TURN_ON,
+             TurnOnRepeatabilityTest: Need.TURN_ON_REPEATABILITY}
     for step in sequence:
         for test in step.tests:
             if type(test) in plain:
@@ -117,14 +117,15 @@ def what_is_measured(sequence: tuple[TemperatureStep, ...]) -> set[str]:
                 if isinstance(test, SweepTest):
                     sweep_temps.add(step.setpoint_c)
             elif isinstance(test, RateLimitTest):
-                ways = ("positive", "negative") if test.directions == "both" else (test.directions,)
-                measured.update(f"rate_limit_{way}" for way in ways)
+                signs = (1.0, -1.0) if test.directions == "both" else (
+                    1.0 if test.directions == "positive" else -1.0,)
+                measured.update(Need.rate_limit(sign) for sign in signs)
             else:
                 bias_temps.add(step.setpoint_c)
                 if isinstance(test, AllanTest):
-                    measured.add("allan")
+                    measured.add(Need.ALLAN)
     if len(sweep_temps) >= 2:
-        measured.add("sweep_temps")
+        measured.add(Need.SWEEP_TEMPS)
     if len(bias_temps) >= 2:
-        measured.add("bias_temps")
+        measured.add(Need.BIAS_TEMPS)
     return measured
