@@ -21,7 +21,7 @@ CONDITIONAL (any guarded limit indeterminate) > PASS. Only PASS exits 0.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
 from typing import Any, Protocol
@@ -93,54 +93,121 @@ class Blocker:
     reason: str
 
 
-def instrument_blockers(instruments: dict[str, Any]) -> list[Blocker]:
+class Verdict(str, Enum):
+    """The run's overall statement of conformity, in order of precedence."""
+
+    INVALID = "INVALID"
+    FAIL = "FAIL"
+    BLOCKED = "BLOCKED"
+    INCOMPLETE = "INCOMPLETE"
+    CONDITIONAL = "CONDITIONAL"
+    PASS = "PASS"
+
+
+@dataclass(frozen=True)
+class IdentityCheck:
+    """What the decision found about one instrument: a waived overdue calibration, the serial
+    it reported and whether that differs from the station's declared one."""
+
+    waived: str | None
+    reported_serial: str | None
+    identity_mismatch: bool
+
+    def to_json(self) -> dict[str, Any]:
+        """The keys results.json adds to the instrument's entry (``waived`` only when waived)."""
+        out: dict[str, Any] = {} if self.waived is None else {"waived": self.waived}
+        return out | {"reported_serial": self.reported_serial,
+                      "identity_mismatch": self.identity_mismatch}
+
+
+@dataclass(frozen=True)
+class InstrumentFindings:
+    checks: Mapping[str, IdentityCheck]      # role → what was found
+    blockers: tuple[Blocker, ...]
+
+
+def instrument_findings(instruments: Mapping[str, Mapping[str, Any]]) -> InstrumentFindings:
     """Overdue reference calibrations (unless waived) and declared-vs-reported serial mismatches.
 
-    ``instruments`` is results.json's ``instruments`` section; each entry gets
-    ``reported_serial`` and ``identity_mismatch`` added.
+    ``instruments`` is results.json's ``instruments`` section (role → entry); it is
+    left as it is: what was found is returned beside it.
     """
     blockers = []
+    checks = {}
     for role, entry in sorted(instruments.items()):
+        waived = None
         if entry.get("calibration_overdue"):
             waiver = entry.get("calibration_waiver")
             if waiver:
-                entry["waived"] = f"calibration overdue, waived by the station: {waiver}"
+                waived = f"calibration overdue, waived by the station: {waiver}"
             else:
                 blockers.append(Blocker(role, "reference instrument out of calibration "
                                               f"(due {entry.get('calibration_due')})"))
         reported = reported_serial(entry.get("description")) if role != "gyro" else None
-        entry["reported_serial"] = reported
         declared = entry.get("serial")
         mismatch = bool(reported and declared and reported.strip().upper()
                         != str(declared).strip().upper())
-        entry["identity_mismatch"] = mismatch
         if mismatch:
             blockers.append(Blocker(role, f"identity mismatch: the station declares serial "
                                           f"{declared!r}, the instrument reported {reported!r}"))
-    return blockers
+        checks[role] = IdentityCheck(waived, reported, mismatch)
+    return InstrumentFindings(checks, tuple(blockers))
+
+
+def instrument_blockers(instruments: Mapping[str, Mapping[str, Any]]) -> list[Blocker]:
+    """What keeps a run from PASS among its instruments (:func:`instrument_findings`)."""
+    return list(instrument_findings(instruments).blockers)
+
+
+@dataclass(frozen=True)
+class SanityLine:
+    """One physics check as the verdict states it."""
+
+    name: str
+    ok: bool
+    detail: str
+
+
+@dataclass(frozen=True)
+class OverallVerdict:
+    """results.json ``verdict``: the overall statement and every reason for it."""
+
+    overall: Verdict
+    invalid_because: tuple[str, ...]
+    blocked_because: tuple[str, ...]
+    conditional: tuple[str, ...]
+    not_evaluated: tuple[str, ...]
+    sanity: tuple[SanityLine, ...]
+
+    def to_json(self) -> dict[str, Any]:
+        return {"overall": self.overall.value, "invalid_because": list(self.invalid_because),
+                "blocked_because": list(self.blocked_because),
+                "conditional": list(self.conditional), "not_evaluated": list(self.not_evaluated),
+                "sanity": [{"name": c.name, "ok": c.ok, "detail": c.detail} for c in self.sanity]}
+
+
+def _overall(failed: bool, decisions: set[Decision], blocked: bool) -> Verdict:
+    if failed:
+        return Verdict.INVALID
+    if Decision.FAIL in decisions:
+        return Verdict.FAIL
+    if blocked:
+        return Verdict.BLOCKED
+    if Decision.NOT_EVALUATED in decisions:
+        return Verdict.INCOMPLETE
+    if Decision.CONDITIONAL in decisions:
+        return Verdict.CONDITIONAL
+    return Verdict.PASS
 
 
 def overall_verdict(checks: Sequence[Check], acceptance: Sequence[Judged],
-                    blockers: list[Blocker]) -> dict[str, Any]:
-    """INVALID > FAIL > BLOCKED > CONDITIONAL > PASS, with every reason named."""
+                    blockers: Sequence[Blocker]) -> OverallVerdict:
+    """INVALID > FAIL > BLOCKED > INCOMPLETE > CONDITIONAL > PASS, with every reason named."""
     failed = [c for c in checks if not c.ok]
-    decisions = {a.decision for a in acceptance}
-    if failed:
-        overall = "INVALID"
-    elif Decision.FAIL in decisions:
-        overall = "FAIL"
-    elif blockers:
-        overall = "BLOCKED"
-    elif Decision.NOT_EVALUATED in decisions:
-        overall = "INCOMPLETE"
-    elif Decision.CONDITIONAL in decisions:
-        overall = "CONDITIONAL"
-    else:
-        overall = "PASS"
-    return {"overall": overall, "invalid_because": [f"{c.name}: {c.detail}" for c in failed],
-            "blocked_because": [f"{b.role}: {b.reason}" for b in blockers],
-            "conditional": sorted(a.name for a in acceptance
-                                  if a.decision is Decision.CONDITIONAL),
-            "not_evaluated": sorted(a.name for a in acceptance
-                                    if a.decision is Decision.NOT_EVALUATED),
-            "sanity": [{"name": c.name, "ok": c.ok, "detail": c.detail} for c in checks]}
+    return OverallVerdict(
+        _overall(bool(failed), {a.decision for a in acceptance}, bool(blockers)),
+        tuple(f"{c.name}: {c.detail}" for c in failed),
+        tuple(f"{b.role}: {b.reason}" for b in blockers),
+        tuple(sorted(a.name for a in acceptance if a.decision is Decision.CONDITIONAL)),
+        tuple(sorted(a.name for a in acceptance if a.decision is Decision.NOT_EVALUATED)),
+        tuple(SanityLine(c.name, c.ok, c.detail) for c in checks))

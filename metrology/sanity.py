@@ -29,7 +29,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from gyrocal.metrology.decision import overall_verdict
+from gyrocal.metrology.decision import Judged, OverallVerdict, overall_verdict
 from gyrocal.metrology.metrics import METRICS, metric_value
 
 DEFAULT_SF_TOLERANCE_PCT = 5.0
@@ -137,6 +137,6 @@ def _steady_dwells(steps: list[dict[str, Any]], nominal: float) -> SanityCheck:
                        "; ".join(unsteady[:5]))
 
 
-def verdict(checks: list[SanityCheck], acceptance: list[dict[str, Any]]) -> dict[str, Any]:
+def verdict(checks: list[SanityCheck], acceptance: list[Judged]) -> OverallVerdict:
     """INVALID before FAIL before PASS; with the failed checks named (decision.py decides)."""
     return overall_verdict(checks, acceptance, [])

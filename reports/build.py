@@ -43,7 +43,7 @@ from gyrocal.analysis.rate.scale_factor import ScaleFactorResult, analyze_scale_
 from gyrocal.analysis.rate.threshold import ThresholdDwell, headline_uncertainty, threshold_section
 from gyrocal.analysis.thermal import bias as bias_mod
 from gyrocal.analysis.thermal import compensation as comp
-from gyrocal.metrology.decision import instrument_blockers, overall_verdict
+from gyrocal.metrology.decision import instrument_findings, overall_verdict
 from gyrocal.metrology.gum import batch_mean_sem
 from gyrocal.metrology.metrics import Need
 from gyrocal.metrology.sanity import check_physics
@@ -61,7 +61,17 @@ from gyrocal.record.strays import set_aside
 from gyrocal.reports.acceptance import evaluate_acceptance
 from gyrocal.reports.html_report import render_html
 from gyrocal.reports.results import Results, UnitUnderTest, finite_or_none, results_bytes
-from gyrocal.reports.run_info import IDENTITY_KEYS, Provenance, RunInfo, run_mode
+from gyrocal.reports.run_info import (
+    IDENTITY_KEYS,
+    InputRecord,
+    InstrumentRecord,
+    JournalSummary,
+    Provenance,
+    RunInfo,
+    StationRecord,
+    StepRecord,
+    run_mode,
+)
 from gyrocal.reports.sections import frequency as frequency_section
 from gyrocal.reports.sections.allan import AllanSection
 from gyrocal.reports.sections.bias import BiasEntry, BiasResults, BiasSource
@@ -327,24 +337,23 @@ def _allan(data: RunData, nominal_sf: float, notes: list[str]) -> AllanSection |
     return AllanSection(curve, fit, step.step_id, step.setpoint_c, int(rate_dph.size), fs_hz)
 
 
-def _journal_summary(events: list[dict[str, Any]]) -> dict[str, Any]:
+def _journal_summary(events: list[dict[str, Any]]) -> JournalSummary:
     shown = [{k: v for k, v in e.items() if k != "prev_sha256"}
              for e in events if e.get("event") in _JOURNAL_SHOWN]
     chunks = [e for e in events if e.get("event") == JournalEvent.CHUNK_WRITTEN]
     digest = hashlib.sha256()
     for e in chunks:
         digest.update(f"{e['path']} {e['sha256']}\n".encode())
-    return {
-        "events": shown,
-        "retries": sum(1 for e in events if e.get("event") == JournalEvent.RETRY),
-        "faults": sum(1 for e in events if e.get("event") == JournalEvent.FAULT),
-        "bad_steps": sum(1 for e in events if e.get("event") == JournalEvent.STEP_BAD),
-        "chunks": len(chunks),
-        "samples_sha256": digest.hexdigest(),
-        "event_count": len(events),
-        "first_wall_time": events[0].get("wall_time") if events else None,
-        "last_wall_time": events[-1].get("wall_time") if events else None,
-    }
+    return JournalSummary(
+        tuple(shown),
+        retries=sum(1 for e in events if e.get("event") == JournalEvent.RETRY),
+        faults=sum(1 for e in events if e.get("event") == JournalEvent.FAULT),
+        bad_steps=sum(1 for e in events if e.get("event") == JournalEvent.STEP_BAD),
+        chunks=len(chunks),
+        samples_sha256=digest.hexdigest(),
+        event_count=len(events),
+        first_wall_time=events[0].get("wall_time") if events else None,
+        last_wall_time=events[-1].get("wall_time") if events else None)
 
 
 def _recorded_identity(data: RunData) -> dict[str, Any]:
@@ -353,7 +362,7 @@ def _recorded_identity(data: RunData) -> dict[str, Any]:
     return identity if isinstance(identity, dict) else dict(data.manifest)
 
 
-def _instruments(data: RunData, notes: list[str]) -> dict[str, Any]:
+def _instruments(data: RunData, notes: list[str]) -> dict[str, InstrumentRecord]:
     planned = ((data.plan.get("station") or {}).get("instruments")) or {}
     identified = identified_instruments(data.events)     # the journal's, not the manifest's
     run_date = str(_recorded_identity(data).get("started_at") or "")[:10]
@@ -370,17 +379,13 @@ def _instruments(data: RunData, notes: list[str]) -> dict[str, Any]:
         overdue = bool(due and run_date and str(due) < run_date)
         if overdue:
             notes.append(f"{role}: calibration was due {due}, before the run ({run_date})")
-        out[role] = {
-            "driver": (identified.get(role) or planned.get(role) or {}).get("driver"),
-            "address": (identified.get(role) or {}).get("address"),
-            "description": (identified.get(role) or {}).get("description"),
-            "make": identity.get("make"), "model": identity.get("model"),
-            "serial": identity.get("serial"), "calibration_due": due,
-            "calibration_overdue": overdue,
-            "calibration_waiver": identity.get("calibration_waiver"),
-            "calibration_certificate": identity.get("calibration_certificate"),
-            "calibrated_by": identity.get("calibrated_by"),
-        }
+        out[role] = InstrumentRecord(
+            (identified.get(role) or planned.get(role) or {}).get("driver"),
+            (identified.get(role) or {}).get("address"),
+            (identified.get(role) or {}).get("description"),
+            identity.get("make"), identity.get("model"), identity.get("serial"), due, overdue,
+            identity.get("calibration_waiver"), identity.get("calibration_certificate"),
+            identity.get("calibrated_by"))
     return out
 
 
@@ -396,10 +401,10 @@ def compute_results(data: RunData, notes: list[str]) -> Results:
     acceptance = tuple(evaluate_acceptance(view, data.plan.get("acceptance") or [], notes,
                                            measured=measured_needs(data)))
     sf_tolerance = (data.plan.get("sanity") or {}).get("sf_tolerance_pct")
-    instruments = measured.provenance.records["instruments"]
-    verdict = overall_verdict(check_physics(view, sf_tolerance), acceptance,
-                              instrument_blockers(instruments))
-    return replace(measured, acceptance=acceptance, verdict=verdict, notes=tuple(notes))
+    found = instrument_findings(view["instruments"])
+    verdict = overall_verdict(check_physics(view, sf_tolerance), acceptance, found.blockers)
+    return replace(measured, provenance=measured.provenance.judged(found.checks),
+                   acceptance=acceptance, verdict=verdict, notes=tuple(notes))
 
 
 def _measure(data: RunData, notes: list[str]) -> Results:
@@ -667,26 +672,20 @@ def _utc_text(wall_time: float | str) -> str:
     return time.strftime("%Y-%m-%dT%H:%M:%S+0000", time.gmtime(float(wall_time)))
 
 
-def _provenance(data: RunData, instruments: dict[str, Any]) -> Provenance:
+def _provenance(data: RunData, instruments: dict[str, InstrumentRecord]) -> Provenance:
     """Who, what, where and with what: run, procedure, station, instruments, inputs, journal."""
     plan, manifest = data.plan, data.manifest
     station = plan.get("station") or {}
-    return Provenance(_run_info(data), {
-        "procedure": plan.get("procedure"),
-        "station": {"name": station.get("name"), "file": station.get("file"),
-                    "site": station.get("site")},
-        "instruments": instruments,
-        "inputs": {role: {"copy": e.get("copy"), "source": e.get("source"),
-                          "sha256": e.get("sha256")}
-                   for role, e in (manifest.get("inputs") or {}).items()},
-        "journal": _journal_summary(data.events),
-        "steps": [{"step_id": s.step.step_id, "kind": s.step.kind.value,
-                   "setpoint_c": s.step.setpoint_c, "rate_dps": s.step.rate_dps,
-                   "output_mean": s.output_mean, "n_used": s.n_used, "n_logged": s.n_logged,
-                   "revolutions_used": s.trimmed_to_revolutions,
-                   "sensor_temp_c": s.sensor_temp_c,
-                   "drift": None if s.drift is None else s.drift.to_json()} for s in data.steps],
-    })
+    return Provenance(
+        _run_info(data), plan.get("procedure"),
+        StationRecord(station.get("name"), station.get("file"), station.get("site")),
+        instruments,
+        {role: InputRecord(e.get("copy"), e.get("source"), e.get("sha256"))
+         for role, e in (manifest.get("inputs") or {}).items()},
+        _journal_summary(data.events),
+        tuple(StepRecord(s.step.step_id, s.step.kind.value, s.step.setpoint_c, s.step.rate_dps,
+                         s.output_mean, s.n_used, s.n_logged, s.trimmed_to_revolutions,
+                         s.sensor_temp_c, s.drift) for s in data.steps))
 
 
 # -- writing ------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from gyrocal.metrology.decision import OverallVerdict
 from gyrocal.reports.acceptance import AcceptanceVerdict
 from gyrocal.reports.run_info import Provenance
 from gyrocal.reports.sections.allan import AllanSection
@@ -65,7 +66,7 @@ class Results:
     #: the budgets the JSON-ready sections state for their single figures (path → budget)
     headline_uncertainty: Mapping[str, Any]
     acceptance: tuple[AcceptanceVerdict, ...] | None = None
-    verdict: Mapping[str, Any] | None = None
+    verdict: OverallVerdict | None = None
     notes: tuple[str, ...] | None = None
     built_at: str | None = None
     signature: Mapping[str, Any] | None = None
@@ -90,7 +91,7 @@ class Results:
         if self.acceptance is not None:
             out["acceptance"] = [v.to_json() for v in self.acceptance]
         if self.verdict is not None:
-            out["verdict"] = dict(self.verdict)
+            out["verdict"] = self.verdict.to_json()
         if self.notes is not None:
             out["notes"] = list(self.notes)
         if self.built_at is not None:

@@ -15,8 +15,10 @@ import pytest
 from gyrocal.metrology.decision import (
     Decision,
     DecisionRule,
+    Verdict,
     decide,
     instrument_blockers,
+    instrument_findings,
     overall_verdict,
 )
 from gyrocal.metrology.sanity import SanityCheck
@@ -66,7 +68,8 @@ def test_guarded_acceptance_entry_gives_conditional_within_u_of_its_limit():
     assert simple.decision is Decision.PASS and simple.decision_rule is DecisionRule.SIMPLE
     assert asym.to_json()["pass"] is False and asym.to_json()["decision"] == "CONDITIONAL"
     verdict = overall_verdict(OK, verdicts, [])
-    assert verdict["overall"] == "CONDITIONAL" and verdict["conditional"] == ["asym"]
+    assert verdict.overall is Verdict.CONDITIONAL and verdict.conditional == ("asym",)
+    assert verdict.to_json()["conditional"] == ["asym"]
 
 
 def _instruments(**table):
@@ -79,26 +82,32 @@ def _instruments(**table):
 
 def test_expired_reference_blocks_pass_unless_waived():
     passing = [judged(Decision.PASS, "a")]
-    assert overall_verdict(OK, passing, instrument_blockers(_instruments()))["overall"] == "PASS"
+    assert overall_verdict(OK, passing, instrument_blockers(_instruments())).overall.value == "PASS"
     expired = _instruments(calibration_due="2001-01-01", calibration_overdue=True)
     verdict = overall_verdict(OK, passing, instrument_blockers(expired))
-    assert verdict["overall"] == "BLOCKED"
-    assert "reference instrument out of calibration" in verdict["blocked_because"][0]
+    assert verdict.overall is Verdict.BLOCKED
+    assert "reference instrument out of calibration" in verdict.blocked_because[0]
     waived = _instruments(calibration_overdue=True, calibration_waiver="re-certified 2026-11-01")
-    assert overall_verdict(OK, passing, instrument_blockers(waived))["overall"] == "PASS"
-    assert "re-certified" in waived["table"]["waived"]
+    assert overall_verdict(OK, passing, instrument_blockers(waived)).overall.value == "PASS"
+    assert "re-certified" in instrument_findings(waived).checks["table"].waived
+    assert "waived" not in waived["table"]          # the instruments given are left as they are
     # INVALID and FAIL still take precedence
     bad = [SanityCheck("bias finite", False, "nan")]
-    assert overall_verdict(bad, passing, instrument_blockers(expired))["overall"] == "INVALID"
+    assert overall_verdict(bad, passing, instrument_blockers(expired)).overall.value == "INVALID"
 
 
 def test_reported_serial_differing_from_declared_is_flagged_and_blocks():
     # IEEE 488.2 *IDN? reply: manufacturer,model,serial,firmware (field 3 is the serial)
     swapped = _instruments(serial="ACT-0999")
-    blockers = instrument_blockers(swapped)
-    assert swapped["table"]["identity_mismatch"] is True
-    assert swapped["table"]["reported_serial"] == "SIM0001"
-    assert swapped["chamber"]["identity_mismatch"] is False
+    before = json.dumps(swapped, sort_keys=True)
+    found = instrument_findings(swapped)
+    blockers = found.blockers
+    assert found.checks["table"].identity_mismatch is True
+    assert found.checks["table"].reported_serial == "SIM0001"
+    assert found.checks["chamber"].identity_mismatch is False
+    assert found.checks["table"].to_json() == {"reported_serial": "SIM0001",
+                                               "identity_mismatch": True}
+    assert json.dumps(swapped, sort_keys=True) == before      # not changed in place
     assert [b.role for b in blockers] == ["table"]
     assert "'ACT-0999'" in blockers[0].reason
 

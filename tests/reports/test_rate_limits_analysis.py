@@ -54,4 +54,4 @@ def test_a_walk_on_a_line_far_from_the_nominal_sf_makes_the_run_invalid():
     results = {"unit_under_test": {"nominal_scale_factor": 1.0}, "rate_limits": section}
     check = next(c for c in check_physics(results) if c.name.startswith("rate-limit walk"))
     assert not check.ok and "SF -1" in check.detail
-    assert verdict(check_physics(results), [judged(Decision.PASS)])["overall"] == "INVALID"
+    assert verdict(check_physics(results), [judged(Decision.PASS)]).overall.value == "INVALID"

@@ -31,8 +31,8 @@ def results(sf: float = 1.0002, nonlinearity: float = 0.001, mean: float = 10.0,
 def test_a_sound_run_passes_its_physics() -> None:
     checks = check_physics(results())
     assert all(c.ok for c in checks)
-    assert verdict(checks, [judged(Decision.PASS)])["overall"] == "PASS"
-    assert verdict(checks, [judged(Decision.FAIL)])["overall"] == "FAIL"
+    assert verdict(checks, [judged(Decision.PASS)]).overall.value == "PASS"
+    assert verdict(checks, [judged(Decision.FAIL)]).overall.value == "FAIL"
 
 
 @pytest.mark.parametrize(("bad", "check"), [
@@ -45,7 +45,7 @@ def test_a_sound_run_passes_its_physics() -> None:
 ])
 def test_impossible_numbers_are_invalid_whatever_the_limits_say(bad: dict, check: str) -> None:
     checks = check_physics(results(**bad))
-    result = verdict(checks, [judged(Decision.PASS)])
+    result = verdict(checks, [judged(Decision.PASS)]).to_json()
     assert result["overall"] == "INVALID"
     assert [c.name for c in checks if not c.ok] == [check]
     assert result["invalid_because"][0].startswith(check)
@@ -104,7 +104,7 @@ def test_a_dwell_whose_first_tenth_strays_is_invalid() -> None:
     """Issue 28: 80 samples of the table's ramp (84 → 99.8 deg/s) at the start of a 2500-sample
     dwell at 100 deg/s put its first tenth 2.592 deg/s (26,000 ppm) below the rest."""
     checks = check_physics(with_drift(2.592, noise_limit=0.002, mean=99.9))
-    result = verdict(checks, [judged(Decision.PASS)])
+    result = verdict(checks, [judged(Decision.PASS)]).to_json()
     assert result["overall"] == "INVALID"
     assert [c.name for c in checks if not c.ok] == ["dwells steady"]
     assert "T01.sf.+10dps: part 1 of 10" in result["invalid_because"][0]

@@ -116,7 +116,7 @@ def test_a_noise_term_the_record_cannot_identify_is_never_graded_as_zero() -> No
         assert verdict.value is None and verdict.identifiable is False
         assert verdict_line(verdict).startswith("not identifiable from this record (95 % upper "
                                                 f"bound {bound_q:.3g} arcsec)")
-    assert overall_verdict([], list(verdicts.values()), [])["overall"] == "INCOMPLETE"
+    assert overall_verdict([], list(verdicts.values()), []).overall.value == "INCOMPLETE"
     assert any("Q tight" in note and "not identifiable" in note for note in notes)
 
 
