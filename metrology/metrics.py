@@ -91,6 +91,11 @@ class Metric:
         return tuple(self.key.split("."))
 
     @property
+    def field(self) -> str:
+        """The key of the value in its section (the path's last part)."""
+        return self.path[-1]
+
+    @property
     def noise_term(self) -> str | None:
         """The ``allan.fit`` key of a fitted noise term (Q_arcsec…), else None."""
         return self.key.removeprefix("allan.fit.") if self.key.startswith("allan.fit.") else None
@@ -100,66 +105,83 @@ _IEEE = "IEEE Std 952 / 1431"
 _NOISE_TRENDS = {"N": Trend(7, "angle random walk\n(deg/√h)"),
                  "B": Trend(8, "bias instability\n(deg/h)")}
 
-METRICS: dict[str, Metric] = {
-    m.key: m
-    for m in (
-        Metric("nonlinearity.rms_pct", "%", Need.SWEEP, db_name="nonlinearity_rms_pct",
-               certified=Certified(2, "Nonlinearity (RMS of SF over rates)", "%"),
-               trend=Trend(5, "SF nonlinearity\nRMS (%)")),
-        Metric("nonlinearity.max_ppm_fs", "ppm", Need.SWEEP, db_name="nonlinearity_max_ppm_fs",
-               certified=Certified(3, "Nonlinearity (max residual)", "ppm of full scale")),
-        Metric("asymmetry_ppm", "ppm", Need.SWEEP, signed=True, db_name="asymmetry_ppm",
-               certified=Certified(4, "Scale-factor asymmetry", "ppm"),
-               trend=Trend(6, "SF asymmetry\n(ppm)")),
-        Metric("scale_factor_ls.sf", None, Need.SWEEP, db_name="sf", certified=Certified(
-            1, "Scale factor, LS line at the reference temperature", "output/(deg/s)"),
-            trend=Trend(1, "scale factor\n(output/(deg/s))")),
-        Metric("scale_factor_ls.bias", None, Need.SWEEP, signed=True, db_name="bias_dps_ls"),
-        Metric("sf_temperature.instability_pct", "%", Need.SWEEP_TEMPS, db_name="sf_instability_pct",
-               certified=Certified(6, "SF temperature instability", "%")),
-        Metric("sf_temperature.sensitivity_ppm_per_c", "ppm/°C", Need.SWEEP_TEMPS, signed=True,
-               db_name="sf_tempco_ppm_per_c",
-               certified=Certified(5, "SF temperature sensitivity", "ppm/°C"),
-               trend=Trend(2, "SF temp. coeff.\n(ppm/°C)")),
-        Metric("bias_temperature.sensitivity_dph_per_c", "deg/h/°C", Need.BIAS_TEMPS, signed=True,
-               db_name="bias_tempco_dph_per_c",
-               certified=Certified(7, "Bias temperature sensitivity", "deg/h per °C"),
-               trend=Trend(4, "bias temp. coeff.\n(deg/h/°C)")),
-        # the noise terms; in the database under their model-file names (models/noise_terms.py)
-        *(Metric(f"allan.fit.{t.fit_key}", t.unit, Need.ALLAN, db_name=t.model_key,
-                 trend=_NOISE_TRENDS.get(t.symbol)) for t in NOISE_TERMS),
-        Metric("allan.fit.markov.sigma_dph", "deg/h", Need.ALLAN),
-        Metric("allan.fit.markov.tau_s", "s", Need.ALLAN),
-        Metric("threshold.threshold_dps", "deg/s", Need.THRESHOLD, certified=Certified(
-            8, f"Threshold, {_IEEE} (smallest resolved increment at zero rate; U from the "
-               "increment grid)", "deg/s")),
-        Metric("threshold.resolution_dps", "deg/s", Need.THRESHOLD, certified=Certified(
-            9, f"Resolution, {_IEEE} (smallest resolved increment at the set rates; U from "
-               "the increment grid)", "deg/s")),
-        Metric("rate_limits.max_positive_dps", "deg/s", Need.RATE_LIMIT_POSITIVE, certified=Certified(
-            10, f"Maximum input rate, positive, {_IEEE} (U from the rate walk)", "deg/s")),
-        Metric("rate_limits.max_negative_dps", "deg/s", Need.RATE_LIMIT_NEGATIVE, certified=Certified(
-            11, f"Maximum input rate, negative, {_IEEE} (U from the rate walk)", "deg/s")),
-        Metric("frequency_response.bandwidth_hz", "Hz", Need.FREQUENCY_RESPONSE, certified=Certified(
-            12, f"Bandwidth (−3 dB), {_IEEE} frequency response test (table in synthesis "
-                "mode; U from the sine fits and the interpolation)", "Hz")),
-        Metric("frequency_response.phase_deg", "deg", Need.FREQUENCY_RESPONSE, certified=Certified(
-            13, f"Phase at the stated frequency, {_IEEE} frequency response test (U from the "
-                "sine fits and the sample timing)", "deg")),
-        Metric("turn_on.time_to_first_data_s", "s", Need.TURN_ON, certified=Certified(
-            14, f"Turn-on time, {_IEEE} turn-on test (output-on to first valid data; U from "
-                "the poll interval)", "s")),
-        Metric("turn_on.time_to_band_s", "s", Need.TURN_ON, certified=Certified(
-            17, f"Warm-up time to the stated band of the settled bias, {_IEEE}", "s")),
-        Metric("turn_on.warmup_tau_s", "s", Need.TURN_ON, certified=Certified(
-            15, f"Warm-up time constant, {_IEEE} warm-up test (fit of b∞ + A·e^(−t/τ))", "s")),
-        Metric("turn_on.warmup_amplitude_dph", "deg/h", Need.TURN_ON, certified=Certified(
-            16, f"Warm-up amplitude, {_IEEE} warm-up test", "deg/h")),
-        Metric("turn_on_repeatability.std_dph", "deg/h", Need.TURN_ON_REPEATABILITY, certified=Certified(
-            18, f"Turn-on-to-turn-on bias repeatability, {_IEEE} (standard deviation of the "
-                "cycles' biases; U from N)", "deg/h")),
-    )
-}
+# Each metric is named here once; code that needs a particular one (the uncertainty budgets,
+# the headline figures of a section) takes it by this name, never by re-spelling its key.
+NONLINEARITY_RMS = Metric(
+    "nonlinearity.rms_pct", "%", Need.SWEEP, db_name="nonlinearity_rms_pct",
+    certified=Certified(2, "Nonlinearity (RMS of SF over rates)", "%"),
+    trend=Trend(5, "SF nonlinearity\nRMS (%)"))
+NONLINEARITY_MAX = Metric(
+    "nonlinearity.max_ppm_fs", "ppm", Need.SWEEP, db_name="nonlinearity_max_ppm_fs",
+    certified=Certified(3, "Nonlinearity (max residual)", "ppm of full scale"))
+ASYMMETRY = Metric(
+    "asymmetry_ppm", "ppm", Need.SWEEP, signed=True, db_name="asymmetry_ppm",
+    certified=Certified(4, "Scale-factor asymmetry", "ppm"), trend=Trend(6, "SF asymmetry\n(ppm)"))
+SF_LS = Metric(
+    "scale_factor_ls.sf", None, Need.SWEEP, db_name="sf",
+    certified=Certified(1, "Scale factor, LS line at the reference temperature", "output/(deg/s)"),
+    trend=Trend(1, "scale factor\n(output/(deg/s))"))
+SF_LS_BIAS = Metric("scale_factor_ls.bias", None, Need.SWEEP, signed=True, db_name="bias_dps_ls")
+SF_INSTABILITY = Metric(
+    "sf_temperature.instability_pct", "%", Need.SWEEP_TEMPS, db_name="sf_instability_pct",
+    certified=Certified(6, "SF temperature instability", "%"))
+SF_TEMPCO = Metric(
+    "sf_temperature.sensitivity_ppm_per_c", "ppm/°C", Need.SWEEP_TEMPS, signed=True,
+    db_name="sf_tempco_ppm_per_c", certified=Certified(5, "SF temperature sensitivity", "ppm/°C"),
+    trend=Trend(2, "SF temp. coeff.\n(ppm/°C)"))
+BIAS_TEMPCO = Metric(
+    "bias_temperature.sensitivity_dph_per_c", "deg/h/°C", Need.BIAS_TEMPS, signed=True,
+    db_name="bias_tempco_dph_per_c",
+    certified=Certified(7, "Bias temperature sensitivity", "deg/h per °C"),
+    trend=Trend(4, "bias temp. coeff.\n(deg/h/°C)"))
+#: the noise terms, by their ``allan.fit`` key; in the database under their model-file
+#: names (models/noise_terms.py)
+NOISE_METRICS: dict[str, Metric] = {
+    t.fit_key: Metric(f"allan.fit.{t.fit_key}", t.unit, Need.ALLAN, db_name=t.model_key,
+                      trend=_NOISE_TRENDS.get(t.symbol)) for t in NOISE_TERMS}
+MARKOV_SIGMA = Metric("allan.fit.markov.sigma_dph", "deg/h", Need.ALLAN)
+MARKOV_TAU = Metric("allan.fit.markov.tau_s", "s", Need.ALLAN)
+THRESHOLD = Metric("threshold.threshold_dps", "deg/s", Need.THRESHOLD, certified=Certified(
+    8, f"Threshold, {_IEEE} (smallest resolved increment at zero rate; U from the "
+       "increment grid)", "deg/s"))
+RESOLUTION = Metric("threshold.resolution_dps", "deg/s", Need.THRESHOLD, certified=Certified(
+    9, f"Resolution, {_IEEE} (smallest resolved increment at the set rates; U from "
+       "the increment grid)", "deg/s"))
+MAX_RATE_POSITIVE = Metric(
+    "rate_limits.max_positive_dps", "deg/s", Need.RATE_LIMIT_POSITIVE, certified=Certified(
+        10, f"Maximum input rate, positive, {_IEEE} (U from the rate walk)", "deg/s"))
+MAX_RATE_NEGATIVE = Metric(
+    "rate_limits.max_negative_dps", "deg/s", Need.RATE_LIMIT_NEGATIVE, certified=Certified(
+        11, f"Maximum input rate, negative, {_IEEE} (U from the rate walk)", "deg/s"))
+BANDWIDTH = Metric(
+    "frequency_response.bandwidth_hz", "Hz", Need.FREQUENCY_RESPONSE, certified=Certified(
+        12, f"Bandwidth (−3 dB), {_IEEE} frequency response test (table in synthesis "
+            "mode; U from the sine fits and the interpolation)", "Hz"))
+PHASE = Metric(
+    "frequency_response.phase_deg", "deg", Need.FREQUENCY_RESPONSE, certified=Certified(
+        13, f"Phase at the stated frequency, {_IEEE} frequency response test (U from the "
+            "sine fits and the sample timing)", "deg"))
+TURN_ON_TIME = Metric("turn_on.time_to_first_data_s", "s", Need.TURN_ON, certified=Certified(
+    14, f"Turn-on time, {_IEEE} turn-on test (output-on to first valid data; U from "
+        "the poll interval)", "s"))
+WARMUP_TIME_TO_BAND = Metric("turn_on.time_to_band_s", "s", Need.TURN_ON, certified=Certified(
+    17, f"Warm-up time to the stated band of the settled bias, {_IEEE}", "s"))
+WARMUP_TAU = Metric("turn_on.warmup_tau_s", "s", Need.TURN_ON, certified=Certified(
+    15, f"Warm-up time constant, {_IEEE} warm-up test (fit of b∞ + A·e^(−t/τ))", "s"))
+WARMUP_AMPLITUDE = Metric("turn_on.warmup_amplitude_dph", "deg/h", Need.TURN_ON,
+                          certified=Certified(16, f"Warm-up amplitude, {_IEEE} warm-up test",
+                                              "deg/h"))
+TURN_ON_REPEATABILITY = Metric(
+    "turn_on_repeatability.std_dph", "deg/h", Need.TURN_ON_REPEATABILITY, certified=Certified(
+        18, f"Turn-on-to-turn-on bias repeatability, {_IEEE} (standard deviation of the "
+            "cycles' biases; U from N)", "deg/h"))
+
+#: The catalogue: key path → metric, in catalogue order.
+METRICS: dict[str, Metric] = {m.key: m for m in (
+    NONLINEARITY_RMS, NONLINEARITY_MAX, ASYMMETRY, SF_LS, SF_LS_BIAS, SF_INSTABILITY, SF_TEMPCO,
+    BIAS_TEMPCO, *NOISE_METRICS.values(), MARKOV_SIGMA, MARKOV_TAU, THRESHOLD, RESOLUTION,
+    MAX_RATE_POSITIVE, MAX_RATE_NEGATIVE, BANDWIDTH, PHASE, TURN_ON_TIME, WARMUP_TIME_TO_BAND,
+    WARMUP_TAU, WARMUP_AMPLITUDE, TURN_ON_REPEATABILITY)}
 
 #: The runs database's one metric that is not a results.json key: the static bias at
 #: the reference temperature, interpolated between the two around it

@@ -24,6 +24,17 @@ from gyrocal.analysis.allan.noise_fit import TERM_NAMES
 from gyrocal.analysis.thermal import compensation as comp
 from gyrocal.analysis.thermal.compensation import CompensationTable
 from gyrocal.metrology.gum import Contribution, EvalType, Uncertainty, combine
+from gyrocal.metrology.metrics import (
+    ASYMMETRY,
+    BIAS_TEMPCO,
+    NOISE_METRICS,
+    NONLINEARITY_MAX,
+    NONLINEARITY_RMS,
+    SF_INSTABILITY,
+    SF_LS,
+    SF_LS_BIAS,
+    SF_TEMPCO,
+)
 from gyrocal.metrology.uncertainty import (
     MeanU,
     TypeB,
@@ -96,9 +107,8 @@ def uncertainty_budget(sweep: SweepResults, bias: BiasResults,
     paths = _sweep_paths(sweep, per_temp)
     if len(per_temp) >= 2 and sweep.sf_temperature is not None:
         all_dwells = [m for t in sorted(per_temp) for m in sweeps[t]]
-        for key, unc in sf_temperature_uncertainty(all_dwells, type_b,
-                                                   sweep.reference_temp_c).items():
-            paths[f"sf_temperature.{key}"] = unc
+        found = sf_temperature_uncertainty(all_dwells, type_b, sweep.reference_temp_c)
+        paths.update({m.key: found[m.field] for m in (SF_TEMPCO, SF_INSTABILITY)})
     latitude = (station.get("site") or {}).get("latitude_deg")
     bias_u = _bias_budgets(bias, per_temp, sweeps, holds, latitude, type_b, nominal_sf, notes)
     paths.update({f"bias@{t:g}": u for t, u in bias_u.items()})
@@ -106,9 +116,9 @@ def uncertainty_budget(sweep: SweepResults, bias: BiasResults,
     if len(bias_u) >= 2 and bias.sensitivity_dph_per_c is not None:
         temps = sorted(bias_u)
         slope = slope_uncertainty(temps, [bias_u[t] for t in temps], type_b, "bias")
-        paths["bias_temperature.sensitivity_dph_per_c"] = slope
+        paths[BIAS_TEMPCO.key] = slope
     allan_u = None if allan is None else allan_term_budgets(allan)
-    paths.update({f"allan.fit.{name}": u for name, u in (allan_u or {}).items()})
+    paths.update({NOISE_METRICS[name].key: u for name, u in (allan_u or {}).items()})
     return UncertaintyBudget(per_temp, bias_u, slope,
                              _compensation_budgets(compensation, sweep, per_temp, bias, bias_u),
                              allan_u, paths, type_b)
@@ -224,11 +234,11 @@ def _sweep_paths(sweep: SweepResults, per_temp: Mapping[float, Mapping[str, Unce
         sweep.largest_asymmetry
     if ref is None or rms is None or worst is None or asym is None:
         return paths
-    paths["scale_factor_ls.sf"] = per_temp[ref.temp_c]["sf"]
-    paths["scale_factor_ls.bias"] = per_temp[ref.temp_c]["bias"]
-    paths["nonlinearity.rms_pct"] = per_temp[rms.temp_c]["nonlinearity_rms_pct"]
-    paths["nonlinearity.max_ppm_fs"] = per_temp[worst.temp_c]["nonlinearity_max_ppm_fs"]
-    paths["asymmetry_ppm"] = per_temp[asym.temp_c]["asymmetry_ppm"]
+    paths[SF_LS.key] = per_temp[ref.temp_c]["sf"]
+    paths[SF_LS_BIAS.key] = per_temp[ref.temp_c]["bias"]
+    paths[NONLINEARITY_RMS.key] = per_temp[rms.temp_c]["nonlinearity_rms_pct"]
+    paths[NONLINEARITY_MAX.key] = per_temp[worst.temp_c]["nonlinearity_max_ppm_fs"]
+    paths[ASYMMETRY.key] = per_temp[asym.temp_c]["asymmetry_ppm"]
     return paths
 
 
