@@ -40,7 +40,7 @@ from gyrocal.analysis.allan.summary import allan_curve, fit_curve
 from gyrocal.analysis.rate import rate_limits
 from gyrocal.analysis.rate.dwell import Dwell, SegmentDrift, dwell_mean, segment_drift
 from gyrocal.analysis.rate.scale_factor import ScaleFactorResult, analyze_scale_factor
-from gyrocal.analysis.rate.threshold import ThresholdDwell, headline_uncertainty, threshold_section
+from gyrocal.analysis.rate.threshold import ThresholdDwell, ThresholdResults, threshold_section
 from gyrocal.analysis.thermal import bias as bias_mod
 from gyrocal.analysis.thermal import compensation as comp
 from gyrocal.metrology.decision import instrument_findings, overall_verdict
@@ -60,7 +60,13 @@ from gyrocal.record.step_kind import StepKind
 from gyrocal.record.strays import set_aside
 from gyrocal.reports.acceptance import evaluate_acceptance
 from gyrocal.reports.html_report import render_html
-from gyrocal.reports.results import Results, UnitUnderTest, finite_or_none, results_bytes
+from gyrocal.reports.results import (
+    Results,
+    TestSections,
+    UnitUnderTest,
+    finite_or_none,
+    results_bytes,
+)
 from gyrocal.reports.run_info import (
     IDENTITY_KEYS,
     InputRecord,
@@ -76,19 +82,19 @@ from gyrocal.reports.sections import frequency as frequency_section
 from gyrocal.reports.sections.allan import AllanSection
 from gyrocal.reports.sections.bias import BiasEntry, BiasResults, BiasSource
 from gyrocal.reports.sections.compensation import CompensationResults, Tables
-from gyrocal.reports.sections.imu import imu_section
+from gyrocal.reports.sections.imu import ImuResults, imu_section
 from gyrocal.reports.sections.interference import interference_section
 from gyrocal.reports.sections.magnetic import magnetic_section
 from gyrocal.reports.sections.sweep import ScaleFactorEntry, SweepResults
 from gyrocal.reports.sections.tilt import tilt_section
 from gyrocal.reports.sections.turn_on import (
     CycleRecord,
+    RepeatabilityResults,
     TurnOnRecord,
+    TurnOnResults,
     repeatability_section,
-    repeatability_uncertainty,
     turn_on_section,
 )
-from gyrocal.reports.sections.turn_on import headline_uncertainty as turn_on_uncertainty
 from gyrocal.reports.sections.uncertainty import StepMean, uncertainty_budget
 
 REFERENCE_TEMP_C = 25.0
@@ -265,7 +271,7 @@ def _scale_factor(data: RunData, notes: list[str]) -> list[ScaleFactorEntry]:
     return out
 
 
-def _imu(data: RunData, notes: list[str]) -> dict[str, Any] | None:
+def _imu(data: RunData, notes: list[str]) -> ImuResults | None:
     latitude = ((data.plan.get("station") or {}).get("site") or {}).get("latitude_deg")
     return imu_section(data.folder.path, data.record, data.events, float(latitude or 0.0), notes)
 
@@ -421,15 +427,10 @@ def _measure(data: RunData, notes: list[str]) -> Results:
     budget = uncertainty_budget(sweep, bias, compensation, allan,
                                 [_mean_u(s) for s in data.steps if s.step.kind in _BUDGETED],
                                 data.plan.get("station") or {}, nominal_sf, notes)
-    headlines = (headline_uncertainty(sections["threshold"])
-                 | rate_limits.headline_uncertainty(sections["rate_limits"])
-                 | frequency_section.headline_uncertainty(sections["frequency_response"])
-                 | turn_on_uncertainty(sections["turn_on"])
-                 | repeatability_uncertainty(sections["turn_on_repeatability"]))
     return Results(
         UnitUnderTest(uut.get("model"), uut.get("serial"), uut.get("output_units"), nominal_sf),
         sweep, bias, allan, compensation, sections, earth_dph, REFERENCE_TEMP_C, provenance,
-        DEFINITIONS, budget, headlines)
+        DEFINITIONS, budget, sections.stated_uncertainties())
 
 
 #: The step kinds whose means enter the sweep and bias budgets (the others have their own).
@@ -438,21 +439,18 @@ _BUDGETED = frozenset(StepKind) - {StepKind.THRESHOLD, StepKind.RATE_LIMIT,
                                    StepKind.TILT, StepKind.TURN_ON, StepKind.TURN_ON_CYCLE}
 
 
-def _other_sections(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any]:
-    """imu … turn_on_repeatability: JSON-ready sections of their own modules, in file order."""
-    return {
-        "imu": _imu(data, notes),
-        "table_interference": interference_section(data.folder.path, data.record, data.events,
-                                                   nominal_sf, notes),
-        "magnetic": magnetic_section(data.steps, data.plan, data.events, nominal_sf, notes),
-        "tilt_linearity": tilt_section(data.folder.path, data.record, data.events,
-                                       data.record.gravity_g, notes),
-        "threshold": _threshold(data, nominal_sf, notes),
-        "rate_limits": _rate_limits(data, notes),
-        "frequency_response": _frequency_response(data, nominal_sf, notes),
-        "turn_on": _turn_on(data, nominal_sf, notes),
-        "turn_on_repeatability": _repeatability(data, nominal_sf, notes),
-    }
+def _other_sections(data: RunData, nominal_sf: float, notes: list[str]) -> TestSections:
+    """imu … turn_on_repeatability, each built by its own module, in file order."""
+    return TestSections(
+        _imu(data, notes),
+        interference_section(data.folder.path, data.record, data.events, nominal_sf, notes),
+        magnetic_section(data.steps, data.plan, data.events, nominal_sf, notes),
+        tilt_section(data.folder.path, data.record, data.events, data.record.gravity_g, notes),
+        _threshold(data, nominal_sf, notes),
+        _rate_limits(data, notes),
+        _frequency_response(data, nominal_sf, notes),
+        _turn_on(data, nominal_sf, notes),
+        _repeatability(data, nominal_sf, notes))
 
 
 def measured_needs(data: RunData) -> frozenset[Need]:
@@ -502,7 +500,7 @@ def _all_done(data: RunData, kind: StepKind, sign: float | None = None) -> bool:
     return bool(planned) and planned <= {s.step.step_id for s in data.steps}
 
 
-def _threshold(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any] | None:
+def _threshold(data: RunData, nominal_sf: float, notes: list[str]) -> ThresholdResults | None:
     """Threshold and resolution from the threshold dwells, in plan order (analysis/rate/threshold.py)."""
     order = {s.step_id: i for i, s in enumerate(data.record.steps)}
     dwells = [ThresholdDwell(s.step.step_id, s.step.setpoint_c, float(s.step.base_rate_dps or 0.0),
@@ -515,7 +513,7 @@ def _threshold(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, 
 
 
 def _frequency_response(data: RunData, nominal_sf: float, notes: list[str]
-                        ) -> dict[str, Any] | None:
+                        ) -> frequency_section.FrequencyResults | None:
     """Gain, phase, −3 dB bandwidth from the frequency steps' samples (reports/sections/frequency.py)."""
     order = {s.step_id: i for i, s in enumerate(data.record.steps)}
     dwells = []
@@ -532,7 +530,7 @@ def _frequency_response(data: RunData, nominal_sf: float, notes: list[str]
                                                notes)
 
 
-def _turn_on(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any] | None:
+def _turn_on(data: RunData, nominal_sf: float, notes: list[str]) -> TurnOnResults | None:
     """Turn-on time and warm-up from the turn_on steps' power cycles and samples
     (reports/sections/turn_on.py); a step's last power cycle is the one its data follows."""
     done = completed_attempts(data.events)
@@ -554,7 +552,8 @@ def _turn_on(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, An
     return turn_on_section(records, notes)
 
 
-def _repeatability(data: RunData, nominal_sf: float, notes: list[str]) -> dict[str, Any] | None:
+def _repeatability(data: RunData, nominal_sf: float, notes: list[str]
+                   ) -> RepeatabilityResults | None:
     """Turn-on-to-turn-on repeatability from the turn_on_cycle steps' samples."""
     done = completed_attempts(data.events)
     cycles = []
@@ -566,7 +565,7 @@ def _repeatability(data: RunData, nominal_sf: float, notes: list[str]) -> dict[s
     return repeatability_section(cycles, notes)
 
 
-def _rate_limits(data: RunData, notes: list[str]) -> dict[str, Any] | None:
+def _rate_limits(data: RunData, notes: list[str]) -> rate_limits.RateLimitResults | None:
     """Maximum input rate each way from the rate-limit walk (analysis/rate/rate_limits.py)."""
     dwells = [rate_limits.LimitDwell(s.step.step_id, s.step.setpoint_c, s.step.rate_dps,
                                      s.output_mean, float(s.step.linearity_tolerance_pct or 1.0),

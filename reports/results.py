@@ -4,8 +4,8 @@ Each section is built by its own module as a typed value (sweep, bias, Allan,
 compensation, run, the uncertainty budget, the acceptance verdicts);
 :meth:`Results.to_json` is the only place that lays them out as the file's keys
 (interfaces.md: those keys stay, new ones may be added), each budget beside the
-value it belongs to. Sections still built as JSON by their modules (IMU,
-interference, threshold, turn-on…) are carried as they are, in file order.
+value it belongs to; the tests beyond the sweep, bias and Allan are
+:class:`TestSections`.
 """
 
 from __future__ import annotations
@@ -16,13 +16,29 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from gyrocal.analysis.rate.rate_limits import RateLimitResults
+from gyrocal.analysis.rate.threshold import ThresholdResults
 from gyrocal.metrology.decision import OverallVerdict
 from gyrocal.reports.acceptance import AcceptanceVerdict
 from gyrocal.reports.run_info import Provenance
 from gyrocal.reports.sections.allan import AllanSection
 from gyrocal.reports.sections.bias import BiasResults
 from gyrocal.reports.sections.compensation import CompensationResults
+from gyrocal.reports.sections.frequency import FrequencyResults, frequency_uncertainty
+from gyrocal.reports.sections.headline import StatedUncertainty, keyed
+from gyrocal.reports.sections.imu import ImuResults
+from gyrocal.reports.sections.interference import InterferenceEntry
+from gyrocal.reports.sections.magnetic import MagneticEntry
+from gyrocal.reports.sections.rate_limits import rate_limits_uncertainty
 from gyrocal.reports.sections.sweep import SweepResults
+from gyrocal.reports.sections.threshold import threshold_uncertainty
+from gyrocal.reports.sections.tilt import TiltEntry
+from gyrocal.reports.sections.turn_on import (
+    RepeatabilityResults,
+    TurnOnResults,
+    repeatability_uncertainty,
+    turn_on_uncertainty,
+)
 from gyrocal.reports.sections.uncertainty import UncertaintyBudget
 
 #: The keys interfaces.md requires in report/results.json.
@@ -48,6 +64,43 @@ class UnitUnderTest:
 
 
 @dataclass(frozen=True)
+class TestSections:
+    """The sections of the tests beyond the sweep, bias and Allan: imu … turn_on_repeatability,
+    each None when the run has no such test; ``to_json`` lays them out in file order."""
+
+    imu: ImuResults | None
+    table_interference: tuple[InterferenceEntry, ...] | None
+    magnetic: tuple[MagneticEntry, ...] | None
+    tilt_linearity: tuple[TiltEntry, ...] | None
+    threshold: ThresholdResults | None
+    rate_limits: RateLimitResults | None
+    frequency_response: FrequencyResults | None
+    turn_on: TurnOnResults | None
+    turn_on_repeatability: RepeatabilityResults | None
+
+    def stated_uncertainties(self) -> dict[str, StatedUncertainty]:
+        """results.json ``uncertainty`` entries these sections state for their single figures."""
+        return keyed([*threshold_uncertainty(self.threshold),
+                      *rate_limits_uncertainty(self.rate_limits),
+                      *frequency_uncertainty(self.frequency_response),
+                      *turn_on_uncertainty(self.turn_on),
+                      *repeatability_uncertainty(self.turn_on_repeatability)])
+
+    def to_json(self) -> dict[str, Any]:
+        def entries(found: tuple[Any, ...] | None) -> list[dict[str, Any]] | None:
+            return None if found is None else [e.to_json() for e in found]
+
+        def block(found: Any) -> dict[str, Any] | None:
+            return None if found is None else found.to_json()
+        return {"imu": block(self.imu), "table_interference": entries(self.table_interference),
+                "magnetic": entries(self.magnetic), "tilt_linearity": entries(self.tilt_linearity),
+                "threshold": block(self.threshold), "rate_limits": block(self.rate_limits),
+                "frequency_response": block(self.frequency_response),
+                "turn_on": block(self.turn_on),
+                "turn_on_repeatability": block(self.turn_on_repeatability)}
+
+
+@dataclass(frozen=True)
 class Results:
     """Everything results.json states; the verdict fields are None until judged."""
 
@@ -56,15 +109,14 @@ class Results:
     bias: BiasResults
     allan: AllanSection | None
     compensation: CompensationResults
-    #: imu … turn_on_repeatability: JSON-ready sections of their own modules, in file order
-    sections: Mapping[str, Any]
+    sections: TestSections
     earth_rate_removed_dph: float
     reference_temp_c: float
     provenance: Provenance
     definitions: Mapping[str, str]
     budget: UncertaintyBudget
-    #: the budgets the JSON-ready sections state for their single figures (path → budget)
-    headline_uncertainty: Mapping[str, Any]
+    #: the uncertainties the test sections state for their single figures (metric key → it)
+    headline_uncertainty: Mapping[str, StatedUncertainty]
     acceptance: tuple[AcceptanceVerdict, ...] | None = None
     verdict: OverallVerdict | None = None
     notes: tuple[str, ...] | None = None
@@ -80,12 +132,13 @@ class Results:
             **self.bias.to_json(b.bias, b.bias_slope),
             "allan": None if self.allan is None else self.allan.to_json(b.allan),
             "compensation": self.compensation.to_json(b.compensation),
-            **self.sections,
+            **self.sections.to_json(),
             "earth_rate_removed_dph": self.earth_rate_removed_dph,
             "reference_temp_c": self.reference_temp_c,
             **self.provenance.to_json(),
             "definitions": dict(self.definitions),
-            "uncertainty": b.paths_json() | dict(self.headline_uncertainty),
+            "uncertainty": b.paths_json() | {key: stated.to_json() for key, stated
+                                             in self.headline_uncertainty.items()},
             "uncertainty_inputs": b.inputs.to_json(),
         }
         if self.acceptance is not None:

@@ -39,13 +39,29 @@ class LimitDwell:
 
 
 @dataclass(frozen=True)
+class WalkPoint:
+    """One walked rate against the line: does it follow within the tolerance?"""
+
+    rate_dps: float
+    output_mean: float
+    fitted: float
+    deviation_pct: float
+    follows: bool
+
+    def to_json(self) -> dict[str, Any]:
+        return {"rate_dps": self.rate_dps, "output_mean": self.output_mean,
+                "fitted": self.fitted, "deviation_pct": self.deviation_pct,
+                "follows": self.follows}
+
+
+@dataclass(frozen=True)
 class Way:
     """One direction's walk: the maximum rate that follows and the first that does not."""
 
     sign: float
     max_dps: float | None         # magnitude; None when not even the smallest rate follows
     next_dps: float | None        # the first rate that does not follow; None if all do
-    points: list[dict[str, Any]]
+    points: tuple[WalkPoint, ...]
 
     @property
     def u_dps(self) -> float | None:
@@ -85,17 +101,68 @@ def walk(dwells: list[LimitDwell], sign: float, sf: float, bias: float) -> Way:
         fitted = sf * dwell.rate_dps + bias
         deviation_pct = abs(dwell.output_mean - fitted) / abs(sf * dwell.rate_dps) * 100.0
         follows = deviation_pct <= dwell.linearity_tolerance_pct
-        points.append({"rate_dps": dwell.rate_dps, "output_mean": dwell.output_mean,
-                       "fitted": fitted, "deviation_pct": deviation_pct, "follows": follows})
+        points.append(WalkPoint(dwell.rate_dps, dwell.output_mean, fitted, deviation_pct, follows))
         if next_dps is None:
             if follows:
                 max_dps = abs(dwell.rate_dps)
             else:
                 next_dps = abs(dwell.rate_dps)
-    return Way(sign, max_dps, next_dps, points)
+    return Way(sign, max_dps, next_dps, tuple(points))
 
 
-def rate_limits_section(dwells: list[LimitDwell], notes: list[str]) -> dict[str, Any] | None:
+@dataclass(frozen=True)
+class LimitTest:
+    """One direction walked at one temperature, against that temperature's line."""
+
+    temp_c: float
+    fit_sf: float
+    fit_bias: float
+    linearity_tolerance_pct: float
+    way: Way
+
+    @property
+    def direction(self) -> str:
+        return "positive" if self.way.sign > 0 else "negative"
+
+    @property
+    def expanded_dps(self) -> float | None:
+        u = self.way.u_dps
+        return None if u is None else COVERAGE_K * u
+
+    def to_json(self) -> dict[str, Any]:
+        way = self.way
+        return {"temp_c": self.temp_c, "direction": self.direction,
+                "standard_test": "input rate limits (IEEE Std 952 / 1431)",
+                "fit_sf": self.fit_sf, "fit_bias": self.fit_bias,
+                "linearity_tolerance_pct": self.linearity_tolerance_pct,
+                "points": [p.to_json() for p in way.points], "max_dps": way.max_dps,
+                "next_dps": way.next_dps, "estimate_dps": way.estimate_dps, "u_dps": way.u_dps,
+                "U_dps": self.expanded_dps}
+
+
+@dataclass(frozen=True)
+class RateLimitResults:
+    """results.json ``rate_limits``: every walk, and the smallest maximum each way."""
+
+    tests: tuple[LimitTest, ...]
+    max_positive_dps: float | None
+    max_negative_dps: float | None
+
+    def headline_test(self, sign: float) -> LimitTest | None:
+        """The walk the maximum of one direction was taken from."""
+        value = self.max_positive_dps if sign > 0 else self.max_negative_dps
+        if value is None:
+            return None
+        return next((t for t in self.tests if t.way.sign == sign and t.way.max_dps == value),
+                    None)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"tests": [t.to_json() for t in self.tests],
+                "max_positive_dps": self.max_positive_dps,
+                "max_negative_dps": self.max_negative_dps, "k": COVERAGE_K}
+
+
+def rate_limits_section(dwells: list[LimitDwell], notes: list[str]) -> RateLimitResults | None:
     """results.json ``rate_limits``: the walk per temperature and direction, and the smallest
     maximum each way over temperatures."""
     if not dwells:
@@ -111,41 +178,18 @@ def rate_limits_section(dwells: list[LimitDwell], notes: list[str]) -> dict[str,
             notes.append(f"rate limits at {temp:g} °C not computed: {exc}")
             continue
         for sign in sorted({math.copysign(1.0, d.rate_dps) for d in members}, reverse=True):
-            way = walk(members, sign, sf, bias)
-            name = "positive" if sign > 0 else "negative"
-            if way.next_dps is None:
-                notes.append(f"rate limits at {temp:g} °C, {name}: every rate walked follows the "
-                             f"linear fit; the limit is above {way.max_dps:g} deg/s (a lower bound)")
-            u = way.u_dps
-            tests.append({"temp_c": temp, "direction": name, "standard_test":
-                          "input rate limits (IEEE Std 952 / 1431)", "fit_sf": sf, "fit_bias": bias,
-                          "linearity_tolerance_pct": members[0].linearity_tolerance_pct,
-                          "points": way.points, "max_dps": way.max_dps, "next_dps": way.next_dps,
-                          "estimate_dps": way.estimate_dps, "u_dps": u,
-                          "U_dps": None if u is None else COVERAGE_K * u})
-    return {"tests": tests, "max_positive_dps": _smallest(tests, "positive"),
-            "max_negative_dps": _smallest(tests, "negative"), "k": COVERAGE_K}
+            test = LimitTest(temp, sf, bias, members[0].linearity_tolerance_pct,
+                             walk(members, sign, sf, bias))
+            if test.way.next_dps is None:
+                notes.append(f"rate limits at {temp:g} °C, {test.direction}: every rate walked "
+                             "follows the linear fit; the limit is above "
+                             f"{test.way.max_dps:g} deg/s (a lower bound)")
+            tests.append(test)
+    return RateLimitResults(tuple(tests), _smallest(tests, 1.0), _smallest(tests, -1.0))
 
 
-def _smallest(tests: list[dict[str, Any]], direction: str) -> float | None:
-    values = [t["max_dps"] for t in tests if t["direction"] == direction]
+def _smallest(tests: list[LimitTest], sign: float) -> float | None:
+    values = [t.way.max_dps for t in tests if t.way.sign == sign]
     if not values or any(v is None for v in values):
         return None
     return min(values)
-
-
-def headline_uncertainty(section: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
-    out: dict[str, dict[str, Any]] = {}
-    if section is None:
-        return out
-    for direction in ("positive", "negative"):
-        value = section[f"max_{direction}_dps"]
-        entry = next((t for t in section["tests"] if t["direction"] == direction
-                      and t["max_dps"] == value), None)
-        if value is None or entry is None or entry["u_dps"] is None:
-            continue
-        out[f"rate_limits.max_{direction}_dps"] = {
-            "value": value, "u": entry["u_dps"], "U": entry["U_dps"], "k": COVERAGE_K,
-            "unit": "deg/s", "method": "rectangular over the rate walk (largest rate that "
-                                       "follows to the first that does not)"}
-    return out

@@ -128,8 +128,65 @@ def bracket(found: list[Increment]) -> Bracket:
     return Bracket(ordered[threshold].commanded_dps, below)
 
 
+@dataclass(frozen=True)
+class ThresholdTest:
+    """One (temperature, base rate) of a threshold test: its increments and their bracket."""
+
+    temp_c: float
+    base_rate_dps: float
+    confidence: float
+    max_error_fraction: float
+    increments: tuple[Increment, ...]
+    bracket: Bracket
+
+    @property
+    def is_threshold(self) -> bool:
+        """A zero base measures the threshold, a non-zero one the resolution."""
+        return self.base_rate_dps == 0
+
+    @property
+    def threshold_dps(self) -> float | None:
+        return self.bracket.threshold_dps
+
+    @property
+    def expanded_dps(self) -> float | None:
+        u = self.bracket.u_dps
+        return None if u is None else COVERAGE_K * u
+
+    def to_json(self) -> dict[str, Any]:
+        b = self.bracket
+        return {"temp_c": self.temp_c, "base_rate_dps": self.base_rate_dps,
+                "standard_test": "threshold (IEEE Std 952 / 1431)" if self.is_threshold
+                else "resolution (IEEE Std 952 / 1431)",
+                "confidence": self.confidence, "max_error_fraction": self.max_error_fraction,
+                "increments": [i.to_json() for i in self.increments],
+                "threshold_dps": b.threshold_dps, "below_dps": b.below_dps,
+                "estimate_dps": b.estimate_dps, "u_dps": b.u_dps, "U_dps": self.expanded_dps}
+
+
+@dataclass(frozen=True)
+class ThresholdResults:
+    """results.json ``threshold``: every test and the headline figures (worst of each kind)."""
+
+    tests: tuple[ThresholdTest, ...]
+    threshold_dps: float | None       # worst over the zero-base tests
+    resolution_dps: float | None      # worst over the non-zero bases
+
+    def headline_test(self, *, zero: bool) -> ThresholdTest | None:
+        """The test the threshold (``zero``) or resolution figure was taken from."""
+        value = self.threshold_dps if zero else self.resolution_dps
+        if value is None:
+            return None
+        return next((t for t in self.tests if t.is_threshold == zero
+                     and t.threshold_dps == value), None)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"tests": [t.to_json() for t in self.tests], "threshold_dps": self.threshold_dps,
+                "resolution_dps": self.resolution_dps, "k": COVERAGE_K}
+
+
 def threshold_section(dwells: list[ThresholdDwell], nominal_sf: float,
-                      notes: list[str]) -> dict[str, Any] | None:
+                      notes: list[str]) -> ThresholdResults | None:
     """results.json ``threshold``: one entry per (temperature, base rate), and the headline
     figures: the threshold at zero rate and the resolution at the worst non-zero base."""
     if not dwells:
@@ -144,40 +201,13 @@ def threshold_section(dwells: list[ThresholdDwell], nominal_sf: float,
         if result.threshold_dps is None:
             notes.append(f"threshold at {base:+g} deg/s ({temp:g} °C): no listed increment is "
                          "resolved with every larger one; the threshold lies above the largest")
-        tests.append({
-            "temp_c": temp, "base_rate_dps": base, "standard_test":
-                "threshold (IEEE Std 952 / 1431)" if base == 0 else
-                "resolution (IEEE Std 952 / 1431)",
-            "confidence": members[0].confidence, "max_error_fraction": members[0].max_error_fraction,
-            "increments": [i.to_json() for i in found],
-            "threshold_dps": result.threshold_dps, "below_dps": result.below_dps,
-            "estimate_dps": result.estimate_dps, "u_dps": result.u_dps,
-            "U_dps": None if result.u_dps is None else COVERAGE_K * result.u_dps,
-        })
-    return {"tests": tests, "threshold_dps": _worst(tests, zero=True),
-            "resolution_dps": _worst(tests, zero=False), "k": COVERAGE_K}
+        tests.append(ThresholdTest(temp, base, members[0].confidence,
+                                   members[0].max_error_fraction, tuple(found), result))
+    return ThresholdResults(tuple(tests), _worst(tests, zero=True), _worst(tests, zero=False))
 
 
-def _worst(tests: list[dict[str, Any]], *, zero: bool) -> float | None:
-    values = [t["threshold_dps"] for t in tests if (t["base_rate_dps"] == 0) == zero]
+def _worst(tests: list[ThresholdTest], *, zero: bool) -> float | None:
+    values = [t.threshold_dps for t in tests if t.is_threshold == zero]
     if not values or any(v is None for v in values):
         return None
     return max(values)
-
-
-def headline_uncertainty(section: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
-    """``uncertainty`` entries for the two metrics: the grid's rectangular u, U = k·u."""
-    out: dict[str, dict[str, Any]] = {}
-    if section is None:
-        return out
-    for key, zero in (("threshold_dps", True), ("resolution_dps", False)):
-        value = section[key]
-        entry = next((t for t in section["tests"] if (t["base_rate_dps"] == 0) == zero
-                      and t["threshold_dps"] == value), None)
-        if value is None or entry is None:
-            continue
-        out[f"threshold.{key}"] = {"value": value, "u": entry["u_dps"], "U": entry["U_dps"],
-                                   "k": COVERAGE_K, "unit": "deg/s",
-                                   "method": "rectangular over the increment grid "
-                                             "(largest failing to smallest passing increment)"}
-    return out

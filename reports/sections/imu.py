@@ -14,6 +14,8 @@ temperature it was not calibrated at).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -103,8 +105,44 @@ def _check_table(fits: list[MatrixFit]) -> list[dict[str, Any]]:
     return check_rows(fits, lambda f: f.bias_output, residual, summary)
 
 
+#: how the imu block's figures are defined (results.json ``imu.definitions``)
+DEFINITIONS = {
+    "sensitivity": "S_ij: output units per deg/s of body rate about axis j",
+    "misalignment_urad": "E_ij = S_ij / S_ii (axis i senses E_ij of the rate about j)",
+    "bias_dph": "S⁻¹·b, input-referred, vertical Earth rate removed",
+    "u_*": "standard uncertainty, type A (least squares, dof given)",
+    "check": "RMS body-rate residual on the calibration dwells after compensation",
+}
+
+
+@dataclass(frozen=True)
+class ImuResults:
+    """results.json ``imu``: the matrix per temperature, the tables over temperature, the
+    check, the accelerometers. Without a fit (``fits`` None) only the (empty) tables, check and the
+    accelerometers are stated."""
+
+    accelerometers: Any                         # imu_accel.py's block, JSON-ready
+    fits: tuple[MatrixFit, ...] | None = None     # None: no fit was made
+    mountings: Any = None                       # plan.json's, as recorded
+    mounting_order: Any = None
+    #: quantity (sf_x, e_xy_urad, bias_x_dph…) → its points over temperature and tables
+    compensation: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    check: tuple[Mapping[str, Any], ...] = ()
+
+    def to_json(self) -> dict[str, Any]:
+        if self.fits is None:
+            return {"temperatures": [], "compensation": {}, "check": [],
+                    "accelerometers": self.accelerometers}
+        return {"mountings": self.mountings, "mounting_order": self.mounting_order,
+                "definitions": dict(DEFINITIONS),
+                "temperatures": [_fit_json(f) for f in self.fits],
+                "compensation": {k: dict(v) for k, v in self.compensation.items()},
+                "check": [dict(row) for row in self.check],
+                "accelerometers": self.accelerometers}
+
+
 def imu_section(run_dir: Path, record: PlanRecord, events: list[dict[str, Any]],
-                latitude_deg: float, notes: list[str]) -> dict[str, Any] | None:
+                latitude_deg: float, notes: list[str]) -> ImuResults | None:
     """The ``imu`` block of results.json, or None for a single-axis plan."""
     if not record.mountings:
         return None
@@ -112,28 +150,18 @@ def imu_section(run_dir: Path, record: PlanRecord, events: list[dict[str, Any]],
     dwells = read_imu_dwells(run_dir, record, events, notes)
     if not dwells:
         notes.append("imu: no completed three-axis dwell; no matrix")
-        return {"temperatures": [], "compensation": {}, "check": [], "accelerometers": accelerometers}
+        return ImuResults(accelerometers)
     try:
         fits = fit_all(dwells, latitude_deg)
     except ValueError as exc:
         notes.append(f"imu: {exc}")
-        return {"temperatures": [], "compensation": {}, "check": [], "accelerometers": accelerometers}
+        return ImuResults(accelerometers)
     series = _element_series(fits)
     if len(fits) < 3:
         notes.append(f"imu compensation: {len(fits)} temperature(s); tables need ≥ 3")
-    return {
-        "mountings": record.raw.get("mountings"),
-        "mounting_order": record.raw.get("mounting_order"),
-        "definitions": {
-            "sensitivity": "S_ij: output units per deg/s of body rate about axis j",
-            "misalignment_urad": "E_ij = S_ij / S_ii (axis i senses E_ij of the rate about j)",
-            "bias_dph": "S⁻¹·b, input-referred, vertical Earth rate removed",
-            "u_*": "standard uncertainty, type A (least squares, dof given)",
-            "check": "RMS body-rate residual on the calibration dwells after compensation",
-        },
-        "temperatures": [_fit_json(f) for f in fits],
-        "compensation": {name: {"points": points, "tables": comp.tables_json(points)}
-                         for name, points in series.items()},
-        "check": _check_table(fits),
-        "accelerometers": accelerometers,
-    }
+    return ImuResults(
+        accelerometers, tuple(fits), record.raw.get("mountings"),
+        record.raw.get("mounting_order"),
+        {name: {"points": points, "tables": comp.tables_json(points)}
+         for name, points in series.items()},
+        tuple(_check_table(fits)))

@@ -8,20 +8,37 @@ with the nominal scale factor), and compares them (``interference.py``).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from gyrocal.analysis.environment.interference import compare
+from gyrocal.analysis.environment.interference import InterferenceResult, compare
 from gyrocal.models.rate_units import output_to_dph
 from gyrocal.record.plan_record import PlanRecord
 from gyrocal.record.samples import RunSamples
 from gyrocal.record.step_kind import StepKind
 
 
+@dataclass(frozen=True)
+class InterferenceEntry:
+    """One drive-powered/drive-off pair compared: an entry of results.json
+    ``table_interference``."""
+
+    powered_step: str
+    off_step: str
+    setpoint_c: float
+    result: InterferenceResult
+
+    def to_json(self) -> dict[str, Any]:
+        return {"powered_step": self.powered_step, "off_step": self.off_step,
+                "setpoint_c": self.setpoint_c, **self.result.to_json()}
+
+
 def interference_section(run_dir: Path, record: PlanRecord, events: list[dict[str, Any]],
-                         nominal_sf: float, notes: list[str]) -> list[dict[str, Any]] | None:
+                         nominal_sf: float, notes: list[str]
+                         ) -> tuple[InterferenceEntry, ...] | None:
     """One entry per compared pair, or None when the plan has no drive-off step."""
     done = RunSamples(run_dir, events)
     out = []
@@ -40,6 +57,5 @@ def interference_section(run_dir: Path, record: PlanRecord, events: list[dict[st
         except ValueError as exc:
             notes.append(f"table interference {step.step_id}: {exc}")
             continue
-        out.append({"powered_step": powered_id, "off_step": step.step_id,
-                    "setpoint_c": step.setpoint_c, **result.to_json()})
-    return out or None
+        out.append(InterferenceEntry(powered_id, step.step_id, step.setpoint_c, result))
+    return tuple(out) or None

@@ -13,10 +13,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
-from gyrocal.analysis.environment.magnetic import sensitivity
-from gyrocal.metrology.gum import Contribution, EvalType, combine
+from gyrocal.analysis.environment.magnetic import MagneticSensitivity, sensitivity
+from gyrocal.metrology.gum import Contribution, EvalType, Uncertainty, combine
 from gyrocal.record.journal import JournalEvent
 from gyrocal.record.step_kind import StepKind
 
@@ -33,8 +34,33 @@ def _read_back_fields(events: Sequence[dict[str, Any]]) -> dict[str, float]:
     return found
 
 
+@dataclass(frozen=True)
+class MagneticEntry:
+    """One magnetic test: its three dwells, the slope and its budget (results.json
+    ``magnetic[i]``)."""
+
+    test: str
+    steps: tuple[str, ...]
+    setpoint_c: float
+    coil_axis: str | None
+    field_t: tuple[float, ...]
+    bias_dph: tuple[float, ...]
+    u_bias_dph: tuple[float, ...]
+    result: MagneticSensitivity
+    uncertainty: Uncertainty
+
+    def to_json(self) -> dict[str, Any]:
+        return {"test": self.test, "steps": list(self.steps), "setpoint_c": self.setpoint_c,
+                "coil_axis": self.coil_axis, "field_t": list(self.field_t),
+                "bias_dph": list(self.bias_dph), "u_bias_dph": list(self.u_bias_dph),
+                "field_span_t": max(self.field_t) - min(self.field_t),
+                "sensitivity_dph_per_t": self.result.sensitivity_dph_per_t,
+                "bias_at_zero_dph": self.result.bias_at_zero_dph, "grade": self.result.grade(),
+                "uncertainty": self.uncertainty.to_json()}
+
+
 def magnetic_section(steps: Sequence, plan: dict[str, Any], events: Sequence[dict[str, Any]],
-                     nominal_sf: float, notes: list[str]) -> list[dict[str, Any]] | None:
+                     nominal_sf: float, notes: list[str]) -> tuple[MagneticEntry, ...] | None:
     """One entry per magnetic test (``steps``: the report's StepSummary list), or None."""
     coil = (plan.get("station") or {}).get("coil") or {}
     u_coil_rel = float(coil.get("u_constant_rel") or 0.0)
@@ -63,13 +89,12 @@ def magnetic_section(steps: Sequence, plan: dict[str, Any], events: Sequence[dic
             notes.append(f"magnetic {head}: {exc}")
             continue
         out.append(_entry(head, dwells, field, bias, u_bias, dofs, result, u_coil_rel, coil))
-    return out or None
+    return tuple(out) or None
 
 
 def _entry(head: str, dwells, field, bias, u_bias, dofs, result, u_coil_rel: float,
-           coil: dict[str, Any]) -> dict[str, Any]:
-    """The JSON entry: the dwells, the slope and its budget (type A per dwell, B of the coil)."""
-    span = max(field) - min(field)
+           coil: dict[str, Any]) -> MagneticEntry:
+    """The entry: the dwells, the slope and its budget (type A per dwell, B of the coil)."""
     # each dwell's sensitivity coefficient is its weight in the weighted-LS slope (±1/(2B)
     # and 0 for a symmetric design with equal u): Σ (c_i u_i)² is the fit's own slope variance
     weights = _slope_weights(field, u_bias)
@@ -80,13 +105,8 @@ def _entry(head: str, dwells, field, bias, u_bias, dofs, result, u_coil_rel: flo
                                "normal", u_coil_rel, result.sensitivity_dph_per_t,
                                abs(result.sensitivity_dph_per_t) * u_coil_rel, math.inf))
     u = combine(result.sensitivity_dph_per_t, budget)
-    return {"test": head, "steps": [d.step.step_id for d in dwells],
-            "setpoint_c": dwells[0].step.setpoint_c, "coil_axis": coil.get("axis"),
-            "field_t": list(field), "bias_dph": bias, "u_bias_dph": u_bias,
-            "field_span_t": span,
-            "sensitivity_dph_per_t": result.sensitivity_dph_per_t,
-            "bias_at_zero_dph": result.bias_at_zero_dph, "grade": result.grade(),
-            "uncertainty": u.to_json()}
+    return MagneticEntry(head, tuple(d.step.step_id for d in dwells), dwells[0].step.setpoint_c,
+                         coil.get("axis"), tuple(field), tuple(bias), tuple(u_bias), result, u)
 
 
 def _slope_weights(field: Sequence[float], u_bias: Sequence[float]) -> list[float]:

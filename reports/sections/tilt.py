@@ -12,12 +12,14 @@ the 1-s means of the zero hold over its stated duration, in g of input.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from gyrocal.analysis.environment.tilt_linearity import (
+    LinearityResult,
     lateral_sensitivity_pct,
     linearity,
     zero_stability,
@@ -38,8 +40,36 @@ def _columns(run: RunSamples, step_id: str) -> dict[str, np.ndarray]:
     return {SENSITIVE: logged[SENSITIVE], LATERAL: logged[LATERAL]}
 
 
+@dataclass(frozen=True)
+class TiltEntry:
+    """One tilt_linearity test fitted: an entry of results.json ``tilt_linearity``."""
+
+    test: str
+    angles_deg: tuple[float, ...]
+    output_g: tuple[float, ...]             # the sensitive channel's mean per angle
+    lateral_output_g: tuple[float, ...]     # the channel across it
+    gravity_g: float
+    fit: LinearityResult
+    lateral_sensitivity_pct: float
+    zero_stability_g: float
+    zero_stability_over_s: float
+
+    def to_json(self) -> dict[str, Any]:
+        fit = self.fit
+        return {"test": self.test, "angles_deg": list(self.angles_deg),
+                "output_g": list(self.output_g), "lateral_output_g": list(self.lateral_output_g),
+                "gravity_g": self.gravity_g,
+                "sensitivity": fit.sensitivity, "u_sensitivity": fit.u_sensitivity,
+                "zero_output_g": fit.zero_output, "linearity_pct_fs": fit.linearity_pct_fs,
+                "residuals_g": [float(r) for r in fit.residuals],
+                "lateral_sensitivity_pct": self.lateral_sensitivity_pct,
+                "zero_stability_g": self.zero_stability_g,
+                "zero_stability_over_s": self.zero_stability_over_s,
+                "zero_stability_definition": "std of the 1-s means of the zero hold / sensitivity"}
+
+
 def tilt_section(run_dir: Path, record: PlanRecord, events: list[dict[str, Any]],
-                 gravity_g: float, notes: list[str]) -> list[dict[str, Any]] | None:
+                 gravity_g: float, notes: list[str]) -> tuple[TiltEntry, ...] | None:
     """One entry per tilt_linearity test, or None when the plan has none."""
     done = RunSamples(run_dir, events)
     groups: dict[str, list] = {}
@@ -56,10 +86,10 @@ def tilt_section(run_dir: Path, record: PlanRecord, events: list[dict[str, Any]]
             out.append(_entry(done, head, steps, record.sample_rate_hz, gravity_g))
         except ValueError as exc:
             notes.append(f"tilt linearity {head}: {exc}")
-    return out or None
+    return tuple(out) or None
 
 
-def _entry(run: RunSamples, head: str, steps, fs_hz: float, gravity_g: float) -> dict:
+def _entry(run: RunSamples, head: str, steps, fs_hz: float, gravity_g: float) -> TiltEntry:
     points = [s for s in steps if not s.step_id.endswith(".zero")]
     zero = next(s for s in steps if s.step_id.endswith(".zero"))
     means = [{k: float(np.mean(v)) for k, v in _columns(run, s.step_id).items()}
@@ -71,14 +101,6 @@ def _entry(run: RunSamples, head: str, steps, fs_hz: float, gravity_g: float) ->
     held = _columns(run, zero.step_id)[SENSITIVE]
     per_s = max(1, int(round(fs_hz)))
     seconds = held[: held.size // per_s * per_s].reshape(-1, per_s).mean(axis=1)
-    return {"test": head, "angles_deg": angles,
-            "output_g": [m[SENSITIVE] for m in means],
-            "lateral_output_g": [m[LATERAL] for m in means],
-            "gravity_g": gravity_g,
-            "sensitivity": fit.sensitivity, "u_sensitivity": fit.u_sensitivity,
-            "zero_output_g": fit.zero_output, "linearity_pct_fs": fit.linearity_pct_fs,
-            "residuals_g": [float(r) for r in fit.residuals],
-            "lateral_sensitivity_pct": lateral,
-            "zero_stability_g": zero_stability(seconds, fit.sensitivity),
-            "zero_stability_over_s": zero.duration_s,
-            "zero_stability_definition": "std of the 1-s means of the zero hold / sensitivity"}
+    return TiltEntry(head, tuple(angles), tuple(m[SENSITIVE] for m in means),
+                     tuple(m[LATERAL] for m in means), gravity_g, fit, lateral,
+                     zero_stability(seconds, fit.sensitivity), zero.duration_s)

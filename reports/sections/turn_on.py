@@ -24,18 +24,28 @@ deviation of the 1-s means within the cycles' records.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from gyrocal.analysis.thermal.warmup import (
     COVERAGE_K,
+    Repeatability,
+    WarmupFit,
     bin_means,
     fit_warmup,
     measured_time_to_band_s,
     turn_on_repeatability,
 )
+from gyrocal.metrology.metrics import (
+    TURN_ON_REPEATABILITY,
+    TURN_ON_TIME,
+    WARMUP_AMPLITUDE,
+    WARMUP_TAU,
+    WARMUP_TIME_TO_BAND,
+)
+from gyrocal.reports.sections.headline import StatedUncertainty
 
 #: bin of the warm-up fit (the record's white noise averages down in it)
 BIN_S = 1.0
@@ -53,68 +63,113 @@ class TurnOnRecord:
     bias_dph: np.ndarray      # output / nominal SF, deg/h
 
 
-def _one(record: TurnOnRecord, notes: list[str]) -> dict[str, Any]:
+@dataclass(frozen=True)
+class Warmup:
+    """A power cycle's warm-up fit and the times to the band it gives."""
+
+    fit: WarmupFit
+    time_to_band_s: float
+    u_time_to_band_s: float
+    measured_time_to_band_s: float | None
+
+    def to_json(self) -> dict[str, Any]:
+        fit = self.fit
+        return {
+            "settled_bias_dph": fit.settled_dph, "u_settled_bias_dph": fit.u_settled_dph,
+            "warmup_tau_s": fit.tau_s, "u_warmup_tau_s": fit.u_tau_s,
+            "U_warmup_tau_s": COVERAGE_K * fit.u_tau_s,
+            "warmup_amplitude_dph": fit.amplitude_dph,
+            "u_warmup_amplitude_dph": fit.u_amplitude_dph,
+            "U_warmup_amplitude_dph": COVERAGE_K * fit.u_amplitude_dph,
+            "time_to_band_s": self.time_to_band_s, "u_time_to_band_s": self.u_time_to_band_s,
+            "U_time_to_band_s": COVERAGE_K * self.u_time_to_band_s,
+            "measured_time_to_band_s": self.measured_time_to_band_s}
+
+
+@dataclass(frozen=True)
+class TurnOnTest:
+    """One power cycle: the time to first data, and the warm-up when it could be fitted."""
+
+    step_id: str
+    temp_c: float
+    band_dph: float
+    time_to_first_data_s: float
+    u_time_to_first_data_s: float
+    warmup: Warmup | None
+
+    def to_json(self) -> dict[str, Any]:
+        out = {"step_id": self.step_id, "temp_c": self.temp_c, "band_dph": self.band_dph,
+               "time_to_first_data_s": self.time_to_first_data_s,
+               "u_time_to_first_data_s": self.u_time_to_first_data_s,
+               "U_time_to_first_data_s": COVERAGE_K * self.u_time_to_first_data_s}
+        return out if self.warmup is None else out | self.warmup.to_json()
+
+
+def _one(record: TurnOnRecord, notes: list[str]) -> TurnOnTest:
     since_on_s = record.t_s - record.on_clock_s
-    u_first_s = record.poll_s / math.sqrt(12.0)
-    out: dict[str, Any] = {
-        "step_id": record.step_id, "temp_c": record.temp_c, "band_dph": record.band_dph,
-        "time_to_first_data_s": record.first_frame_after_s, "u_time_to_first_data_s": u_first_s,
-        "U_time_to_first_data_s": COVERAGE_K * u_first_s,
-    }
+    test = TurnOnTest(record.step_id, record.temp_c, record.band_dph,
+                      record.first_frame_after_s, record.poll_s / math.sqrt(12.0), None)
     try:
         fit = fit_warmup(since_on_s, record.bias_dph, BIN_S)
     except (ValueError, RuntimeError) as exc:
         notes.append(f"turn_on {record.step_id}: no warm-up fit ({exc})")
-        return out
+        return test
     t_band, u_band = fit.time_to_band_s(record.band_dph)
-    out.update({
-        "settled_bias_dph": fit.settled_dph, "u_settled_bias_dph": fit.u_settled_dph,
-        "warmup_tau_s": fit.tau_s, "u_warmup_tau_s": fit.u_tau_s,
-        "U_warmup_tau_s": COVERAGE_K * fit.u_tau_s,
-        "warmup_amplitude_dph": fit.amplitude_dph, "u_warmup_amplitude_dph": fit.u_amplitude_dph,
-        "U_warmup_amplitude_dph": COVERAGE_K * fit.u_amplitude_dph,
-        "time_to_band_s": t_band, "u_time_to_band_s": u_band,
-        "U_time_to_band_s": COVERAGE_K * u_band,
-        "measured_time_to_band_s": measured_time_to_band_s(
-            since_on_s, record.bias_dph, fit.settled_dph, record.band_dph, BIN_S),
-    })
+    measured = measured_time_to_band_s(since_on_s, record.bias_dph, fit.settled_dph,
+                                       record.band_dph, BIN_S)
     if not (0.0 < fit.tau_s < 10.0 * float(since_on_s[-1])):
         notes.append(f"turn_on {record.step_id}: the fitted τ {fit.tau_s:.4g} s is not "
                      "determined by the record's length")
-    return out
+    return replace(test, warmup=Warmup(fit, t_band, u_band, measured))
 
 
-def turn_on_section(records: list[TurnOnRecord], notes: list[str]) -> dict[str, Any] | None:
+@dataclass(frozen=True)
+class TurnOnResults:
     """results.json ``turn_on``: one entry per power cycle; the headline numbers are the
     first cycle's (a procedure runs one turn_on per temperature)."""
+
+    tests: tuple[TurnOnTest, ...]
+
+    def to_json(self) -> dict[str, Any]:
+        first = self.tests[0]
+        warm = first.warmup
+        return {"tests": [t.to_json() for t in self.tests], "k": COVERAGE_K,
+                "band_dph": first.band_dph, "time_to_first_data_s": first.time_to_first_data_s,
+                "warmup_tau_s": None if warm is None else warm.fit.tau_s,
+                "warmup_amplitude_dph": None if warm is None else warm.fit.amplitude_dph,
+                "time_to_band_s": None if warm is None else warm.time_to_band_s,
+                "settled_bias_dph": None if warm is None else warm.fit.settled_dph}
+
+
+def turn_on_section(records: list[TurnOnRecord], notes: list[str]) -> TurnOnResults | None:
+    """results.json ``turn_on`` (None when the run has no turn_on step)."""
     if not records:
         return None
-    tests = [_one(r, notes) for r in records]
-    first = tests[0]
-    return {"tests": tests, "k": COVERAGE_K, "band_dph": first["band_dph"],
-            **{key: first.get(key) for key in (
-                "time_to_first_data_s", "warmup_tau_s", "warmup_amplitude_dph",
-                "time_to_band_s", "settled_bias_dph")}}
+    return TurnOnResults(tuple(_one(r, notes) for r in records))
 
 
-_HEADLINES = (("time_to_first_data_s", "s", "rectangular over the first-frame poll interval"),
-              ("warmup_tau_s", "s", "type A of the least-squares warm-up fit (1-s bin means)"),
-              ("warmup_amplitude_dph", "deg/h", "type A of the least-squares warm-up fit"),
-              ("time_to_band_s", "s", "τ·ln(|A|/band), propagated from the fit's covariance"))
-
-
-def headline_uncertainty(section: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
-    """``uncertainty`` entries for the turn_on headline numbers (the first power cycle's)."""
-    out: dict[str, dict[str, Any]] = {}
+def turn_on_uncertainty(section: TurnOnResults | None) -> list[StatedUncertainty]:
+    """The stated uncertainties of the turn_on headline numbers (the first power cycle's)."""
     if section is None:
+        return []
+    first = section.tests[0]
+    out = [StatedUncertainty(TURN_ON_TIME, first.time_to_first_data_s,
+                             first.u_time_to_first_data_s,
+                             COVERAGE_K * first.u_time_to_first_data_s, COVERAGE_K, "s",
+                             "rectangular over the first-frame poll interval")]
+    warm = first.warmup
+    if warm is None:
         return out
-    first = section["tests"][0]
-    for key, unit, method in _HEADLINES:
-        if first.get(key) is not None:
-            out[f"turn_on.{key}"] = {"value": first[key], "u": first[f"u_{key}"],
-                                     "U": first[f"U_{key}"], "k": COVERAGE_K, "unit": unit,
-                                     "method": method}
-    return out
+    fit = warm.fit
+    return out + [
+        StatedUncertainty(WARMUP_TAU, fit.tau_s, fit.u_tau_s, COVERAGE_K * fit.u_tau_s,
+                          COVERAGE_K, "s", "type A of the least-squares warm-up fit (1-s bin means)"),
+        StatedUncertainty(WARMUP_AMPLITUDE, fit.amplitude_dph, fit.u_amplitude_dph,
+                          COVERAGE_K * fit.u_amplitude_dph, COVERAGE_K, "deg/h",
+                          "type A of the least-squares warm-up fit"),
+        StatedUncertainty(WARMUP_TIME_TO_BAND, warm.time_to_band_s, warm.u_time_to_band_s,
+                          COVERAGE_K * warm.u_time_to_band_s, COVERAGE_K, "s",
+                          "τ·ln(|A|/band), propagated from the fit's covariance")]
 
 
 @dataclass(frozen=True)
@@ -129,37 +184,60 @@ def _test_of(step_id: str) -> str:
     return step_id.rsplit(".c", 1)[0]
 
 
-def _group(cycles: list[CycleRecord], notes: list[str]) -> dict[str, Any] | None:
+@dataclass(frozen=True)
+class RepeatabilityTest:
+    """One turn_on_repeatability test: its cycles' biases, their spread, the in-run spread."""
+
+    test: str
+    temp_c: float
+    repeatability: Repeatability
+    in_run_std_dph: float
+
+    def to_json(self) -> dict[str, Any]:
+        rep = self.repeatability
+        return {"test": self.test, "temp_c": self.temp_c, "cycles": rep.n,
+                "biases_dph": list(rep.biases_dph), "std_dph": rep.std_dph,
+                "u_std_dph": rep.u_std_dph, "U_std_dph": COVERAGE_K * rep.u_std_dph,
+                "in_run_std_dph": self.in_run_std_dph}
+
+
+@dataclass(frozen=True)
+class RepeatabilityResults:
+    """results.json ``turn_on_repeatability``: one entry per test; the headline the first's."""
+
+    tests: tuple[RepeatabilityTest, ...]
+
+    def to_json(self) -> dict[str, Any]:
+        first = self.tests[0]
+        return {"tests": [t.to_json() for t in self.tests], "k": COVERAGE_K,
+                "std_dph": first.repeatability.std_dph, "in_run_std_dph": first.in_run_std_dph}
+
+
+def _group(cycles: list[CycleRecord], notes: list[str]) -> RepeatabilityTest | None:
     if len(cycles) < 2:
         notes.append(f"turn_on_repeatability {_test_of(cycles[0].step_id)}: one completed "
                      "cycle; the repeatability needs two")
         return None
     rep = turn_on_repeatability([float(np.mean(c.bias_dph)) for c in cycles])
     variances = [float(np.var(bin_means(c.t_s, c.bias_dph, BIN_S)[1], ddof=1)) for c in cycles]
-    return {"test": _test_of(cycles[0].step_id), "temp_c": cycles[0].temp_c, "cycles": rep.n,
-            "biases_dph": list(rep.biases_dph), "std_dph": rep.std_dph, "u_std_dph": rep.u_std_dph,
-            "U_std_dph": COVERAGE_K * rep.u_std_dph,
-            "in_run_std_dph": math.sqrt(float(np.mean(variances)))}
+    return RepeatabilityTest(_test_of(cycles[0].step_id), cycles[0].temp_c, rep,
+                             math.sqrt(float(np.mean(variances))))
 
 
-def repeatability_section(cycles: list[CycleRecord], notes: list[str]) -> dict[str, Any] | None:
-    """results.json ``turn_on_repeatability``: one entry per test; the headline the first's."""
+def repeatability_section(cycles: list[CycleRecord], notes: list[str]
+                          ) -> RepeatabilityResults | None:
+    """results.json ``turn_on_repeatability`` (None when no test has two cycles)."""
     groups: dict[str, list[CycleRecord]] = {}
     for cycle in cycles:
         groups.setdefault(_test_of(cycle.step_id), []).append(cycle)
     tests = [t for t in (_group(g, notes) for g in groups.values()) if t is not None]
-    if not tests:
-        return None
-    first = tests[0]
-    return {"tests": tests, "k": COVERAGE_K, "std_dph": first["std_dph"],
-            "in_run_std_dph": first["in_run_std_dph"]}
+    return RepeatabilityResults(tuple(tests)) if tests else None
 
 
-def repeatability_uncertainty(section: dict[str, Any] | None) -> dict[str, dict[str, Any]]:
+def repeatability_uncertainty(section: RepeatabilityResults | None) -> list[StatedUncertainty]:
     if section is None:
-        return {}
-    first = section["tests"][0]
-    return {"turn_on_repeatability.std_dph": {
-        "value": first["std_dph"], "u": first["u_std_dph"], "U": first["U_std_dph"],
-        "k": COVERAGE_K, "unit": "deg/h",
-        "method": "s/√(2(N−1)) of the standard deviation of N normal biases"}}
+        return []
+    rep = section.tests[0].repeatability
+    return [StatedUncertainty(TURN_ON_REPEATABILITY, rep.std_dph, rep.u_std_dph,
+                              COVERAGE_K * rep.u_std_dph, COVERAGE_K, "deg/h",
+                              "s/√(2(N−1)) of the standard deviation of N normal biases")]
