@@ -55,7 +55,8 @@ def test_the_threshold_is_the_smallest_increment_from_which_every_larger_one_pas
 def test_no_passing_increment_gives_no_threshold_and_a_note():
     notes: list[str] = []
     section = threshold_section(dwells(0.0, [(0.01, 0.0), (0.02, 0.0)], [0.0] * 3), 1.0, notes)
-    assert section["threshold_dps"] is None and section["tests"][0]["threshold_dps"] is None
+    assert section.threshold_dps is None and section.tests[0].threshold_dps is None
+    assert section.to_json()["tests"][0]["U_dps"] is None
     assert "above the largest" in notes[0]
 
 
@@ -63,5 +64,6 @@ def test_zero_base_is_the_threshold_and_a_non_zero_base_the_resolution():
     found = dwells(0.0, [(0.01, 0.0), (0.02, 0.02)], [0.0] * 3) + \
         dwells(10.0, [(0.01, 10.01), (0.02, 10.02)], [10.0] * 3)
     section = threshold_section(found, 1.0, [])
-    assert section["threshold_dps"] == 0.02 and section["resolution_dps"] == 0.01
-    assert [t["standard_test"].split()[0] for t in section["tests"]] == ["threshold", "resolution"]
+    assert section.threshold_dps == 0.02 and section.resolution_dps == 0.01
+    assert [t["standard_test"].split()[0] for t in section.to_json()["tests"]] == \
+        ["threshold", "resolution"]
