@@ -30,15 +30,19 @@ from dataclasses import dataclass
 from typing import Any
 
 from gyrocal.metrology.decision import Judged, OverallVerdict, overall_verdict
-from gyrocal.metrology.metrics import METRICS, metric_value
+from gyrocal.metrology.metrics import (
+    NONLINEARITY_MAX,
+    NONLINEARITY_RMS,
+    SF_INSTABILITY,
+    metric_value,
+)
 
 DEFAULT_SF_TOLERANCE_PCT = 5.0
 SIGN_CHECK_MIN_RATE_DPS = 1.0
 DRIFT_FLOOR_PPM = 100.0     # of the dwell's mean output
 DRIFT_FLOOR_DPH = 2.0       # deg/h, times the nominal scale factor
 #: the catalogue's spreads this module checks are finite and non-negative
-_SPREADS = tuple(METRICS[key] for key in ("nonlinearity.rms_pct", "nonlinearity.max_ppm_fs",
-                                          "sf_temperature.instability_pct"))
+_SPREADS = (NONLINEARITY_RMS, NONLINEARITY_MAX, SF_INSTABILITY)
 
 
 @dataclass(frozen=True)
