@@ -29,7 +29,7 @@ from gyrocal.analysis.thermal import compensation as comp
 from gyrocal.models.imu_model import AXES
 from gyrocal.record.plan_record import PlanRecord
 from gyrocal.record.step_kind import StepKind
-from gyrocal.reports.sections.imu_accel import accelerometer_section
+from gyrocal.reports.sections.imu_accel import AccelerometerResults, accelerometer_section
 
 _AXIS_COLUMNS = ("gyro_x", "gyro_y", "gyro_z")
 
@@ -121,7 +121,7 @@ class ImuResults:
     check, the accelerometers. Without a fit (``fits`` None) only the (empty) tables, check and the
     accelerometers are stated."""
 
-    accelerometers: Any                         # imu_accel.py's block, JSON-ready
+    accelerometers: AccelerometerResults | None
     fits: tuple[MatrixFit, ...] | None = None     # None: no fit was made
     mountings: Any = None                       # plan.json's, as recorded
     mounting_order: Any = None
@@ -132,13 +132,16 @@ class ImuResults:
     def to_json(self) -> dict[str, Any]:
         if self.fits is None:
             return {"temperatures": [], "compensation": {}, "check": [],
-                    "accelerometers": self.accelerometers}
+                    "accelerometers": self._accelerometers_json()}
         return {"mountings": self.mountings, "mounting_order": self.mounting_order,
                 "definitions": dict(DEFINITIONS),
                 "temperatures": [_fit_json(f) for f in self.fits],
                 "compensation": {k: dict(v) for k, v in self.compensation.items()},
                 "check": [dict(row) for row in self.check],
-                "accelerometers": self.accelerometers}
+                "accelerometers": self._accelerometers_json()}
+
+    def _accelerometers_json(self) -> dict[str, Any] | None:
+        return None if self.accelerometers is None else self.accelerometers.to_json()
 
 
 def imu_section(run_dir: Path, record: PlanRecord, events: list[dict[str, Any]],

@@ -11,6 +11,8 @@ sample and with that temperature left out of the table.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -118,8 +120,45 @@ def _check(fits: list[AccelFit]) -> list[dict[str, Any]]:
     return check_rows(fits, lambda f: f.bias_g, residual, summary)
 
 
+#: how the accelerometers' figures are defined (results.json ``imu.accelerometers.definitions``)
+DEFINITIONS = {
+    "bias_mg": "b_i, output-referred, mg (of 9.80665 m/s²)",
+    "sf_error_ppm": "K_ii − 1: output g per g of specific force, ppm",
+    "misalignment_urad": "M_ij = K_ij / K_ii (accelerometer i senses M_ij of the force along j)",
+    "u_*": "standard uncertainty: type A (block means propagated, Birge-scaled) with the "
+           "local gravity's type B in the scale factor",
+    "check": "RMS specific-force residual on the calibration statics after compensation, µg",
+}
+
+
+@dataclass(frozen=True)
+class AccelerometerResults:
+    """results.json ``imu.accelerometers``: the fit per temperature against local gravity,
+    the tables over temperature and the check."""
+
+    gravity_g: float
+    u_gravity_rel: float
+    gravity_source: str
+    fits: tuple[AccelFit, ...]
+    #: quantity (acc_bias_x_mg…) → its points over temperature and tables
+    compensation: Mapping[str, Mapping[str, Any]]
+    check: tuple[Mapping[str, Any], ...]
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "method": "IEEE Std 1293 static multi-position: each axis up and down at each "
+                      "temperature",
+            "gravity": {"g": self.gravity_g, "u_rel_ppm": self.u_gravity_rel * 1e6,
+                        "source": self.gravity_source},
+            "definitions": dict(DEFINITIONS),
+            "temperatures": [_fit_json(f) for f in self.fits],
+            "compensation": {k: dict(v) for k, v in self.compensation.items()},
+            "check": [dict(row) for row in self.check],
+        }
+
+
 def accelerometer_section(run_dir: Path, plan: PlanRecord, events: list[dict[str, Any]],
-                          notes: list[str]) -> dict[str, Any] | None:
+                          notes: list[str]) -> AccelerometerResults | None:
     """``imu.accelerometers``, or None when no static logged accelerometers."""
     statics = read_statics(run_dir, plan, events, notes)
     if not statics:
@@ -132,19 +171,8 @@ def accelerometer_section(run_dir: Path, plan: PlanRecord, events: list[dict[str
         return None
     if len(fits) < 3:
         notes.append(f"imu accelerometer compensation: {len(fits)} temperature(s); tables need ≥ 3")
-    return {
-        "method": "IEEE Std 1293 static multi-position: each axis up and down at each temperature",
-        "gravity": {"g": gravity_g, "u_rel_ppm": u_rel * 1e6, "source": how},
-        "definitions": {
-            "bias_mg": "b_i, output-referred, mg (of 9.80665 m/s²)",
-            "sf_error_ppm": "K_ii − 1: output g per g of specific force, ppm",
-            "misalignment_urad": "M_ij = K_ij / K_ii (accelerometer i senses M_ij of the force along j)",
-            "u_*": "standard uncertainty: type A (block means propagated, Birge-scaled) with the "
-                   "local gravity's type B in the scale factor",
-            "check": "RMS specific-force residual on the calibration statics after compensation, µg",
-        },
-        "temperatures": [_fit_json(f) for f in fits],
-        "compensation": {name: {"points": points, "tables": comp.tables_json(points)}
-                         for name, points in _series(fits).items()},
-        "check": _check(fits),
-    }
+    return AccelerometerResults(
+        gravity_g, u_rel, how, tuple(fits),
+        {name: {"points": points, "tables": comp.tables_json(points)}
+         for name, points in _series(fits).items()},
+        tuple(_check(fits)))
