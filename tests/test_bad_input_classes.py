@@ -47,6 +47,7 @@ OTHER_ERRORS = {
     "gyrocal.models.table.TableLimitError": "the simulated table's refusal, answered as an ACUTROL error",
     "gyrocal.models.table.TableInterlockError": "the simulated table's refusal, answered as an ACUTROL error",
     "gyrocal.models.table.TableModeError": "the simulated table's refusal, answered as an ACUTROL error",
+    "gyrocal.models.sim_state.SimStateError": "a dry run's saved state that does not fit: raised again as a RunFaultError naming the journal line",
 }
 
 
