@@ -3,14 +3,17 @@
 The real protocol servers (Modbus chamber, ACUTROL table, gyro on a pty) run in
 the same process as the orchestrator on simulated time; this measures how
 many times faster than real time a night passes, the peak memory, and where
-the wall time goes (start-up, conditions, logging, report) beside the pty
-floor: the same frames pushed through a pty and decoded, which logging
+the wall and CPU time go (start-up, conditions, logging, report) beside the
+pty floor: the same frames pushed through a pty and decoded, which logging
 cannot beat (``dry_run_phases.py``). Median of ``--repeat`` runs; the load
 average is printed, since on a shared machine only same-session figures
-compare.
+compare, and CPU time (user+sys) is the steadier figure there.
+``--baseline TREE`` runs another tree's dry run (a clone of main with its
+own ``.venv``) interleaved with this one's, for an A/B in one session.
 
     .venv/bin/python benchmarks/bench_dry_run.py
     .venv/bin/python benchmarks/bench_dry_run.py --procedure procedures/smoke.yaml
+    .venv/bin/python benchmarks/bench_dry_run.py --baseline /tmp/main-clone
 """
 
 from __future__ import annotations
@@ -27,11 +30,19 @@ def main() -> int:
     parser.add_argument("--procedure", default="procedures/fog-overnight-sf-temperature.yaml")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--repeat", type=int, default=3, help="runs; the median is reported")
+    parser.add_argument("--baseline", help="another tree (with its .venv): its dry runs interleaved")
     args = parser.parse_args()
 
     sys.path.insert(0, str(REPO))
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from dry_run_phases import load_note, median_runs, phase_table, pty_floor_s, timed_dry_run
+    from dry_run_phases import (
+        load_note,
+        median_runs,
+        phase_table,
+        pty_floor,
+        run_rounds,
+        summary_rows,
+    )
 
     from gyrocal.orchestrator.plan import expand_plan
     from gyrocal.orchestrator.procedure import load_procedure
@@ -40,10 +51,10 @@ def main() -> int:
     plan = expand_plan(procedure)
     fs_hz = procedure.defaults.sample_rate_hz
     load_before = load_note()
-    runs = [timed_dry_run(REPO, args.procedure, args.seed) for _ in range(args.repeat)]
+    runs, baseline = run_rounds(REPO, args.procedure, args.seed, args.repeat, args.baseline)
     run = median_runs(runs)
     block_n = max(1, int(10.0 * fs_hz))          # the engine's default 10 s read block
-    floor_s = pty_floor_s(run.samples, fs_hz, procedure.station.gyro.with_temperature, block_n)
+    floor = pty_floor(run.samples, fs_hz, procedure.station.gyro.with_temperature, block_n)
 
     rows = [
         ("procedure", args.procedure),
@@ -53,14 +64,13 @@ def main() -> int:
         ("samples logged", f"{run.samples:,} ({run.samples / fs_hz / 3600:.2f} h)"),
         ("sample data written", f"{run.data_mib:.0f} MiB Parquet"),
         ("run state", run.state),
-        ("wall time incl. report", f"{run.wall_s:.1f} s (median of {len(runs)}: "
-         + ", ".join(f"{r.wall_s:.1f}" for r in runs) + ")"),
-        ("CPU time (user+sys)", f"{run.cpu_s:.1f} s (median run; all: "
-         + ", ".join(f"{r.cpu_s:.1f}" for r in runs) + ")"),
+        *summary_rows("", runs),
         ("speed-up vs real time", f"{plan.total_s / run.wall_s:,.0f}×"),
-        ("peak RSS", f"{max(r.peak_rss_mib for r in runs):.0f} MiB"),
         ("phases of the median run", ""),
-        *phase_table(run, floor_s),
+        *phase_table(run, floor),
+        *(summary_rows("baseline ", baseline) if baseline else []),
+        *([("phases of the baseline's median run", ""), *phase_table(median_runs(baseline), floor)]
+          if baseline else []),
         ("machine", f"{load_before} before, {load_note()} after"),
     ]
     width = max(len(name) for name, _ in rows)

@@ -4,7 +4,8 @@
 (real Modbus/SCPI/pty servers, the fixture turning by itself at each of the
 15 remounts), timed as a whole process with its report; then every scale
 factor and misalignment element of the report beside the version-2 model's
-truth at the measured temperature.
+truth at the measured temperature. Wall and CPU time per phase beside the
+pty floor, as ``bench_dry_run.py`` (``--baseline`` likewise).
 
     .venv/bin/python benchmarks/bench_imu_dry_run.py
 """
@@ -23,10 +24,18 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--repeat", type=int, default=3, help="runs; the median is reported")
+    parser.add_argument("--baseline", help="another tree (with its .venv): its dry runs interleaved")
     args = parser.parse_args()
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from dry_run_phases import load_note, median_runs, phase_table, pty_floor_s, timed_dry_run
+    from dry_run_phases import (
+        load_note,
+        median_runs,
+        phase_table,
+        pty_floor,
+        run_rounds,
+        summary_rows,
+    )
 
     from gyrocal.models.imu_model import ImuModel, load_any_model
     from gyrocal.orchestrator.plan import expand_plan
@@ -37,25 +46,28 @@ def main() -> int:
     model = load_any_model(procedure.station.simulation.gyro_model)
     assert isinstance(model, ImuModel)
     load_before = load_note()
-    runs = [timed_dry_run(REPO, PROCEDURE, args.seed) for _ in range(args.repeat)]
+    runs, baseline = run_rounds(REPO, PROCEDURE, args.seed, args.repeat, args.baseline)
     run = median_runs(runs)
     wall_s, results = run.wall_s, run.results
-    peak_kib = max(r.peak_rss_mib for r in runs) * 1024
     fs_hz = procedure.defaults.sample_rate_hz
-    floor_s = pty_floor_s(run.samples, fs_hz, procedure.station.gyro.with_temperature,
-                          max(1, int(10.0 * fs_hz)))
+    floor = pty_floor(run.samples, fs_hz, procedure.station.gyro.with_temperature,
+                      max(1, int(10.0 * fs_hz)))
 
     print(f"procedure               {PROCEDURE}")
     print(f"steps                   {len(plan.steps)} ({sum(s.kind == 'remount' for s in plan.steps)} remounts)")
     print(f"plan ETA                {plan.total_s / 3600:.2f} h")
-    print(f"wall time incl. report  {wall_s:.1f} s ({plan.total_s / wall_s:,.0f}× real time; median of "
-          f"{len(runs)}: {', '.join(f'{r.wall_s:.1f}' for r in runs)})")
-    print(f"CPU time (user+sys)     {run.cpu_s:.1f} s (median run; all: "
-          f"{', '.join(f'{r.cpu_s:.1f}' for r in runs)})")
-    print(f"peak RSS                {peak_kib / 1024:.0f} MiB")
-    print("phases of the median run")
-    for name, value in phase_table(run, floor_s):
+    print(f"speed-up vs real time   {plan.total_s / wall_s:,.0f}×")
+    for name, value in summary_rows("", runs):
         print(f"{name:<40}  {value}")
+    print("phases of the median run")
+    for name, value in phase_table(run, floor):
+        print(f"{name:<40}  {value}")
+    if baseline:
+        for name, value in summary_rows("baseline ", baseline):
+            print(f"{name:<40}  {value}")
+        print("phases of the baseline's median run")
+        for name, value in phase_table(median_runs(baseline), floor):
+            print(f"{name:<40}  {value}")
     print(f"machine                 {load_before} before, {load_note()} after")
     print()
     print(f"{'temp °C':>8}  {'worst |ΔSF| ppm':>16}  {'worst |ΔE| µrad':>16}  {'largest u(SF) ppm':>18}  "

@@ -5,16 +5,19 @@ start-up (imports, simulators, connect: process start to ``run_started``),
 conditions (ramps, soaks, remounts: steps that log nothing), logging (the
 logged steps: gyro through the pty, decoding, chamber and table polls,
 Parquet chunks) and the report (``steps_done`` to ``report_written``). The
-pty floor is what logging cannot beat: the same number of frames, encoded
-once beforehand, pushed through a pseudo-terminal by a writer thread and
-decoded by the STIM300 driver in the run's block size.
+same split is made of CPU time (user+sys): the child's ``/proc/PID/stat``
+is sampled every :data:`_CPU_SAMPLE_S` and read at the journal's phase
+boundaries; CPU time is what compares on a machine shared with other jobs,
+where wall time mostly measures the neighbours. The pty floor is what
+logging cannot beat: the same number of frames, encoded once beforehand,
+pushed through a pseudo-terminal by a writer thread and decoded by the
+STIM300 driver in the run's block size.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import resource
 import statistics
 import subprocess
 import sys
@@ -31,6 +34,8 @@ from gyrocal.instruments.gyro.datagram import encode_frame_array
 from gyrocal.instruments.gyro.stim300 import Stim300Gyro
 
 LOGGED_KINDS = ("static", "allan", "dwell")
+_CPU_SAMPLE_S = 0.02            # how often the child's CPU time is sampled for the phase split
+_CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 
 
 @dataclass(frozen=True)
@@ -41,46 +46,73 @@ class DryRun:
     cpu_s: float           # user + sys of the run's process: steadier than wall on a shared machine
     peak_rss_mib: float
     phases_s: dict[str, float]
+    cpu_phases_s: dict[str, float]     # user+sys seconds per phase (sampled, see module doc)
     samples: int
     data_mib: float
     state: str
     results: dict
 
 
-def timed_dry_run(repo: Path, procedure: str, seed: int) -> DryRun:
-    """Run ``procedure`` with ``--sim --seed`` in a child process; time it and split it."""
+def timed_dry_run(repo: Path, procedure: str, seed: int, python: str | None = None) -> DryRun:
+    """Run ``procedure`` with ``--sim --seed`` in a child process; time it and split it.
+
+    ``repo``: the tree to run, from its folder; ``python``: that tree's interpreter
+    (default: this one, for this tree).
+    """
     with tempfile.TemporaryDirectory(prefix="gyrocal-dry-run-") as tmp:
         out = Path(tmp) / "run"
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        before_kib = before.ru_maxrss
         start_wall = time.time()
         start = time.perf_counter()
-        proc = subprocess.run(
-            [sys.executable, "-m", "gyrocal", "run", str(repo / procedure), "--sim",
-             "--out", str(out), "--seed", str(seed)], cwd=repo, capture_output=True, text=True)
+        log_path = Path(tmp) / "output.txt"
+        with log_path.open("w") as log:
+            proc = subprocess.Popen(
+                [python or sys.executable, "-m", "gyrocal", "run", str(repo / procedure), "--sim",
+                 "--out", str(out), "--seed", str(seed)], cwd=repo, stdout=log,
+                stderr=subprocess.STDOUT)
+            cpu_series, status, rusage = _sample_cpu(proc.pid)
+        proc.returncode = os.waitstatus_to_exitcode(status)
         wall_s = time.perf_counter() - start
-        # ru_maxrss of children is the largest child so far: runs are ordered so that a
-        # smaller one after a larger one is still reported honestly (see peak_note)
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        peak_kib = after.ru_maxrss
-        cpu_s = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
         if proc.returncode not in (0, 1):
-            raise RuntimeError(f"dry run failed ({proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
+            raise RuntimeError(f"dry run failed ({proc.returncode}):\n{log_path.read_text()}")
+        cpu_s = rusage.ru_utime + rusage.ru_stime
         events = [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()]
         data_mib = sum(p.stat().st_size for p in (out / "samples").rglob("*.parquet")) / 2**20
         results = json.loads((out / "report" / "results.json").read_text())
         state = json.loads((out / "manifest.json").read_text())["state"]
     samples = sum(e.get("samples", 0) for e in events if e["event"] == "step_completed")
-    return DryRun(wall_s, cpu_s, max(peak_kib, before_kib) / 1024, phases(events, start_wall, wall_s),
-                  samples, data_mib, state, results)
+    wall_phases = phases(events, start_wall, wall_s)
+    return DryRun(wall_s, cpu_s, rusage.ru_maxrss / 1024, wall_phases,
+                  cpu_phases(events, cpu_series, cpu_s), samples, data_mib, state, results)
 
 
-def phases(events: list[dict], start_wall: float, wall_s: float) -> dict[str, float]:
-    """Wall seconds per phase, from the journal's wall times."""
+def _sample_cpu(pid: int):
+    """Sample ``pid``'s CPU time until it exits, then reap it.
+
+    Returns ([(wall time, CPU s)], wait status, its rusage). The child is reaped
+    here (``os.wait4``), so its own CPU time and peak RSS are exact, not the
+    running maximum over all children.
+    """
+    series: list[tuple[float, float]] = []
+    stat = Path(f"/proc/{pid}/stat")
+    while True:
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            break
+        if fields[0] == "Z":        # exited, not yet reaped: its last sample stands
+            break
+        series.append((time.time(), (int(fields[11]) + int(fields[12])) / _CLOCK_TICKS))
+        time.sleep(_CPU_SAMPLE_S)
+    _, status, rusage = os.wait4(pid, 0)
+    return series, status, rusage
+
+
+def _phase_bounds(events: list[dict]) -> dict:
+    """Wall times of the phase boundaries, and the (start, end) of every logged attempt."""
     def first(name: str) -> float:
         return next(e["wall_time"] for e in events if e["event"] == name)
 
-    logging_s = 0.0
+    logged: list[tuple[float, float]] = []
     started: dict[str, float] = {}
     kinds: dict[str, str] = {}
     for e in events:
@@ -89,20 +121,53 @@ def phases(events: list[dict], start_wall: float, wall_s: float) -> dict[str, fl
             kinds[e["step_id"]] = e.get("kind", "")
         elif (e["event"] in ("step_completed", "step_bad") and e.get("step_id") in started
               and kinds.get(e["step_id"]) in LOGGED_KINDS):
-            logging_s += e["wall_time"] - started.pop(e["step_id"])
-    run_started, steps_done = first("run_started"), first("steps_done")
-    report = first("report_written") - steps_done
+            logged.append((started.pop(e["step_id"]), e["wall_time"]))
+    return {"logged": logged, **{name: first(name) for name in
+                                 ("run_started", "steps_done", "report_written")}}
+
+
+def phases(events: list[dict], start_wall: float, wall_s: float) -> dict[str, float]:
+    """Wall seconds per phase, from the journal's wall times."""
+    bounds = _phase_bounds(events)
+    logging_s = sum(end - begin for begin, end in bounds["logged"])
+    run_started, steps_done = bounds["run_started"], bounds["steps_done"]
     return {
         "start-up": run_started - start_wall,
         "conditions": (steps_done - run_started) - logging_s,
         "logging": logging_s,
-        "report": report,
-        "close": wall_s - (first("report_written") - start_wall),
+        "report": bounds["report_written"] - steps_done,
+        "close": wall_s - (bounds["report_written"] - start_wall),
     }
 
 
-def pty_floor_s(n_frames: int, fs_hz: float, with_temperature: bool, block_n: int) -> float:
-    """Seconds to push ``n_frames`` pre-encoded frames through a pty and decode them."""
+def cpu_phases(events: list[dict], series: list[tuple[float, float]], cpu_s: float
+               ) -> dict[str, float]:
+    """CPU seconds per phase: the sampled CPU time at the journal's phase boundaries."""
+    times = np.array([t for t, _ in series] or [0.0])
+    cpu = np.array([c for _, c in series] or [0.0])
+
+    def at(wall: float) -> float:
+        return float(np.interp(wall, times, cpu))
+
+    bounds = _phase_bounds(events)
+    out = {"start-up": at(bounds["run_started"])}
+    out["logging"] = sum(at(end) - at(begin) for begin, end in bounds["logged"])
+    out["conditions"] = at(bounds["steps_done"]) - out["start-up"] - out["logging"]
+    out["report"] = at(bounds["report_written"]) - at(bounds["steps_done"])
+    out["close"] = cpu_s - at(bounds["report_written"])
+    return {name: out[name] for name in ("start-up", "conditions", "logging", "report", "close")}
+
+
+@dataclass(frozen=True)
+class PtyFloor:
+    """What pushing a run's frames through a pty and decoding them costs, at the least."""
+
+    wall_s: float
+    cpu_s: float        # user+sys of this process (writer thread and reader) meanwhile
+
+
+def pty_floor(n_frames: int, fs_hz: float, with_temperature: bool, block_n: int) -> PtyFloor:
+    """Push ``n_frames`` pre-encoded frames through a pty and decode them; wall and CPU."""
     period = 256 * 1024                       # a whole number of counter cycles: seamless repeats
     rate = np.zeros((period, 3))
     rate[:, 0] = np.random.default_rng(0).normal(0.0, 1.0, period)
@@ -127,18 +192,21 @@ def pty_floor_s(n_frames: int, fs_hz: float, with_temperature: bool, block_n: in
                        timeout_s=30.0)
     try:
         writer = threading.Thread(target=write, daemon=True)
+        cpu_before = os.times()
         start = time.perf_counter()
         writer.start()
         got = 0
         while got < n_frames:
             got += len(gyro.read_samples(min(block_n, n_frames - got)))
-        elapsed_s = time.perf_counter() - start
         writer.join()
+        elapsed_s = time.perf_counter() - start
+        cpu_after = os.times()
     finally:
         gyro.close()
         os.close(master)
         os.close(slave)
-    return elapsed_s
+    cpu_s = (cpu_after.user - cpu_before.user) + (cpu_after.system - cpu_before.system)
+    return PtyFloor(elapsed_s, cpu_s)
 
 
 def median_runs(runs: list[DryRun]) -> DryRun:
@@ -147,10 +215,42 @@ def median_runs(runs: list[DryRun]) -> DryRun:
     return ordered[len(ordered) // 2]
 
 
-def phase_table(run: DryRun, floor_s: float) -> list[tuple[str, str]]:
-    rows = [(f"  {name}", f"{seconds:.1f} s") for name, seconds in run.phases_s.items()]
-    rows.append(("  pty floor (same frames: pty + decode)", f"{floor_s:.1f} s"))
+def phase_table(run: DryRun, floor: PtyFloor) -> list[tuple[str, str]]:
+    """Per phase: wall and CPU seconds; the pty floor beside logging."""
+    rows = [(f"  {name}", f"{seconds:5.1f} s wall  {run.cpu_phases_s[name]:5.1f} s CPU")
+            for name, seconds in run.phases_s.items()]
+    rows.append(("  pty floor (same frames: pty + decode)",
+                 f"{floor.wall_s:5.1f} s wall  {floor.cpu_s:5.1f} s CPU"))
     return rows
+
+
+def run_rounds(repo: Path, procedure: str, seed: int, repeat: int, baseline: str | None
+               ) -> tuple[list[DryRun], list[DryRun]]:
+    """``repeat`` runs of this tree and, with ``baseline`` (another tree, e.g. a clone of
+    main, with its own ``.venv``), as many of the baseline's, interleaved (B, A, B, A, …)
+    so both see the same load on a shared machine."""
+    runs: list[DryRun] = []
+    before: list[DryRun] = []
+    for _ in range(repeat):
+        if baseline:
+            tree = Path(baseline).resolve()
+            before.append(timed_dry_run(tree, procedure, seed, python=str(tree / ".venv/bin/python")))
+        runs.append(timed_dry_run(repo, procedure, seed))
+    return runs, before
+
+
+def summary_rows(label: str, runs: list[DryRun]) -> list[tuple[str, str]]:
+    """Wall, CPU and peak memory of a set of runs: medians and every value."""
+    def listed(values: list[float]) -> str:
+        return ", ".join(f"{v:.1f}" for v in values)
+    walls = [r.wall_s for r in runs]
+    cpus = [r.cpu_s for r in runs]
+    peaks = [r.peak_rss_mib for r in runs]
+    return [
+        (f"{label}wall time incl. report", f"{median(walls):.1f} s (median of {len(runs)}: {listed(walls)})"),
+        (f"{label}CPU time (user+sys)", f"{median(cpus):.1f} s (median of {len(runs)}: {listed(cpus)})"),
+        (f"{label}peak RSS", f"{max(peaks):.0f} MiB (largest; all: {listed(peaks)})"),
+    ]
 
 
 def load_note() -> str:
