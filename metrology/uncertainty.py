@@ -24,8 +24,9 @@ SF temperature sensitivity) from the dwell means directly.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -121,10 +122,11 @@ SWEEP_FIGURES = ("sf", "bias", "asymmetry_ppm", "nonlinearity_rms_pct",
 def sweep_uncertainty(means: Sequence[MeanU], type_b: TypeB) -> dict[str, Uncertainty]:
     """u of SF, LS bias (output units), asymmetry and nonlinearity at one temperature."""
     inputs = mean_inputs(means) + [rate_input(type_b)]
+    analysed = _memoised(lambda x: analyze_scale_factor(perturbed_dwells(means, x)))
 
     def figure(name: str):
         def f(x: dict[str, float]) -> float:
-            r = analyze_scale_factor(perturbed_dwells(means, x))
+            r = analysed(x)
             return {"sf": r.sf, "bias": r.bias, "asymmetry_ppm": r.asymmetry_ppm,
                     "nonlinearity_rms_pct": r.nonlinearity_rms_pct,
                     "nonlinearity_max_ppm_fs": r.nonlinearity_max_ppm_fs}[name]
@@ -204,12 +206,35 @@ def _noise_bound(linear: Uncertainty, values: np.ndarray) -> Uncertainty:
     return Uncertainty(linear.value, u, math.inf, expanded / u, (line,))
 
 
+T = TypeVar("T")
+
+
+def _memoised(func: Callable[[dict[str, float]], T]) -> Callable[[dict[str, float]], T]:
+    """``func`` evaluated once per distinct input point.
+
+    Several figures are propagated from one analysis (SF, bias, asymmetry and the
+    nonlinearities of one sweep; sensitivity and instability over temperature), and
+    :func:`propagate` asks each of them for the same perturbed points: the analysis was
+    repeated per figure (5 and 2 times over). The same inputs give the same result,
+    so the figures are unchanged.
+    """
+    cache: dict[tuple[tuple[str, float], ...], T] = {}
+
+    def call(x: dict[str, float]) -> T:
+        key = tuple(x.items())
+        if key not in cache:
+            cache[key] = func(x)
+        return cache[key]
+    return call
+
+
 def sf_temperature_uncertainty(means: Sequence[MeanU], type_b: TypeB,
                                reference_temp_c: float) -> dict[str, Uncertainty]:
     """u of the SF temperature sensitivity (ppm/°C) and instability (%) from all dwells."""
     temps = sorted({m.temp_c for m in means})
     inputs = mean_inputs(means) + [rate_input(type_b)] + [temp_input(t, type_b) for t in temps]
 
+    @_memoised
     def result(x: dict[str, float]) -> bias_mod.SfTemperature:
         dwells = perturbed_dwells(means, x)
         groups: dict[float, list[Dwell]] = {}
