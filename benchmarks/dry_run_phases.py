@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from gyrocal.instruments.gyro.datagram import encode_frame_array
+from gyrocal.instruments.gyro.datagram_types import counter_step, counter_values
 from gyrocal.instruments.gyro.stim300 import Stim300Gyro
 
 LOGGED_KINDS = ("static", "allan", "dwell")
@@ -172,7 +173,10 @@ def pty_floor(n_frames: int, fs_hz: float, with_temperature: bool, block_n: int)
     rate = np.zeros((period, 3))
     rate[:, 0] = np.random.default_rng(0).normal(0.0, 1.0, period)
     temp = np.full((period, 3), 25.0) if with_temperature else None
-    data = encode_frame_array(rate, np.arange(period), temp_c=temp).tobytes()
+    # the datasheet's counter at this rate (TS1524 §7.5.2.2.18), or the driver's stream
+    # check refuses the stream as the wrong rate
+    counter = counter_values(np.arange(period, dtype=np.int64), counter_step(fs_hz))
+    data = encode_frame_array(rate, counter, temp_c=temp).tobytes()
     frame_len = len(data) // period
     master, slave = os.openpty()
     tty.setraw(slave)
