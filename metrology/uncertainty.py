@@ -31,7 +31,12 @@ from typing import TypeVar
 import numpy as np
 
 from gyrocal.analysis.rate.dwell import Dwell
-from gyrocal.analysis.rate.scale_factor import analyze_scale_factor, fit_line, per_rate_sf
+from gyrocal.analysis.rate.scale_factor import (
+    ScaleFactorResult,
+    analyze_scale_factor,
+    fit_line,
+    per_rate_sf,
+)
 from gyrocal.analysis.thermal import bias as bias_mod
 from gyrocal.metrology.gum import (
     COVERAGE_PROBABILITY,
@@ -233,6 +238,14 @@ def sf_temperature_uncertainty(means: Sequence[MeanU], type_b: TypeB,
     """u of the SF temperature sensitivity (ppm/°C) and instability (%) from all dwells."""
     temps = sorted({m.temp_c for m in means})
     inputs = mean_inputs(means) + [rate_input(type_b)] + [temp_input(t, type_b) for t in temps]
+    # A dwell mean or a chamber temperature perturbs one temperature's sweep; the others
+    # are analysed as at the central point, so each distinct sweep is analysed once.
+    sweeps: dict[tuple[Dwell, ...], ScaleFactorResult] = {}
+
+    def sweep(dwells: tuple[Dwell, ...]) -> ScaleFactorResult:
+        if dwells not in sweeps:
+            sweeps[dwells] = analyze_scale_factor(list(dwells))
+        return sweeps[dwells]
 
     @_memoised
     def result(x: dict[str, float]) -> bias_mod.SfTemperature:
@@ -240,7 +253,7 @@ def sf_temperature_uncertainty(means: Sequence[MeanU], type_b: TypeB,
         groups: dict[float, list[Dwell]] = {}
         for m, d in zip(means, dwells, strict=True):
             groups.setdefault(m.temp_c, []).append(d)
-        return bias_mod.sf_temperature([analyze_scale_factor(groups[t]) for t in temps],
+        return bias_mod.sf_temperature([sweep(tuple(groups[t])) for t in temps],
                                        reference_temp_c)
 
     return {"sensitivity_ppm_per_c": propagate(lambda x: result(x).sensitivity_ppm_per_c, inputs),
