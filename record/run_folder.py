@@ -10,6 +10,7 @@ Chunks are read back through ``samples.py`` (the one reader of run chunks).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import shutil
 import time
@@ -216,10 +217,13 @@ class RunFolder:
                 data[name] = pa.array(np.asarray(columns[name], dtype=kind))
         table = pa.table(data)
         rel = Path(SAMPLES) / step_id / f"attempt{attempt}-chunk{chunk_index:05d}.parquet"
-        write_atomic(self.path / rel, lambda tmp: pq.write_table(table, tmp, compression="zstd",
-                                                           use_dictionary=_DICTIONARY_COLUMNS),
-                     durable=self.durable)
-        return ChunkRecord(str(rel), sha256_file(self.path / rel), rows)
+        # Encoded in memory, hashed there and written: hashing the file meant reading it back
+        # (an IMU dry run's 750 chunks: ~0.9 s of its controller's time, py-spy)
+        buffer = pa.BufferOutputStream()
+        pq.write_table(table, buffer, compression="zstd", use_dictionary=_DICTIONARY_COLUMNS)
+        data = buffer.getvalue()
+        write_atomic(self.path / rel, lambda tmp: tmp.write_bytes(data), durable=self.durable)
+        return ChunkRecord(str(rel), hashlib.sha256(data).hexdigest(), rows)
 
     def journal_events(self) -> list[dict[str, Any]]:
         path = self.path / JOURNAL
