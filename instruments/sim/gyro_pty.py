@@ -127,12 +127,14 @@ _REAL_MAX_LAG_S = 2.0          # real clock: frames older than this (clock s) be
 _EPS_FRAMES = 1e-6      # tolerance when converting clock time to a frame number
 _IDLE_TAIL_S = 0.1      # simulated clock, nobody reading: the frames of this last span are sent
 _WRITE_BYTES = 1 << 16  # simulated clock: bytes handed to the pty per write
-#: simulated clock: frames of a read span made per model call. The model and the encoder
-#: cost ~0.2 ms a call besides their per-frame work, so 512-frame calls spent ~60 % of an
-#: overnight dry run's gyro simulation on that fixed cost (10 M frames: 1.0 µs a frame at
-#: 512, 0.4 µs at 2500, 0.3 µs at 8192, measured). The model and its noise are the same
-#: however a record is cut into calls (gyro_sim.py), so the frames are the same bytes.
-_SPAN_MAKE_FRAMES = 8192
+#: simulated clock: frames of a read span made per model call (the port's
+#: ``span_block_frames``). The model and the encoder cost ~0.2 ms a call besides their
+#: per-frame work, so 512-frame calls spent ~60 % of an overnight dry run's gyro
+#: simulation on that fixed cost (10 M frames: 1.0 µs a frame at 512, 0.4 µs at 2500,
+#: 0.3 µs at 8192, measured). The model and its noise are the same however a record is
+#: cut into calls (gyro_sim.py), so the frames are the same bytes; per-block faults
+#: (armed between calls) see fewer, larger blocks.
+SPAN_BLOCK_FRAMES = 8192
 
 
 class SimulatedGyroPort(PtyWriterPort):
@@ -176,6 +178,9 @@ class SimulatedGyroPort(PtyWriterPort):
         self.lsb = float(lsb)
         self.faults = faults if faults is not None else FaultInjector(FAULTS, owner="simulated gyro")
         self.block_frames = int(block_frames)
+        #: simulated clock: a read span's frames are made in calls of this many (at least
+        #: ``block_frames``); a test that arms faults block by block may set it
+        self.span_block_frames = SPAN_BLOCK_FRAMES
         self.latency_us = int(latency_us)
         self._rng = np.random.default_rng(seed)
         self.injected = {
@@ -286,7 +291,7 @@ class SimulatedGyroPort(PtyWriterPort):
         while wanted > 0 and made < 2 * total + 2 * self.block_frames and not self._stop.is_set():
             k0 = self.next_frame
             if made < total:
-                rows = slice(made, made + min(max(self.block_frames, _SPAN_MAKE_FRAMES), wanted))
+                rows = slice(made, made + min(max(self.block_frames, self.span_block_frames), wanted))
                 inputs = None if span.inputs is None else tuple(x[rows] for x in span.inputs)
                 size = rows.stop - rows.start
             else:

@@ -221,12 +221,14 @@ def test_chamber_silent_for_good_stops_the_table_and_reports_the_chamber(h: Any,
 def lose_frames_per_block(h: Any, sim: Any, blocks: int | None, per_block: int = 20) -> None:
     """From the +20 °/s command on, drop ``per_block`` frames of each block the gyro writes.
 
-    The simulated gyro writes 512-frame blocks (2 s at 250 Hz). Blocks that start 3 s
+    The simulated gyro is set to make 512-frame blocks (2 s at 250 Hz; a read span's
+    frames are otherwise made in larger calls). Blocks that start 3 s
     after the command lie inside the step's first 8 s attempt (it starts after the
     0.2 s spin-up and 1 s settle); 30 frames a block is 1.5 % of that attempt, and
     a block that spills past it is dropped as stale before the next attempt.
     """
     port = sim.gyro_port
+    port.span_block_frames = port.block_frames      # the 512-frame blocks counted on here
     source = port.source
     state = {"on": False, "left": blocks, "from_s": 0.0}
 

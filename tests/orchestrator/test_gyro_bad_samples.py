@@ -53,6 +53,7 @@ def saturate_one_frame_inside_the_step(h: Any, sim: Any) -> None:
     in a block the flush discards.
     """
     port, source = sim.gyro_port, sim.gyro_port.source
+    port.span_block_frames = port.block_frames      # the 512-frame blocks counted on here
     state = {"from_s": None, "armed": False}
 
     def start() -> None:
