@@ -11,6 +11,7 @@ each frame time, through the measurement model in ``models/``.
 from __future__ import annotations
 
 import contextlib
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
@@ -138,6 +139,17 @@ class GyroPhysicsSource:
         if self.power is not None:
             gyro = self._powered(t_s, gyro)
         return gyro, samples.sensor_temp_c
+
+    def catch_up(self, t_s: float) -> None:
+        """Evolve the unit's physics (thermal lag, hysteresis, angle) to the first frame
+        at or after ``t_s`` without emitting, as :meth:`emit` does first for a gap; a
+        snapshot then holds the state of now, not of the last frame read."""
+        sim = self.simulator
+        t_frame_s = math.ceil(t_s * sim.fs_hz - 1e-6) / sim.fs_hz
+        gap_s = t_frame_s - sim.t_next_s
+        if gap_s > 0.5 / sim.fs_hz:
+            sim.skip_to(t_frame_s, self._inputs, self.skip_step_s)
+            self.skipped_s += gap_s
 
     def _powered(self, t_s: np.ndarray, gyro: np.ndarray) -> np.ndarray:
         """NaN (no frame) where the unit is off or still starting; the warm-up transient
@@ -341,8 +353,12 @@ class SimulatedStation:
         """
         if not self._keeps_everything():
             return None
+        port = capture(self.gyro_port)      # first: waits for the frames in making
+        # the unit's physics brought to now: idle tails, which carried it along while
+        # nobody read, are made only when read (gyro_pty.py)
+        self.source.catch_up(self.clock.now_s())
         return {"clock_s": self.clock.now_s(),
-                "gyro_port": capture(self.gyro_port),   # first: waits for the frames in making
+                "gyro_port": port,
                 "chamber": capture(self.chamber_physics),
                 "table": capture(self.table_physics),
                 "gyro": capture(self.source)}
