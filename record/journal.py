@@ -15,6 +15,8 @@ silently dropped or silently trusted.
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import hashlib
 import json
 import os
@@ -206,12 +208,30 @@ class Journal:
 
     def _write(self, raw: bytes) -> None:
         at_journal_line("before", self.count + 1)
-        self._handle.write(raw)      # unbuffered: in the kernel once this returns
+        self._write_whole(raw)       # unbuffered: in the kernel once this returns
         if self.durable:
             os.fsync(self._handle.fileno())
         self._last_sha256 = sha256_bytes(raw)
         self.count += 1
         at_journal_line("after", self.count)
+
+    def _write_whole(self, raw: bytes) -> None:
+        """The whole line or none of it: a full disk (or a file-size limit) can make the
+        kernel take part of a write and refuse the rest; what was taken is cut off again,
+        so the history never holds half a line the chain has not counted."""
+        fd = self._handle.fileno()
+        start = os.fstat(fd).st_size
+        view, written = memoryview(raw), 0
+        try:
+            while written < len(raw):
+                taken = self._handle.write(view[written:])
+                if not taken:
+                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self.path))
+                written += taken
+        except OSError:
+            with contextlib.suppress(OSError):
+                os.ftruncate(fd, start)
+            raise
 
     def append_signed(self, name: JournalEvent | str, sign, /, **fields: Any) -> dict[str, Any]:
         """Append an event whose ``signature`` field is ``sign(event)`` over its other fields.

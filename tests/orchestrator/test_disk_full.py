@@ -26,7 +26,9 @@ from gyrocal.record.journal import read_journal
 
 pytestmark = pytest.mark.timeout(120)
 
-LIMIT_BYTES = 48 * 1024     # the journal's lines fit; a 10 s chunk at 2 kHz does not
+#: The whole journal of the small plan fits (about 95 KB: a dry run's step_completed lines
+#: carry the simulator state, ~10 KB each); one 8 s chunk at 2 kHz (~200 KB) does not.
+LIMIT_BYTES = 140 * 1024
 
 
 def _limited() -> None:
@@ -37,6 +39,8 @@ def _limited() -> None:
 def test_no_room_to_write_is_a_fault_with_the_rig_safe_and_the_run_resumable(
         h: Any, tmp_path: Path) -> None:
     procedure = h.write_procedure(tmp_path)
+    procedure.write_text(procedure.read_text().replace("sample_rate_hz: 250",
+                                                       "sample_rate_hz: 2000"))
     out = tmp_path / "run"
     proc = subprocess.run(
         [sys.executable, "-m", "gyrocal", "run", str(procedure), "--sim", "--out", str(out),
@@ -54,3 +58,28 @@ def test_no_room_to_write_is_a_fault_with_the_rig_safe_and_the_run_resumable(
     assert main(["resume", str(out)]) == EXIT_OK
     assert sorted(h.completed_ids(out)) == sorted(h.SMALL_PLAN)
     h.assert_chunks_intact(out)
+
+
+def test_a_journal_line_that_does_not_fit_is_cut_off_whole(tmp_path: Path) -> None:
+    """The kernel may take part of a line before the limit and refuse the rest: the
+    journal cuts the part off again, so every line on disk is whole and chained."""
+    path = tmp_path / "journal.jsonl"
+    script = (
+        "import sys\n"
+        "from gyrocal.record.journal import Journal\n"
+        f"journal = Journal({str(path)!r})\n"
+        "try:\n"
+        "    for i in range(1000):\n"
+        "        journal.append('note', text='x' * 700)\n"
+        "except OSError as exc:\n"
+        "    print(journal.count, exc.errno)\n"
+        "    sys.exit(0)\n"
+        "sys.exit(1)\n")
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          preexec_fn=_limited, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    count = int(proc.stdout.split()[0])
+    assert LIMIT_BYTES // 1000 <= count < 1000     # ~850 bytes a line
+    lines = list(read_journal(path))                 # whole, chained, nothing torn
+    assert len(lines) == count
+    assert path.stat().st_size < LIMIT_BYTES and path.read_bytes().endswith(b"\n")
