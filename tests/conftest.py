@@ -2,7 +2,17 @@
 
 from __future__ import annotations
 
+import signal
+
 import pytest
+
+# A suite started in the background by a non-interactive shell (`nohup make test &`, a CI
+# runner's job) inherits SIGINT ignored, and the processes the tests start would inherit
+# that too: `gyrocal sim serve` and `watch` would not stop on the Ctrl-C the tests send, and
+# a run would not see the SIGINT its signal tests deliver. A handler installed here is reset
+# to the default on exec, so every process the suite starts reacts to Ctrl-C as on a terminal.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session", autouse=True)
