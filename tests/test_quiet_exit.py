@@ -31,17 +31,25 @@ def test_a_signal_during_interpreter_exit_ends_quietly_with_the_commands_code(
     run = tmp_path / "run"
     run.mkdir()
     (run / "manifest.json").write_text(json.dumps({"run_id": "R1", "state": "done"}))
+    # "exiting" is printed once entry() has its code and raises SystemExit: from then on
+    # the interpreter only waits on the thread (60 s), whatever the machine's load
     script = ("import threading, time, sys; from gyrocal.cli import entry; "
-              "threading.Thread(target=time.sleep, args=(20,)).start(); "
-              f"print('command', flush=True); entry(['status', {str(tmp_path / target)!r}])")
+              "threading.Thread(target=time.sleep, args=(60,)).start(); "
+              f"print('command', flush=True)\ntry:\n    entry(['status', {str(tmp_path / target)!r}])"
+              "\nfinally:\n    print('exiting', flush=True)")
     proc = subprocess.Popen([sys.executable, "-c", script], cwd=REPO, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     assert proc.stdout.readline().strip() == "command"
-    time.sleep(2.0)              # the command is done; the interpreter waits on the thread
+    lines = []
+    while (line := proc.stdout.readline()) and line.strip() != "exiting":
+        lines.append(line)
+    assert line.strip() == "exiting", (lines, proc.stderr.read())
+    time.sleep(0.2)              # into the interpreter's exit, waiting on the thread
     started = time.monotonic()
     proc.send_signal(signum)
-    out, err = proc.communicate(timeout=15)
-    assert time.monotonic() - started < 5            # at once, not after the thread's 20 s
+    rest, err = proc.communicate(timeout=60)
+    out = "".join(lines) + rest
+    assert time.monotonic() - started < 30           # at once, not after the thread's 60 s
     assert proc.returncode == expected, err
     assert "Traceback" not in err and "Exception ignored" not in err and \
         "KeyboardInterrupt" not in err, err

@@ -36,7 +36,7 @@ from gyrocal.record.samples import read_chunks
 from gyrocal.record.signing import generate_key_pair
 from gyrocal.reports.verify import verify_run_folder
 from tests.support.fork_server import ForkServer
-from tests.support.short_run import SHORT_PLAN, short_procedure
+from tests.support.short_run import SHORT_PLAN, short_procedure, without_report_figures
 
 pytestmark = pytest.mark.timeout(400)
 
@@ -113,6 +113,7 @@ def test_kill_at_every_boundary_resumes_to_a_history_that_verifies(h, tmp_path, 
     expected = (step_data(reference), results_numbers(reference))
     points = boundaries(reference)
     assert len(points) > 50, points
+    without_report_figures(monkeypatch)      # the resumes below: figures are not the point
 
     outcomes: dict[str, int] = {"killed": 0, "orphans": 0, "closed_on_resume": 0, "no_folder": 0}
     with ForkServer(h.REPO_ROOT) as server:

@@ -26,7 +26,7 @@ from gyrocal.record.journal import read_journal
 from gyrocal.record.run_folder import RunFolder
 from gyrocal.record.samples import read_chunks
 
-pytestmark = pytest.mark.timeout(90)
+pytestmark = pytest.mark.timeout(240)
 
 
 def start_run(procedure: Path, out: Path, root: Path) -> subprocess.Popen:
@@ -36,7 +36,7 @@ def start_run(procedure: Path, out: Path, root: Path) -> subprocess.Popen:
         cwd=root, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def wait_for_event(out: Path, name: str, proc: subprocess.Popen, timeout_s: float = 30.0,
+def wait_for_event(out: Path, name: str, proc: subprocess.Popen, timeout_s: float = 90.0,
                    step_id: str | None = None) -> None:
     """Poll the journal (wall time) until ``name`` appears; the process must still be running."""
     deadline = time.monotonic() + timeout_s
@@ -66,7 +66,7 @@ def test_sigint_goes_safe_exits_3_and_resumes(h: Any, tmp_path: Path, capsys) ->
         live = status_text(out, capsys)           # gyrocal status on a live run
         assert "state: running" in live and "completed" in live
         proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=30)
+        _, err = proc.communicate(timeout=90)
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -129,7 +129,7 @@ def test_kill_9_at_random_points_then_resume_matches_an_uninterrupted_run(
             wait_for_event(out, "preflight_ok", proc)
             time.sleep(delay_s)
             os.kill(proc.pid, signal.SIGKILL)
-            proc.communicate(timeout=30)
+            proc.communicate(timeout=90)
         finally:
             if proc.poll() is None:
                 proc.kill()

@@ -20,7 +20,7 @@ from gyrocal.cli import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_OK, main
 from gyrocal.record.crash import CRASH_AT_ENV, CRASH_SIGNAL_ENV
 from gyrocal.reports.verify import verify_run_folder
 from tests.support.fork_server import ForkServer
-from tests.support.short_run import SHORT_PLAN, short_procedure
+from tests.support.short_run import SHORT_PLAN, short_procedure, without_report_figures
 
 pytestmark = pytest.mark.timeout(400)
 
@@ -38,7 +38,8 @@ def signalled_run(server: ForkServer, procedure: Path, out: Path, at: str,
 
 
 def test_a_signal_at_every_phase_exits_3_quietly_and_resumes_to_a_verified_run(h, tmp_path,
-                                                                                 capsys):
+                                                                                 capsys,
+                                                                                 monkeypatch):
     procedure = short_procedure(h, tmp_path)
     reference = tmp_path / "reference"
     assert main(["run", str(procedure), "--sim", "--out", str(reference), "--seed", "5",
@@ -52,6 +53,7 @@ def test_a_signal_at_every_phase_exits_3_quietly_and_resumes_to_a_verified_run(h
     points += [(f"after:{completed}", "SIGTERM" if completed % 2 else "SIGINT"),
                (f"after:{len(names)}", "SIGTERM" if len(names) % 2 else "SIGINT"),
                (f"before:{steps_done + 1}", "SIGINT"), (f"before:{steps_done + 1}", "SIGTERM")]
+    without_report_figures(monkeypatch)      # the resumes below: figures are not the point
     with ForkServer(h.REPO_ROOT) as server:
         for at, name in points:
             _signal_resume_verify(server, h, procedure, tmp_path / "s" / f"{at.replace(':', '-')}"

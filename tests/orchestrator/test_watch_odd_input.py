@@ -66,7 +66,7 @@ def _exchange(port: int, request: bytes) -> bytes:
 
 def _stop(proc: subprocess.Popen) -> str:
     proc.send_signal(2)       # Ctrl-C, as a person would
-    _, err = proc.communicate(timeout=20)
+    _, err = proc.communicate(timeout=60)
     return err
 
 

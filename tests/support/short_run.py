@@ -19,3 +19,21 @@ def short_procedure(h: Any, folder: Path) -> Path:
     cut = text.index("  - setpoint_c: 27.0")
     path.write_text(text[:cut])
     return path
+
+
+def without_report_figures(monkeypatch: Any) -> None:
+    """The report pages this process builds get no figures (every figure section empty).
+
+    For the sweeps that resume one run per boundary (kill -9, signals): there each
+    resume builds the report, and its five Matplotlib figures are ~60 % of a resume's
+    CPU time, while what the sweep asserts (exit codes, the signed history, each step
+    once with its data) never reads them. The report is still built, written atomically,
+    journaled and hashed as in any run; the figures themselves are asserted where they
+    are the point (tests/reports/) and are drawn by every other dry run of the suite.
+    Processes the sweep forks (the killed runs) still draw them.
+    """
+    from gyrocal.reports import html_report, plots
+
+    empty = plots.all_plots({})
+    assert empty and all(figure is None for figure in empty.values())
+    monkeypatch.setattr(html_report, "all_plots", lambda results: dict(empty))

@@ -23,7 +23,7 @@ def served_station(live: Path, station: str = "stations/sim.yaml",
          "--write-station", str(live), *extra_args],
         cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
-        deadline = time.monotonic() + 30
+        deadline = time.monotonic() + 120   # an interpreter start on a loaded host
         while time.monotonic() < deadline and \
                 "station file with these addresses" not in proc.stdout.readline():
             pass
@@ -35,12 +35,12 @@ def served_station(live: Path, station: str = "stations/sim.yaml",
 
 
 def stop(proc: subprocess.Popen) -> None:
-    """Ctrl-C, as an operator would; killed if it has not ended 20 s later."""
+    """Ctrl-C, as an operator would; killed if it has not ended 60 s later."""
     if proc.poll() is not None:
         return
     proc.send_signal(signal.SIGINT)
     try:
-        proc.communicate(timeout=20)
+        proc.communicate(timeout=60)
     except subprocess.TimeoutExpired:
         proc.kill()
         proc.communicate()
