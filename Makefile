@@ -18,9 +18,11 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(VENV)/bin/gyrocal demo
 
+# The suite runs on every core (pytest-xdist), a module per worker at a time so that a module's
+# fixtures are built once; the long end-to-end modules (marked slow) start first.
 test: $(STAMP) browser
 	$(VENV)/bin/ruff check .
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --dist loadscope --no-loadscope-reorder
 
 # The live page's test drives a real headless Chromium (Debian's chromium + chromium-driver).
 # Installed only when missing, so a machine that has them pays one `command -v`.

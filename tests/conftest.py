@@ -49,3 +49,17 @@ def smoke_run(tmp_path_factory):
                  "--out", str(run_dir), "--operator", "qa-test"])
     assert code == 0
     return run_dir
+
+
+def pytest_collection_modifyitems(config, items):
+    """Modules holding a ``slow`` test run first, each module kept together.
+
+    ``make test`` spreads the modules over worker processes (pytest-xdist,
+    ``--dist loadscope``: a module's fixtures are built once, on one worker); the long
+    end-to-end modules started first leave the short ones to fill the gaps at the end,
+    instead of one of them starting last and running alone. The order within a
+    module, and among the other modules, stays as collected.
+    """
+    slow_modules = {item.nodeid.split("::")[0] for item in items
+                    if item.get_closest_marker("slow") is not None}
+    items.sort(key=lambda item: item.nodeid.split("::")[0] not in slow_modules)

@@ -32,7 +32,7 @@ import pytest
 from gyrocal.analysis.measured_log import LogFormatError, read_measured_log
 from gyrocal.cli import EXIT_ACCEPTANCE_FAILED, EXIT_BAD_INPUT, EXIT_OK, main
 
-pytestmark = pytest.mark.timeout(300)
+pytestmark = [pytest.mark.timeout(300), pytest.mark.slow]
 REPO = Path(__file__).resolve().parents[1]
 #: fixed, so a failure reproduces; GYROCAL_FUZZ_SEED explores others by hand
 SEED = int(os.environ.get("GYROCAL_FUZZ_SEED", "28"))

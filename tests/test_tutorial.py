@@ -13,6 +13,7 @@ import re
 import subprocess
 from pathlib import Path
 
+import pytest
 from pypdf import PdfReader
 
 REPO = Path(__file__).resolve().parents[1]
@@ -23,6 +24,7 @@ def shell_blocks(markdown: str) -> list[str]:
     return re.findall(r"```sh\n(.*?)```", markdown, re.S)
 
 
+@pytest.mark.slow
 def test_the_tutorial_runs_from_an_empty_folder_to_verify_ok(tmp_path: Path) -> None:
     blocks = shell_blocks(TUTORIAL.read_text(encoding="utf-8"))
     assert len(blocks) >= 8

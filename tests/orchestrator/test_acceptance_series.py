@@ -10,7 +10,7 @@ import pytest
 
 from gyrocal.cli import EXIT_OK, main
 
-pytestmark = pytest.mark.timeout(300)
+pytestmark = [pytest.mark.timeout(300), pytest.mark.slow]
 REPO = Path(__file__).resolve().parents[2]
 DEAD_ZONE_DPS = 0.025     # typed from gyro-models/series-fog.yaml, not read from it
 SATURATION_DPS = {"positive": 320.0, "negative": 270.0}

@@ -32,6 +32,7 @@ def certificate_text(run: Path) -> str:
     return " ".join(" ".join(page.extract_text() for page in pages).split())
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_a_dry_run_recovers_the_models_volts_per_dps_within_the_reported_uncertainty(tmp_path):
     out = tmp_path / "run"
@@ -56,6 +57,7 @@ def test_a_dry_run_recovers_the_models_volts_per_dps_within_the_reported_uncerta
     assert "Input chain keysight_34465a: analog input chain: DC volts through" in text
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_the_dithered_rlg_through_the_counter_recovers_its_scale_factor_in_whole_pulses(tmp_path):
     """procedures/rlg-pulse-counter.yaml: SF = 1 + 5 ppm + 0.1 ppm/°C·(T − 25) (the model's

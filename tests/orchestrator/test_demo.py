@@ -12,6 +12,7 @@ from gyrocal.models.gyro_model import load_model
 REPO = Path(__file__).resolve().parents[2]
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(240)
 def test_demo_runs_the_smoke_procedure_and_names_the_hidden_effect(tmp_path, capsys):
     assert main(["demo", "--out", str(tmp_path)]) == 0

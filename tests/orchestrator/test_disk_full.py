@@ -36,6 +36,7 @@ def _limited() -> None:
     resource.setrlimit(resource.RLIMIT_FSIZE, (LIMIT_BYTES, LIMIT_BYTES))
 
 
+@pytest.mark.slow
 def test_no_room_to_write_is_a_fault_with_the_rig_safe_and_the_run_resumable(
         h: Any, tmp_path: Path) -> None:
     procedure = h.write_procedure(tmp_path)

@@ -58,6 +58,7 @@ def journal(run_dir: Path) -> list[dict]:
     return [without(json.loads(line), JOURNAL_FREE) for line in lines]
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_two_runs_of_the_smoke_procedure_with_one_seed_are_identical(tmp_path: Path) -> None:
     runs = [tmp_path / "first", tmp_path / "second"]

@@ -83,6 +83,7 @@ def wait_for(predicate, proc: subprocess.Popen, timeout_s: float = 60.0) -> None
     raise AssertionError("condition never met")
 
 
+@pytest.mark.slow
 def test_resume_and_report_beside_a_running_run_are_refused_and_the_run_verifies(
         h: Any, tmp_path: Path, capsys) -> None:
     procedure = h.write_procedure(tmp_path)
@@ -145,6 +146,7 @@ sequence:
     return path
 
 
+@pytest.mark.slow
 def test_two_runs_on_one_live_station_the_second_is_refused_naming_the_holder(
         tmp_path: Path, private_lock_dir: Path, capsys) -> None:
     env = {**os.environ, LOCK_DIR_ENV: str(private_lock_dir)}

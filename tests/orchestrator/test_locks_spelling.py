@@ -81,6 +81,7 @@ def _other_spelling(station: dict, role: str) -> str:
     return station[role]["address"].replace("127.0.0.1", "localhost")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("role", ["table", "chamber", "gyro"])
 def test_a_second_controller_spelling_an_instrument_differently_is_refused_before_any_command(
         tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch, role: str) -> None:
@@ -116,6 +117,7 @@ def test_a_second_controller_spelling_an_instrument_differently_is_refused_befor
                 stop(first)
 
 
+@pytest.mark.slow
 def test_a_second_controller_reaching_the_chamber_by_another_endpoint_meets_its_serial(
         tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(LOCK_DIR_ENV, str(tmp_path / "locks"))

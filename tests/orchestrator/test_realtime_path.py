@@ -88,6 +88,7 @@ def true_sf(sensor_temp_c: float) -> float:
                          * (sensor_temp_c - model.reference_temp_c))
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(150)
 def test_speed_1_against_sim_serve_through_a_live_station_file(h: Any, tmp_path: Path) -> None:
     with served_station(tmp_path / "live-station.yaml") as live:
@@ -98,6 +99,7 @@ def test_speed_1_against_sim_serve_through_a_live_station_file(h: Any, tmp_path:
         check_run(out, h)
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_speed_20_in_process(h: Any, tmp_path: Path) -> None:
     out = tmp_path / "run"
@@ -153,6 +155,7 @@ def check_never_wrong(out: Path, h: Any, code: int) -> None:
         assert error <= entry["U"], (entry["sf"], entry["U"], error)
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(150)
 @pytest.mark.parametrize("speed", ["20", "5"])
 def test_under_load_a_dwell_holds_only_its_rate_and_never_passes_off_by_more_than_u(

@@ -26,7 +26,7 @@ from gyrocal.record.journal import read_journal
 from gyrocal.record.run_folder import RunFolder
 from gyrocal.record.samples import read_chunks
 
-pytestmark = pytest.mark.timeout(240)
+pytestmark = [pytest.mark.timeout(240), pytest.mark.slow]
 
 
 def start_run(procedure: Path, out: Path, root: Path) -> subprocess.Popen:

@@ -37,6 +37,7 @@ def signalled_run(server: ForkServer, procedure: Path, out: Path, at: str,
     return os.WEXITSTATUS(status), err_path.read_text()
 
 
+@pytest.mark.slow
 def test_a_signal_at_every_phase_exits_3_quietly_and_resumes_to_a_verified_run(h, tmp_path,
                                                                                  capsys,
                                                                                  monkeypatch):

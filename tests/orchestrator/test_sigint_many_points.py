@@ -44,7 +44,7 @@ from tests.support.tcp_proxy import ExchangeProxy
 REPO = Path(__file__).resolve().parents[2]
 SAFE_SETPOINT_C = 25.0
 
-pytestmark = pytest.mark.timeout(400)
+pytestmark = [pytest.mark.timeout(400), pytest.mark.slow]
 
 
 def write_procedure(folder: Path, station: Path, setpoint_c: float) -> Path:

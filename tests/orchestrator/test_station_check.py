@@ -43,6 +43,7 @@ def station_with(tmp_path: Path, **sections: dict) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_the_simulated_station_is_fit_and_reported(tmp_path: Path, capsys) -> None:
     out = tmp_path / "check.json"
     with served_station(tmp_path / "live.yaml") as live:
@@ -135,6 +136,7 @@ def test_an_instrument_that_does_not_answer_is_a_problem_not_a_traceback(tmp_pat
     assert "chamber: no usable answer:" in err and "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_a_0x93_unit_at_250_hz_then_a_wrong_declaration(tmp_path: Path, capsys) -> None:
     """TS1524: 0x93 carries rate, acceleration and inclination (Table 5-21); at 250 Hz the
     counter steps 8 (§7.5.2.2.18). Declared right: fit, with the accelerometer and

@@ -11,7 +11,7 @@ import pytest
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
 from gyrocal.orchestrator import turn_on as turn_on_module
 
-pytestmark = pytest.mark.timeout(300)
+pytestmark = [pytest.mark.timeout(300), pytest.mark.slow]
 REPO = Path(__file__).resolve().parents[2]
 
 

@@ -57,6 +57,7 @@ def results_of(run_dir: Path) -> dict:
     return json.loads((run_dir / "report" / "results.json").read_text())
 
 
+@pytest.mark.slow
 def test_history_of_ten_runs_prints_the_table_and_writes_the_plot(lab: Path, capsys) -> None:
     db = lab / "runs.duckdb"
     assert main(["runs", "index", str(lab / "runs"), "--db", str(db)]) == EXIT_OK
