@@ -48,7 +48,11 @@ pytestmark = [pytest.mark.timeout(400), pytest.mark.slow]
 
 
 def write_procedure(folder: Path, station: Path, setpoint_c: float) -> Path:
-    """A ramp to ``setpoint_c``, a short soak, a static and a ±50 deg/s pair, in real time."""
+    """A ramp to ``setpoint_c``, a short soak, a static and a ±50 deg/s pair, in real time.
+
+    Each step only has to last long enough for the signal to land in one of its
+    exchanges (a few requests after the test arms the proxy): 2 s holds and dwells,
+    and a 1 s spin-up keep the seven trials to seconds of real time each."""
     path = folder / "interrupt-me.yaml"
     path.write_text(f"""
 version: 1
@@ -60,10 +64,10 @@ safety:
   table: {{max_rate_dps: 200.0, max_accel_dps2: 100.0}}
 defaults:
   ramp_c_per_min: 5.0
-  soak: {{tolerance_c: 2.0, hold: 3 s, max_wait: 2 min}}
-  dwell: 4 s
+  soak: {{tolerance_c: 2.0, hold: 2 s, max_wait: 2 min}}
+  dwell: 2 s
   settle: 1 s
-  accel_dps2: 20.0
+  accel_dps2: 50.0
   sample_rate_hz: 2000
 data_quality:
   max_lost_frame_fraction: 0.001
@@ -71,7 +75,7 @@ data_quality:
 sequence:
   - setpoint_c: {setpoint_c:.1f}
     tests:
-      - {{kind: static, duration: 3 s}}
+      - {{kind: static, duration: 2 s}}
       - {{kind: sf_sweep, rates_dps: [50]}}
 """)
     return path
