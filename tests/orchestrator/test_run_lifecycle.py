@@ -22,7 +22,7 @@ from gyrocal.reports.verify import verify_run_folder
 from tests.support.fork_server import ForkServer
 from tests.support.short_run import SHORT_PLAN, short_procedure, without_report_figures
 
-pytestmark = pytest.mark.timeout(400)
+pytestmark = pytest.mark.timeout(900)    # a hang guard for the sweeps on a loaded host
 
 
 def signalled_run(server: ForkServer, procedure: Path, out: Path, at: str,
