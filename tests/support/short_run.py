@@ -24,10 +24,11 @@ def short_procedure(h: Any, folder: Path) -> Path:
 def without_report_figures(monkeypatch: Any) -> None:
     """The report pages this process builds get no figures (every figure section empty).
 
-    For the sweeps that resume one run per boundary (kill -9, signals): there each
-    resume builds the report, and its five Matplotlib figures are ~60 % of a resume's
-    CPU time, while what the sweep asserts (exit codes, the signed history, each step
-    once with its data) never reads them. The report is still built, written atomically,
+    For the sweeps that resume one run per boundary (kill -9, signals), and fixtures that
+    make many runs only to read their records (the runs database's ten): there each
+    run or resume builds the report, and its five Matplotlib figures are ~60 % of a
+    short run's CPU time, while what those tests assert (exit codes, the signed history,
+    each step once with its data, results.json) never reads them. The report is still built, written atomically,
     journaled and hashed as in any run; the figures themselves are asserted where they
     are the point (tests/reports/) and are drawn by every other dry run of the suite.
     Processes the sweep forks (the killed runs) still draw them.
