@@ -5,6 +5,11 @@ folder's manifest and ``report/results.json``, and ``samples`` is a view that
 reads the folders' Parquet chunks in place (``read_parquet`` over their
 paths), so plain SQL reaches every sample of every indexed run. Indexing is
 idempotent: a folder indexed again replaces its rows (keyed by run id).
+
+Only the chunks of each step's counted attempt are in the view (the record's
+one attempt rule, ``record.samples.RunSamples``): a step cut by a fault or a
+kill and run again keeps its first attempt's chunks on disk, journaled with
+their hashes, and a query over every file would count those samples twice.
 """
 
 from __future__ import annotations
@@ -17,12 +22,15 @@ from typing import Any
 
 import duckdb
 
+from gyrocal.record.journal import JournalError
 from gyrocal.record.plan_record import (
     PlanRecord,
     PlanRecordError,
     PlanRecordMissing,
     load_plan_record,
 )
+from gyrocal.record.run_folder import RunFolderError
+from gyrocal.record.samples import RunSamples
 from gyrocal.reports.runs.metrics import metric_values
 
 SCHEMA = """
@@ -121,10 +129,25 @@ def index_runs(db_path: Path, roots: list[Path]) -> IndexSummary:
         con.close()
 
 
+def counted_chunk_files(run_dir: Path) -> list[str]:
+    """The chunk files of every step's counted attempt (superseded attempts left out).
+
+    A folder indexed earlier and since moved or deleted has no samples to offer (its
+    ``runs`` and ``metrics`` rows stay: they were read when it was there)."""
+    if not (run_dir / "manifest.json").is_file():
+        return []
+    try:
+        samples = RunSamples(run_dir)
+    except (JournalError, RunFolderError) as exc:
+        raise RunsDatabaseError(f"{run_dir}: journal unreadable, its samples cannot be "
+                                f"indexed: {exc}") from None
+    return [str(p) for step_id in samples.logged for p in samples.chunk_paths(step_id)]
+
+
 def _refresh_samples_view(con: duckdb.DuckDBPyConnection) -> int:
-    """``samples``: every indexed run's chunks, read in place, with run_id and step_id."""
+    """``samples``: every indexed run's counted chunks, read in place, with run_id and step_id."""
     dirs = [row[0] for row in con.execute("SELECT run_dir FROM runs ORDER BY run_dir").fetchall()]
-    files = [str(p) for d in dirs for p in sorted(Path(d).glob("samples/*/*.parquet"))]
+    files = [f for d in dirs for f in counted_chunk_files(Path(d))]
     con.execute("DROP VIEW IF EXISTS samples")
     if not files:
         return 0
