@@ -182,13 +182,21 @@ def _filters(first: int, second: int) -> tuple[int | None, int | None, int | Non
             FILTER_CODES.get(second >> 4 & 0x07))
 
 
-def find_configuration(data: bytes) -> UnitConfiguration | None:
-    """The first configuration datagram in a stream whose CRC checks, if any."""
-    buf = np.frombuffer(data, dtype=np.uint8)
+def locate_configuration(data: bytes | bytearray) -> tuple[int, int, UnitConfiguration] | None:
+    """(start, end, decoded) of the first whole configuration datagram in ``data`` whose CRC checks."""
+    buf = np.frombuffer(bytes(data), dtype=np.uint8)
     for start in np.flatnonzero((buf == ID_CONFIGURATION) | (buf == ID_CONFIGURATION_CRLF)).tolist():
-        length = configuration_length(data[start] == ID_CONFIGURATION_CRLF)
+        end = start + configuration_length(data[start] == ID_CONFIGURATION_CRLF)
+        if end > len(data):
+            continue
         try:
-            return decode_configuration(data[start:start + length])
+            return start, end, decode_configuration(bytes(data[start:end]))
         except ValueError:
             continue
     return None
+
+
+def find_configuration(data: bytes) -> UnitConfiguration | None:
+    """The first configuration datagram in a stream whose CRC checks, if any."""
+    found = locate_configuration(data)
+    return None if found is None else found[2]

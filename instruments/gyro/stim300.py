@@ -1,7 +1,9 @@
 """Driver for a STIM300-style gyro streaming datagrams over a serial line.
 
-The unit streams continuously at its configured rate; the driver never sends
-anything. It reads large chunks (whatever is waiting, at least what the
+The unit streams continuously at its configured rate. The driver sends one
+thing, at connect: ``C<CR>``, which asks the unit for its configuration
+datagram (:meth:`Stim300Gyro.confirm_configuration`, configuration_query.py).
+It reads large chunks (whatever is waiting, at least what the
 request still needs) and decodes them vectorised, so a 2 kHz stream costs a
 handful of system calls and numpy calls per block, not a Python loop per
 frame. Samples decoded beyond what was asked are kept for the next call,
@@ -12,13 +14,23 @@ from __future__ import annotations
 
 import contextlib
 import time
+from collections.abc import Callable
 
+import numpy as np
 import serial
 
 from gyrocal.instruments.errors import (
     InstrumentConnectionError,
     InstrumentProtocolError,
     InstrumentTimeout,
+)
+from gyrocal.instruments.gyro.configuration import locate_configuration
+from gyrocal.instruments.gyro.configuration_query import (
+    COMMAND,
+    WAIT_FRAMES,
+    ConfigurationAnswer,
+    Declared,
+    mismatches,
 )
 from gyrocal.instruments.gyro.datagram import (
     DEFAULT_ACCELEROMETER_RANGE_G,
@@ -76,6 +88,8 @@ class Stim300Gyro:
         self._survey_bytes = bytearray()     # the first bytes, until the stream's type is confirmed
         self.survey: StreamSurvey | None = None
         self._frame_length = self._decoder.layout.length
+        #: what the unit said when asked for its configuration (None: not asked yet)
+        self.configuration: ConfigurationAnswer | None = None
         try:
             self._serial = serial.serial_for_url(
                 port, baudrate=self.baudrate, timeout=min(_POLL_S, self.timeout_s)
@@ -163,6 +177,43 @@ class Stim300Gyro:
             self._read_chunk(_SURVEY_MIN_FRAMES, "datagram check")
         return self.survey
 
+    def confirm_configuration(self, timeout_s: float | None = None,
+                              let_pass: Callable[[float], None] | None = None) -> ConfigurationAnswer:
+        """Ask the unit for its configuration (``C<CR>``, TS1524 §8.3) and check it.
+
+        The input is flushed, the command written, and the stream read until a
+        configuration datagram whose CRC checks arrives, for at most
+        ``timeout_s`` and :data:`WAIT_FRAMES` normal-mode datagrams' worth of
+        bytes. ``let_pass(span_s)`` is called once after the command: a
+        simulated clock lets the stream's time pass there. Found: what came
+        before it is dropped and the stream starts afresh right after it (as
+        after a flush), so the datagram(s) it replaced are neither lost frames
+        nor garbage; a contradiction with the station raises the fault naming
+        both. Not found: everything read is decoded as the stream it is, and the
+        answer says the configuration is not confirmed (not a fault).
+        """
+        timeout_s = self.timeout_s if timeout_s is None else float(timeout_s)
+        self.flush()
+        self._write(COMMAND, "configuration request")
+        if let_pass is not None:
+            let_pass(WAIT_FRAMES / self.sample_rate_hz)
+        held = self._read_for_configuration(timeout_s)
+        found = locate_configuration(held)
+        if found is None:
+            self._ingest(bytes(held))
+            self.configuration = ConfigurationAnswer(None)
+            return self.configuration
+        start, end, config = found
+        self.configuration = ConfigurationAnswer(config, self._replaced_frames(held, start, end))
+        problems = mismatches(config, Declared(self.sample_rate_hz, self.layout, self._axis,
+                                               self.accelerometer_range_g))
+        if problems:
+            raise InstrumentProtocolError(self.name, "configuration check", "; ".join(problems))
+        self._decoder.reset()
+        self._reset_stream_state()
+        self._ingest(bytes(held[end:]))
+        return self.configuration
+
     def close(self) -> None:
         with contextlib.suppress(serial.SerialException, OSError):
             self._serial.close()
@@ -184,11 +235,50 @@ class Stim300Gyro:
 
     def _read_chunk(self, samples_missing: int, command: str) -> None:
         wanted = samples_missing * self._frame_length - self._decoder.pending_bytes
+        chunk = self._read_bytes(wanted, command)
+        if chunk:
+            self._ingest(chunk)
+
+    def _read_bytes(self, wanted: int, command: str) -> bytes:
         try:
             size = min(max(self._serial.in_waiting, wanted, 1), _MAX_READ_BYTES)
-            chunk = self._serial.read(size)
+            return self._serial.read(size)
         except (serial.SerialException, OSError) as exc:
             raise InstrumentConnectionError(self.name, command, f"read failed on {self.port}: {exc}") from exc
+
+    def _write(self, data: bytes, command: str) -> None:
+        try:
+            self._serial.write(data)
+            self._serial.flush()
+        except (serial.SerialException, OSError) as exc:
+            raise InstrumentConnectionError(self.name, command, f"write failed on {self.port}: {exc}") from exc
+
+    def _read_for_configuration(self, timeout_s: float) -> bytearray:
+        """The bytes after the command, until a configuration datagram checks or the bound."""
+        held = bytearray()
+        limit = WAIT_FRAMES * self._frame_length + 64      # + the answer itself (26 or 28 bytes)
+        deadline = time.monotonic() + timeout_s
+        while len(held) < limit and time.monotonic() < deadline:
+            held += self._read_bytes(limit - len(held), "configuration request")
+            if locate_configuration(held) is not None:
+                break
+        return held
+
+    def _replaced_frames(self, held: bytearray, start: int, end: int) -> int | None:
+        """Normal-mode datagrams the answer replaced: the counter gap across it (§7.5.2.2.18)."""
+        before, after = self._counters(held[:start]), self._counters(held[end:])
+        step = self._decoder.counter_step
+        if not (before.size and after.size and step):
+            return None
+        return (int(after[0]) - int(before[-1])) % 256 // step - 1
+
+    def _counters(self, data: bytes | bytearray) -> np.ndarray:
+        """The counters of the declared type's CRC-valid datagrams in ``data``."""
+        layout = self.layout
+        return FrameDecoder(datagram=layout.identifier, crlf=layout.crlf).feed(bytes(data)).counter
+
+    def _ingest(self, chunk: bytes) -> None:
+        """Decode bytes read from the line (checking the stream's type first, once)."""
         if not chunk:
             return
         if self.survey is None:

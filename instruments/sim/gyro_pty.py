@@ -58,6 +58,16 @@ Faults (armed on the :class:`FaultInjector`; see :data:`FAULTS`):
 
 What was injected is tallied in :attr:`SimulatedGyroPort.injected` so tests
 can compare it with what the driver counted.
+
+Commands: the unit answers ``C<CR>`` (TS1524 §8.3, p. 59) with its
+configuration datagram (stim_configuration.py), which replaces the next
+normal-mode datagram(s) it would have sent. The reader's writes arrive on the
+packet-mode master as data packets beside the flush statuses. On simulated
+time the command is looked for when the controller next advances the clock
+(it wrote the command before), and the answer replaces the first datagram(s)
+of that read span, so where it falls depends on the controller's calls alone;
+on a real clock it replaces the first datagram(s) of the next block. Other
+commands (Table 8-1) are not simulated and go unanswered.
 """
 
 from __future__ import annotations
@@ -93,6 +103,11 @@ from gyrocal.instruments.sim.gyro_frames import (
     encode_sim_frames,
 )
 from gyrocal.instruments.sim.pty_port import PtyWriterPort
+from gyrocal.instruments.sim.stim_configuration import (
+    SimUnitConfiguration,
+    configuration_datagram,
+    replaced_datagrams,
+)
 from gyrocal.models.clock import RealClock, SimClock
 from gyrocal.models.sim_state import decode, encode
 
@@ -159,6 +174,8 @@ class SimulatedGyroPort(PtyWriterPort):
         datagram: int | None = None,
         accelerometer_range_g: int = DEFAULT_ACCELEROMETER_RANGE_G,
         specific_force: SpecificForceSource | None = None,
+        baudrate: int = 921600,
+        gyro_output_code: int = 0,
     ) -> None:
         if not sample_rate_hz > 0:
             raise ValueError(f"sample_rate_hz must be > 0, got {sample_rate_hz!r}")
@@ -198,6 +215,15 @@ class SimulatedGyroPort(PtyWriterPort):
         self._spans: deque[_Span] = deque()   # simulated clock: read spans not yet made
         self._tail: tuple[int, int] | None = None   # simulated clock: idle tail [k0, k1) not yet made
         self._making = False                  # the stream thread is making a span
+        kind = self.layout.kind
+        #: what the unit says on C<CR> (its gyro output code: 0 angular rate, Table 5-16 byte 5)
+        self.unit = SimUnitConfiguration(self.sample_rate_hz, kind.acceleration, kind.inclination,
+                                         kind.temperature, kind.pps, self.crlf, int(baudrate),
+                                         self.accelerometer_range_g, int(gyro_output_code))
+        self.configuration_answers = 0        # C<CR> answered
+        self._command_bytes = bytearray()     # the reader's writes, up to the next CR
+        self._config_requested = False        # C<CR> received, not answered yet
+        self._flush_pending = False           # the reader flushed its input, not yet acted on
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -250,10 +276,13 @@ class SimulatedGyroPort(PtyWriterPort):
             return
         try:
             self._wait_made()
+            self._poll_master()
             if reading:
                 self._send_tail()
                 self._queue_read_span(to_s - from_s)
             else:
+                # nobody reads: an answer the unit sent now is lost with the UART's other frames
+                self._config_requested = False
                 self._hold_idle_tail(self._frames_before(to_s))
         except Exception as exc:  # noqa: BLE001 - reported through .error; the driver sees silence
             self.error = exc
@@ -267,8 +296,9 @@ class SimulatedGyroPort(PtyWriterPort):
         k = np.arange(self.next_frame, self.next_frame + span, dtype=np.int64)
         inputs = (self.source.inputs_at(k / self.sample_rate_hz)
                   if isinstance(self.source, StagedGyroSource) else None)
+        answer = self._take_answer()
         with self._out_lock:
-            self._spans.append(_Span(k, inputs))
+            self._spans.append(_Span(k, inputs, answer))
             self._making = True
             self._out_lock.notify_all()
 
@@ -300,7 +330,9 @@ class SimulatedGyroPort(PtyWriterPort):
                     np.repeat(x[-1:], size, axis=0) for x in span.inputs)
             k = np.arange(k0, k0 + size, dtype=np.int64)
             before = self.injected["lose_frames"] + self.injected["corrupt_frames"]
-            data, _, _ = self._encode_block(k, inputs)
+            data, n_garbage, _ = self._encode_block(k, inputs)
+            if made == 0 and span.answer:
+                data, _, _ = self._splice_answer(data, n_garbage, k0, span.answer)
             self.next_frame = k0 + size
             made += size
             wanted -= size - (self.injected["lose_frames"] + self.injected["corrupt_frames"] - before)
@@ -363,16 +395,51 @@ class SimulatedGyroPort(PtyWriterPort):
 
     def _reader_flushed(self) -> bool:
         """Whether the reader flushed its input since the last look (packet-mode status)."""
-        flushed = False
+        self._poll_master()
+        flushed, self._flush_pending = self._flush_pending, False
+        return flushed
+
+    def _poll_master(self) -> None:
+        """Read what the reader did: input flushes (status packets) and its writes (data packets)."""
         while select.select([self._master_fd], [], [], 0)[0]:
             try:
-                status = os.read(self._master_fd, 4096)
+                packet = os.read(self._master_fd, 4096)
             except BlockingIOError:
                 break
-            if not status:
+            if not packet:
                 break
-            flushed = flushed or bool(status[0] & termios.TIOCPKT_FLUSHREAD)
-        return flushed
+            if packet[0] == termios.TIOCPKT_DATA:
+                self._command_bytes += packet[1:]
+            elif packet[0] & termios.TIOCPKT_FLUSHREAD:
+                self._flush_pending = True
+        while b"\r" in self._command_bytes:        # CR executes a command (Table 8-2)
+            command, _, rest = bytes(self._command_bytes).partition(b"\r")
+            self._command_bytes = bytearray(rest)
+            if command == b"C" and self.unit.answers:
+                self._config_requested = True
+
+    def _take_answer(self) -> bytes:
+        """The configuration datagram if C<CR> is waiting for its answer, else b''."""
+        if not self._config_requested:
+            return b""
+        self._config_requested = False
+        self.configuration_answers += 1
+        return configuration_datagram(self.unit)
+
+    def _splice_answer(self, data: bytes, n_garbage: int, k_first: int, answer: bytes
+                       ) -> tuple[bytes, int, int]:
+        """Put the answer in place of the block's first datagram(s) (TS1524 §8.3).
+
+        Returns (bytes, length of what precedes the frames, grid index of the first frame).
+        """
+        length = self.layout.length
+        frames = len(data) - n_garbage
+        if frames < length:             # a unit switched off sends nothing, no answer either
+            return data, n_garbage, k_first
+        replaced = min(replaced_datagrams(len(answer), self.unit.bit_rate, self.sample_rate_hz),
+                       frames // length)
+        data = data[:n_garbage] + answer + data[n_garbage + replaced * length:]
+        return data, n_garbage + len(answer), k_first + replaced
 
     def _write_some(self) -> int:
         """One non-blocking write of what is made; returns the bytes written."""
@@ -444,12 +511,8 @@ class SimulatedGyroPort(PtyWriterPort):
         queue: every frame sampled before now would have been discarded with
         it, so none of them may be written after it.
         """
-        readable, _, _ = select.select([self._master_fd], [], [], 0)
-        if readable:
-            with contextlib.suppress(BlockingIOError):
-                status = os.read(self._master_fd, 4096)
-                if status and status[0] & termios.TIOCPKT_FLUSHREAD:
-                    self._flushed_k = math.ceil(self.clock.now_s() * self.sample_rate_hz - _EPS_FRAMES)
+        if self._reader_flushed():
+            self._flushed_k = math.ceil(self.clock.now_s() * self.sample_rate_hz - _EPS_FRAMES)
         return self._flushed_k
 
     def _produce_block(self) -> None:
@@ -464,6 +527,9 @@ class SimulatedGyroPort(PtyWriterPort):
         if not self._wait_real_time(t_end_s):
             return
         data, n_garbage, k_first = self._encode_block(k)
+        answer = self._take_answer()
+        if answer:
+            data, n_garbage, k_first = self._splice_answer(data, n_garbage, k_first, answer)
         self.next_frame = k0 + n_frames
         written = self._write_all(data, n_garbage, k_first)
         if written is None:
@@ -597,3 +663,4 @@ class _Span:
 
     k: np.ndarray
     inputs: SourceInputs | None
+    answer: bytes = b""         # a configuration datagram replacing the span's first datagram(s)
