@@ -63,7 +63,7 @@ def rig():
 
 
 def test_the_command_is_capital_c_then_cr():
-    assert COMMAND == bytes([0x43, 0x0D])          # Table 8-1 (upper case), Table 8-2 (CR 0x0D)
+    assert bytes([0x43, 0x0D]) == COMMAND          # Table 8-1 (upper case), Table 8-2 (CR 0x0D)
 
 
 @pytest.mark.parametrize(("baudrate", "replaced"), [(921600, 1), (374400, 2)])
