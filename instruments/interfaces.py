@@ -6,12 +6,14 @@ driver class that satisfies one of them, nothing else changes.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from gyrocal.instruments.gyro.channels import SensorChannels
+from gyrocal.instruments.gyro.configuration_query import ConfigurationAnswer
 
 
 @dataclass(frozen=True)
@@ -174,3 +176,19 @@ class GyroStream(Protocol):
         """Discard everything buffered so the next samples are fresh."""
     def read_samples(self, n: int, timeout_s: float) -> GyroBlock: ...
     def close(self) -> None: ...
+
+
+@runtime_checkable
+class ConfigurableGyro(Protocol):
+    """A gyro that states its own configuration when asked (a STIM300's ``C<CR>``).
+
+    ``confirm_configuration`` asks, waits a bounded time, and raises the
+    driver's protocol fault when the answer contradicts the station; a unit
+    that does not answer is no fault (the answer says so). ``let_pass`` is
+    called once after the question with the stream time to wait (a
+    simulated clock lets it pass there).
+    """
+
+    def confirm_configuration(self, timeout_s: float | None = None,
+                              let_pass: Callable[[float], None] | None = None
+                              ) -> ConfigurationAnswer: ...

@@ -23,7 +23,7 @@ from typing import Any, Protocol
 from gyrocal.errors import NO_ROOM_ERRNOS
 from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments
-from gyrocal.instruments.interfaces import Identity
+from gyrocal.instruments.interfaces import ConfigurableGyro, Identity
 from gyrocal.models.imu_model import Mounting
 from gyrocal.models.sim_state import SimStateError
 from gyrocal.orchestrator.acquisition import Acquisition, AcquisitionPolicy, StepResult
@@ -311,6 +311,7 @@ class RunEngine:
             power_on(self.inst.supply, self.policy.unit_power, self.journal)
             # a unit just switched on sends after its start-up delay (turn_on.py)
             wait_first_frame(self.inst.gyro, self.clock, powered_s, "preflight")
+        self._confirm_gyro_configuration(identities)
         self.machine.identified()
         status = self.inst.chamber.read_status()
         if status.alarm:
@@ -337,6 +338,24 @@ class RunEngine:
         self.journal.append(JournalEvent.PREFLIGHT_OK, chamber_c=status.temperature_c,
                             gyro_samples=len(block), table_rate_dps=self.conditions.table_dps)
         self.machine.preflight_ok()
+
+    def _confirm_gyro_configuration(self, identities: dict[str, dict[str, str]]) -> None:
+        """Ask the gyro for its configuration (a STIM300's ``C<CR>``, TS1524 §8.3) before
+        anything moves: a contradiction with the station is the driver's fault (exit 3); no
+        answer is journaled as not confirmed. The gyro's identity is journaled again with what
+        it said, so the manifest and the results carry it."""
+        gyro = self.inst.gyro
+        if not isinstance(gyro, ConfigurableGyro):
+            return
+        answer = gyro.confirm_configuration(timeout_s=self.policy.read_timeout_margin_s,
+                                            let_pass=self.clock.elapse_reading)
+        self.journal.append(JournalEvent.GYRO_CONFIGURATION, **answer.record())
+        ident = gyro.identify()
+        identities[ident.role] = {"driver": ident.driver, "address": ident.address,
+                                  "description": ident.description}
+        self.journal.append(JournalEvent.INSTRUMENT_IDENTIFIED, role=ident.role, driver=ident.driver,
+                            address=ident.address, description=ident.description)
+        self.folder.update_manifest(instruments=identities)
 
     # -- step execution ----------------------------------------------------------------------
     def _execute(self, step: PlanStep) -> None:

@@ -1,6 +1,10 @@
 """The gyro part of ``gyrocal station check``: listen to the unit, judge what a run relies on.
 
-Only listens (the STIM300 takes no commands in normal mode). The driver's
+First asks the unit for its configuration (``C<CR>``, TS1524 §8.3, the one
+command sent; it changes nothing): a configuration that contradicts the
+station (rate, datagram, gyro output unit, the axis, accelerometer range;
+Table 5-16) is the driver's fault naming both; no answer (a one-way replay)
+is reported as "configuration not confirmed", not as a problem. The driver's
 ``detect`` reads the datagram type and the counter step from the stream and
 compares them with the station's declaration (TS1524 Table 5-21; §7.5.2.2.18:
 the counter counts the unit's internal 2000 Hz samples, so fs = 2000 / step);
@@ -39,7 +43,9 @@ def check_gyro_stream(gyro: Stim300Gyro, sample_rate_hz: float) -> tuple[dict[st
     """(facts, problems) of the stream, as the station declares it at ``sample_rate_hz``."""
     facts: dict[str, Any] = {"identity": gyro.identify().description}
     problems: list[str] = []
-    gyro.flush()
+    answer = gyro.confirm_configuration(timeout_s=LISTEN_S)   # flushes; faults on a contradiction
+    facts["configuration"] = answer.describe()
+    facts["configuration_confirmed"] = answer.confirmed
     survey = gyro.detect(timeout_s=LISTEN_S + 2.0)     # faults on a type or rate mismatch
     facts["datagram"] = survey.describe()
     facts["counter_step"] = survey.counter_step

@@ -46,6 +46,9 @@ class JournalEvent(str, Enum):
 
     RUN_STARTED = "run_started"
     INSTRUMENT_IDENTIFIED = "instrument_identified"
+    #: what the gyro said when asked for its configuration at connect (a STIM300's C<CR>),
+    #: or that it did not answer
+    GYRO_CONFIGURATION = "gyro_configuration"
     PREFLIGHT_OK = "preflight_ok"
     RESUMED = "resumed"
     RESTORE_CONDITIONS = "restore_conditions"

@@ -56,6 +56,23 @@ class ConfigurationAnswer:
                     else f"; it replaced {self.replaced_frames} normal-mode datagram(s)")
         return f"configuration confirmed (C, TS1524 §8.3): {self.configuration.describe()}{replaced}"
 
+    def record(self) -> dict[str, object]:
+        """The journal's fields (JSON): what the unit said, field by field."""
+        config = self.configuration
+        if config is None:
+            return {"confirmed": False, "description": self.describe()}
+        return {
+            "confirmed": True, "description": self.describe(), "revision": config.revision,
+            "firmware": config.firmware, "sample_rate_hz": config.sample_rate_hz,
+            "datagram": f"0x{config.datagram:02X}", "crlf": config.crlf, "bit_rate": config.bit_rate,
+            "gyro_output_unit": output_unit_label(config.gyro_output_code),
+            "gyro_axes_active": list(config.gyro_axes_active),
+            "gyro_filter_hz": list(config.gyro_filter_hz),
+            "gyro_range_dps": list(config.gyro_range_dps),
+            "accelerometer_range_g": list(config.accelerometer_range_g),
+            "replaced_frames": self.replaced_frames,
+        }
+
 
 @dataclass(frozen=True)
 class Declared:

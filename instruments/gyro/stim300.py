@@ -113,6 +113,7 @@ class Stim300Gyro:
                 f"{f', accelerometers ±{self.accelerometer_range_g} g' if layout.kind.acceleration else ''}, "
                 f"{self.baudrate} baud, "
                 f"unit under test: {self.axis} axis{', CR LF' if self.crlf else ''}"
+                f"{'' if self.configuration is None else '; ' + self.configuration.describe()}"
             ),
         )
 
@@ -256,7 +257,7 @@ class Stim300Gyro:
     def _read_for_configuration(self, timeout_s: float) -> bytearray:
         """The bytes after the command, until a configuration datagram checks or the bound."""
         held = bytearray()
-        limit = WAIT_FRAMES * self._frame_length + 64      # + the answer itself (26 or 28 bytes)
+        limit = WAIT_FRAMES * self._frame_length
         deadline = time.monotonic() + timeout_s
         while len(held) < limit and time.monotonic() < deadline:
             held += self._read_bytes(limit - len(held), "configuration request")

@@ -27,6 +27,7 @@ from gyrocal.models.clock import SimClock
 from gyrocal.models.table import TablePhysics
 from tests.support.modbus_stock_server import StockServer
 from tests.support.sim_serve import served_station
+from tests.support.ubc_captures import SLOW
 
 REPO = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.timeout(120)
@@ -65,6 +66,8 @@ def test_the_simulated_station_is_fit_and_reported(tmp_path: Path, capsys) -> No
     assert gyro["sample_rate_hz_by_counter"] == station["gyro"]["sample_rate_hz"]
     assert gyro["datagram"].startswith("0x94") and gyro["gyro_status_bits_seen"] == "0x00"
     assert len(gyro["gyro_mean"]) == 3
+    assert gyro["configuration_confirmed"] is True
+    assert "configuration confirmed (C, TS1524 §8.3)" in gyro["configuration"]
     assert "every instrument fit for a run" in printed.out
 
 
@@ -140,8 +143,9 @@ def test_an_instrument_that_does_not_answer_is_a_problem_not_a_traceback(tmp_pat
 def test_a_0x93_unit_at_250_hz_then_a_wrong_declaration(tmp_path: Path, capsys) -> None:
     """TS1524: 0x93 carries rate, acceleration and inclination (Table 5-21); at 250 Hz the
     counter steps 8 (§7.5.2.2.18). Declared right: fit, with the accelerometer and
-    inclinometer means (a level unit: about +1 g on one axis). Declared 0x94: exit 3 naming
-    what the unit sends and what the station declares."""
+    inclinometer means (a level unit: about +1 g on one axis), its configuration confirmed by
+    its answer to C. Declared 0x94: exit 3 naming what the unit is configured for and what the
+    station declares."""
     station = station_with(tmp_path, gyro={"datagram": 0x93, "sample_rate_hz": 250,
                                            "with_temperature": False})
     with served_station(tmp_path / "live.yaml", station=str(station)) as live:
@@ -160,10 +164,30 @@ def test_a_0x93_unit_at_250_hz_then_a_wrong_declaration(tmp_path: Path, capsys) 
     assert max(abs(a) for a in gyro["accelerometer_mean_g"]) == pytest.approx(1.0, abs=0.05)
     assert len(gyro["inclinometer_mean_g"]) == 3
     assert code_wrong == EXIT_FAULT
-    assert "the unit sends 0x93" in printed.err and "the station declares 0x94" in printed.err
+    # the unit's own answer to C<CR> (TS1524 §8.3) names it first, before the stream is surveyed
+    assert ("the unit is configured for datagram 0x93 (rate, acceleration, inclination) (TS1524 "
+            "Table 5-16 byte 3, Table 5-21); the station declares 0x94 (rate, temperature)"
+            in printed.err)
+    assert gyro["configuration_confirmed"] is True
+    assert "gyro output angular rate [°/s]" in gyro["configuration"]
 
 
 def test_a_station_with_sim_addresses_is_bad_input(capsys) -> None:
     code = main(["station", "check", str(REPO / "stations" / "sim.yaml")])
     assert code == EXIT_BAD_INPUT
     assert "sim serve --write-station" in capsys.readouterr().err
+
+
+def test_a_replayed_unit_does_not_answer_c_and_that_is_said_not_faulted(tmp_path: Path, capsys) -> None:
+    """A replayed capture is one-way: no answer to C<CR> within the bound is no fault (the
+    stream's own type stands); the check says the configuration is not confirmed."""
+    out = tmp_path / "g.json"
+    with served_station(tmp_path / "live.yaml", extra_args=("--replay-gyro", str(SLOW))) as live:
+        code = main(["station", "check", str(live), "--only", "gyro", "--json", str(out)])
+    printed = capsys.readouterr()
+    assert code == EXIT_OK, printed
+    gyro = json.loads(out.read_text())["instruments"]["gyro"]["facts"]
+    assert gyro["configuration_confirmed"] is False
+    assert gyro["configuration"] == "configuration not confirmed: no answer to C (TS1524 §8.3)"
+    assert "configuration not confirmed: no answer to C (TS1524 §8.3)" in printed.out
+    assert gyro["datagram"].startswith("0x93")
