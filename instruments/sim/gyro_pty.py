@@ -215,11 +215,15 @@ class SimulatedGyroPort(PtyWriterPort):
         self._spans: deque[_Span] = deque()   # simulated clock: read spans not yet made
         self._tail: tuple[int, int] | None = None   # simulated clock: idle tail [k0, k1) not yet made
         self._making = False                  # the stream thread is making a span
+        self._init_commands(int(baudrate), int(gyro_output_code))
+
+    def _init_commands(self, baudrate: int, gyro_output_code: int) -> None:
+        """What the unit answers C<CR> with (its gyro output code: 0 angular rate, Table 5-16
+        byte 5), and the state of the reader's commands."""
         kind = self.layout.kind
-        #: what the unit says on C<CR> (its gyro output code: 0 angular rate, Table 5-16 byte 5)
         self.unit = SimUnitConfiguration(self.sample_rate_hz, kind.acceleration, kind.inclination,
-                                         kind.temperature, kind.pps, self.crlf, int(baudrate),
-                                         self.accelerometer_range_g, int(gyro_output_code))
+                                         kind.temperature, kind.pps, self.crlf, baudrate,
+                                         self.accelerometer_range_g, gyro_output_code)
         self.configuration_answers = 0        # C<CR> answered
         self._command_bytes = bytearray()     # the reader's writes, up to the next CR
         self._config_requested = False        # C<CR> received, not answered yet
