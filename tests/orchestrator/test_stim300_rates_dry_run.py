@@ -54,6 +54,18 @@ def test_smoke_dry_run_with_a_0x93_unit_repeats_no_step(tmp_path, capsys, fs_hz)
     gyro = next(e for e in events if e["event"] == "instrument_identified" and e["role"] == "gyro")
     assert "0x93 (rate, acceleration, inclination)" in gyro["description"]
     assert f"counter step {2000 // fs_hz}" in gyro["description"]
+    # asked at connect (C<CR>, TS1524 §8.3), the simulated unit states its configuration
+    configuration = next(e for e in events if e["event"] == "gyro_configuration")
+    assert configuration["confirmed"] is True and configuration["sample_rate_hz"] == fs_hz
+    assert (configuration["datagram"], configuration["crlf"]) == ("0x93", False)
+    assert configuration["gyro_output_unit"] == "angular rate [°/s]"
+    assert configuration["accelerometer_range_g"] == [30, 30, 30]
+    identified = [e for e in events if e["event"] == "instrument_identified" and e["role"] == "gyro"]
+    assert "configuration confirmed (C, TS1524 §8.3)" in identified[-1]["description"]
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert "configuration confirmed" in manifest["instruments"]["gyro"]["description"]
+    results = json.loads((out / "report" / "results.json").read_text())
+    assert "configuration confirmed" in json.dumps(results["instruments"]["gyro"], ensure_ascii=False)
     chunk = pq.read_table(out / logged[0]["chunks"][0])
     assert chunk.num_rows == logged[0]["samples"] and logged[0]["samples"] > 0
     for name in ("acc_x_g", "acc_y_g", "acc_z_g", "incl_x_g", "incl_y_g", "incl_z_g",
