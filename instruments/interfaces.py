@@ -186,8 +186,12 @@ class ConfigurableGyro(Protocol):
     driver's protocol fault when the answer contradicts the station; a unit
     that does not answer is no fault (the answer says so). ``let_pass`` is
     called once after the question with the stream time to wait (a
-    simulated clock lets it pass there).
+    simulated clock lets it pass there). The answer is kept in ``configuration``, also
+    when it raised.
     """
+
+    #: the last answer (None: not asked yet)
+    configuration: ConfigurationAnswer | None
 
     def confirm_configuration(self, timeout_s: float | None = None,
                               let_pass: Callable[[float], None] | None = None

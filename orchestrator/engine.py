@@ -298,20 +298,18 @@ class RunEngine:
         self.machine.connect()
         identities: dict[str, dict[str, str]] = {}
         supply = [self.inst.supply] if self.inst.supply is not None else []
-        for inst in (self.inst.chamber, self.inst.table, self.inst.gyro, *supply):
-            ident: Identity = inst.identify()
-            identities[ident.role] = {"driver": ident.driver, "address": ident.address,
-                                      "description": ident.description}
-            self.journal.append(JournalEvent.INSTRUMENT_IDENTIFIED, role=ident.role, driver=ident.driver,
-                                address=ident.address, description=ident.description)
-        self.folder.update_manifest(instruments=identities)
+        for inst in (self.inst.chamber, self.inst.table, *supply):
+            self._identified(inst.identify(), identities)
         if self.inst.supply is not None and self.policy.unit_power is not None:
             powered_s = self.clock.now_s()
             self._commanded = True
             power_on(self.inst.supply, self.policy.unit_power, self.journal)
             # a unit just switched on sends after its start-up delay (turn_on.py)
             wait_first_frame(self.inst.gyro, self.clock, powered_s, "preflight")
-        self._confirm_gyro_configuration(identities)
+        try:
+            self._confirm_gyro_configuration()
+        finally:       # the gyro last: its identity carries what it said of its configuration
+            self._identified(self.inst.gyro.identify(), identities)
         self.machine.identified()
         status = self.inst.chamber.read_status()
         if status.alarm:
@@ -339,23 +337,27 @@ class RunEngine:
                             gyro_samples=len(block), table_rate_dps=self.conditions.table_dps)
         self.machine.preflight_ok()
 
-    def _confirm_gyro_configuration(self, identities: dict[str, dict[str, str]]) -> None:
-        """Ask the gyro for its configuration (a STIM300's ``C<CR>``, TS1524 §8.3) before
-        anything moves: a contradiction with the station is the driver's fault (exit 3); no
-        answer is journaled as not confirmed. The gyro's identity is journaled again with what
-        it said, so the manifest and the results carry it."""
-        gyro = self.inst.gyro
-        if not isinstance(gyro, ConfigurableGyro):
-            return
-        answer = gyro.confirm_configuration(timeout_s=self.policy.read_timeout_margin_s,
-                                            let_pass=self.clock.elapse_reading)
-        self.journal.append(JournalEvent.GYRO_CONFIGURATION, **answer.record())
-        ident = gyro.identify()
+    def _identified(self, ident: Identity, identities: dict[str, dict[str, str]]) -> None:
+        """Journal an instrument's identity and keep the manifest's copy in step."""
         identities[ident.role] = {"driver": ident.driver, "address": ident.address,
                                   "description": ident.description}
         self.journal.append(JournalEvent.INSTRUMENT_IDENTIFIED, role=ident.role, driver=ident.driver,
                             address=ident.address, description=ident.description)
         self.folder.update_manifest(instruments=identities)
+
+    def _confirm_gyro_configuration(self) -> None:
+        """Ask the gyro for its configuration (a STIM300's ``C<CR>``, TS1524 §8.3) before
+        anything moves: a contradiction with the station is the driver's fault (exit 3); no
+        answer is journaled as not confirmed (the stream's own type is still checked)."""
+        gyro = self.inst.gyro
+        if not isinstance(gyro, ConfigurableGyro):
+            return
+        try:
+            gyro.confirm_configuration(timeout_s=self.policy.read_timeout_margin_s,
+                                       let_pass=self.clock.elapse_reading)
+        finally:        # what it said is journaled when it contradicts the station too
+            if gyro.configuration is not None:
+                self.journal.append(JournalEvent.GYRO_CONFIGURATION, **gyro.configuration.record())
 
     # -- step execution ----------------------------------------------------------------------
     def _execute(self, step: PlanStep) -> None:

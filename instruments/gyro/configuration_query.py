@@ -44,25 +44,29 @@ class ConfigurationAnswer:
 
     configuration: UnitConfiguration | None
     replaced_frames: int | None = None   # normal-mode datagrams the answer took the place of
+    contradictions: tuple[str, ...] = ()  # how it contradicts the station (see :func:`mismatches`)
 
     @property
     def confirmed(self) -> bool:
-        return self.configuration is not None
+        """The unit answered and its answer agrees with the station."""
+        return self.configuration is not None and not self.contradictions
 
     def describe(self) -> str:
         if self.configuration is None:
             return NOT_CONFIRMED
         replaced = ("" if self.replaced_frames is None
                     else f"; it replaced {self.replaced_frames} normal-mode datagram(s)")
-        return f"configuration confirmed (C, TS1524 §8.3): {self.configuration.describe()}{replaced}"
+        verdict = "confirmed" if self.confirmed else "contradicts the station"
+        return f"configuration {verdict} (C, TS1524 §8.3): {self.configuration.describe()}{replaced}"
 
     def record(self) -> dict[str, object]:
         """The journal's fields (JSON): what the unit said, field by field."""
         config = self.configuration
         if config is None:
-            return {"confirmed": False, "description": self.describe()}
+            return {"confirmed": False, "answered": False, "description": self.describe()}
         return {
-            "confirmed": True, "description": self.describe(), "revision": config.revision,
+            "confirmed": self.confirmed, "answered": True, "description": self.describe(),
+            "contradictions": list(self.contradictions), "revision": config.revision,
             "firmware": config.firmware, "sample_rate_hz": config.sample_rate_hz,
             "datagram": f"0x{config.datagram:02X}", "crlf": config.crlf, "bit_rate": config.bit_rate,
             "gyro_output_unit": output_unit_label(config.gyro_output_code),

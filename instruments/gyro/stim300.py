@@ -205,9 +205,10 @@ class Stim300Gyro:
             self.configuration = ConfigurationAnswer(None)
             return self.configuration
         start, end, config = found
-        self.configuration = ConfigurationAnswer(config, self._replaced_frames(held, start, end))
         problems = mismatches(config, Declared(self.sample_rate_hz, self.layout, self._axis,
                                                self.accelerometer_range_g))
+        self.configuration = ConfigurationAnswer(config, self._replaced_frames(held, start, end),
+                                                 tuple(problems))
         if problems:
             raise InstrumentProtocolError(self.name, "configuration check", "; ".join(problems))
         self._decoder.reset()

@@ -48,4 +48,9 @@ def test_an_accelerometer_range_the_unit_contradicts_is_a_fault_at_connect(tmp_p
     kinds = [e["event"] for e in events]
     assert "fault" in kinds and "step_started" not in kinds and "preflight_ok" not in kinds
     assert "nothing was commanded: the instruments are as they were found" in err
+    said = next(e for e in events if e["event"] == "gyro_configuration")
+    assert said["answered"] is True and said["confirmed"] is False
+    assert said["accelerometer_range_g"] == [30, 30, 30] and len(said["contradictions"]) == 1
+    gyro = [e for e in events if e["event"] == "instrument_identified" and e["role"] == "gyro"]
+    assert len(gyro) == 1 and "configuration contradicts the station" in gyro[0]["description"]
     assert "continue with `gyrocal resume" in err
