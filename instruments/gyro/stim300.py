@@ -1,8 +1,14 @@
 """Driver for a STIM300-style gyro streaming datagrams over a serial line.
 
-The unit streams continuously at its configured rate. The driver sends one
-thing, at connect: ``C<CR>``, which asks the unit for its configuration
-datagram (:meth:`Stim300Gyro.confirm_configuration`, configuration_query.py).
+The unit streams continuously at its configured rate. The driver sends three
+things, at connect, each through one request path (:meth:`Stim300Gyro._request`):
+``N<CR>`` and ``I<CR>``, which ask the unit for its part and serial numbers
+(:meth:`Stim300Gyro.ask_identity`, identity_query.py), and ``C<CR>``, which
+asks for its configuration datagram (:meth:`Stim300Gyro.confirm_configuration`,
+configuration_query.py). After a flush (and at open) it watches for the special
+datagrams a unit sends when it starts (TS1524 §7.5.1) until the first
+normal-mode datagram: they are cut from the stream, decoded and kept for the
+journal (:meth:`Stim300Gyro.take_start_up`), never counted as garbage.
 It reads large chunks (whatever is waiting, at least what the
 request still needs) and decodes them vectorised, so a 2 kHz stream costs a
 handful of system calls and numpy calls per block, not a Python loop per
@@ -24,7 +30,7 @@ from gyrocal.instruments.errors import (
     InstrumentProtocolError,
     InstrumentTimeout,
 )
-from gyrocal.instruments.gyro.configuration import locate_configuration
+from gyrocal.instruments.gyro.configuration import UnitConfiguration
 from gyrocal.instruments.gyro.configuration_query import (
     COMMAND,
     WAIT_FRAMES,
@@ -42,6 +48,23 @@ from gyrocal.instruments.gyro.datagram import (
     flagged,
 )
 from gyrocal.instruments.gyro.datagram_types import counter_step
+from gyrocal.instruments.gyro.identity_query import (
+    PART_NUMBER_COMMAND,
+    SERIAL_NUMBER_COMMAND,
+    IdentityAnswer,
+    StartUpRecord,
+)
+from gyrocal.instruments.gyro.special_datagrams import (
+    CONFIGURATION,
+    PART_NUMBER,
+    SERIAL_NUMBER,
+    Found,
+    PartNumber,
+    SerialNumber,
+    SpecialKind,
+    cut_specials,
+    locate_special,
+)
 from gyrocal.instruments.gyro.survey import StreamSurvey, survey_stream
 from gyrocal.instruments.interfaces import GyroBlock, Identity
 
@@ -90,6 +113,9 @@ class Stim300Gyro:
         self._frame_length = self._decoder.layout.length
         #: what the unit said when asked for its configuration (None: not asked yet)
         self.configuration: ConfigurationAnswer | None = None
+        #: what the unit said when asked N and I (None: not asked yet)
+        self.unit_identity: IdentityAnswer | None = None
+        self._start_up: list[Found] = []     # start-up datagrams cut from the stream, not yet taken
         try:
             self._serial = serial.serial_for_url(
                 port, baudrate=self.baudrate, timeout=min(_POLL_S, self.timeout_s)
@@ -113,6 +139,7 @@ class Stim300Gyro:
                 f"{f', accelerometers ±{self.accelerometer_range_g} g' if layout.kind.acceleration else ''}, "
                 f"{self.baudrate} baud, "
                 f"unit under test: {self.axis} axis{', CR LF' if self.crlf else ''}"
+                f"{'' if self.unit_identity is None else '; ' + self.unit_identity.describe()}"
                 f"{'' if self.configuration is None else '; ' + self.configuration.describe()}"
             ),
         )
@@ -178,43 +205,46 @@ class Stim300Gyro:
             self._read_chunk(_SURVEY_MIN_FRAMES, "datagram check")
         return self.survey
 
+    def ask_identity(self, timeout_s: float | None = None,
+                     let_pass: Callable[[float], None] | None = None) -> IdentityAnswer:
+        """Ask the unit its part number (``N<CR>``) and serial (``I<CR>``), TS1524 §8.1–8.2.
+
+        Each through :meth:`_request` (bounded wait, answer cut from the stream);
+        an unanswered question is no fault: the answer says "not confirmed".
+        """
+        part = self._request(PART_NUMBER_COMMAND, PART_NUMBER, timeout_s, let_pass)
+        serial = self._request(SERIAL_NUMBER_COMMAND, SERIAL_NUMBER, timeout_s, let_pass)
+        self.unit_identity = IdentityAnswer(
+            None if part is None or not isinstance(part[0].value, PartNumber) else part[0].value,
+            None if serial is None or not isinstance(serial[0].value, SerialNumber) else serial[0].value)
+        return self.unit_identity
+
     def confirm_configuration(self, timeout_s: float | None = None,
                               let_pass: Callable[[float], None] | None = None) -> ConfigurationAnswer:
         """Ask the unit for its configuration (``C<CR>``, TS1524 §8.3) and check it.
 
-        The input is flushed, the command written, and the stream read until a
-        configuration datagram whose CRC checks arrives, for at most
-        ``timeout_s`` and :data:`WAIT_FRAMES` normal-mode datagrams' worth of
-        bytes. ``let_pass(span_s)`` is called once after the command: a
-        simulated clock lets the stream's time pass there. Found: what came
-        before it is dropped and the stream starts afresh right after it (as
-        after a flush), so the datagram(s) it replaced are neither lost frames
-        nor garbage; a contradiction with the station raises the fault naming
-        both. Not found: everything read is decoded as the stream it is, and the
-        answer says the configuration is not confirmed (not a fault).
+        Through :meth:`_request`; a contradiction with the station raises the
+        fault naming both. Not answered: the answer says the configuration is
+        not confirmed (not a fault).
         """
-        timeout_s = self.timeout_s if timeout_s is None else float(timeout_s)
-        self.flush()
-        self._write(COMMAND, "configuration request")
-        if let_pass is not None:
-            let_pass(WAIT_FRAMES / self.sample_rate_hz)
-        held = self._read_for_configuration(timeout_s)
-        found = locate_configuration(held)
-        if found is None:
-            self._ingest(bytes(held))
+        answer = self._request(COMMAND, CONFIGURATION, timeout_s, let_pass)
+        if answer is None or not isinstance(answer[0].value, UnitConfiguration):
             self.configuration = ConfigurationAnswer(None)
             return self.configuration
-        start, end, config = found
+        config = answer[0].value
         problems = mismatches(config, Declared(self.sample_rate_hz, self.layout, self._axis,
                                                self.accelerometer_range_g))
-        self.configuration = ConfigurationAnswer(config, self._replaced_frames(held, start, end),
-                                                 tuple(problems))
+        self.configuration = ConfigurationAnswer(config, answer[1], tuple(problems))
         if problems:
             raise InstrumentProtocolError(self.name, "configuration check", "; ".join(problems))
-        self._decoder.reset()
-        self._reset_stream_state()
-        self._ingest(bytes(held[end:]))
         return self.configuration
+
+    def take_start_up(self) -> StartUpRecord | None:
+        """The start-up datagrams cut from the stream since the last call (None: none came)."""
+        if not self._start_up:
+            return None
+        found, self._start_up = tuple(self._start_up), []
+        return StartUpRecord(found)
 
     def close(self) -> None:
         with contextlib.suppress(serial.SerialException, OSError):
@@ -234,6 +264,8 @@ class Stim300Gyro:
         self._pending_crc_errors = 0
         self._pending_garbage_bytes = 0
         self._last_index_returned = -1
+        self._watching = True               # until the first normal-mode datagram (§7.5.1)
+        self._held_start_up = bytearray()
 
     def _read_chunk(self, samples_missing: int, command: str) -> None:
         wanted = samples_missing * self._frame_length - self._decoder.pending_bytes
@@ -255,14 +287,45 @@ class Stim300Gyro:
         except (serial.SerialException, OSError) as exc:
             raise InstrumentConnectionError(self.name, command, f"write failed on {self.port}: {exc}") from exc
 
-    def _read_for_configuration(self, timeout_s: float) -> bytearray:
-        """The bytes after the command, until a configuration datagram checks or the bound."""
+    def _request(self, command: bytes, kind: SpecialKind, timeout_s: float | None,
+                 let_pass: Callable[[float], None] | None) -> tuple[Found, int | None] | None:
+        """Send a Normal Mode command and cut its answer from the stream (Table 8-1).
+
+        The input is flushed, the command written, and the stream read until a
+        datagram of ``kind`` whose CRC checks arrives, for at most ``timeout_s``
+        and :data:`WAIT_FRAMES` normal-mode datagrams' worth of bytes.
+        ``let_pass(span_s)`` is called once after the command: a simulated clock
+        lets the stream's time pass there. Found: what came before it is
+        dropped and the stream starts afresh right after it (as after a flush),
+        so the datagram(s) it replaced are neither lost frames nor garbage;
+        returns it and how many normal-mode datagrams it replaced. Not found:
+        everything read is decoded as the stream it is; returns None.
+        """
+        timeout_s = self.timeout_s if timeout_s is None else float(timeout_s)
+        what = f"{kind.name} request"
+        self.flush()
+        self._write(command, what)
+        if let_pass is not None:
+            let_pass(WAIT_FRAMES / self.sample_rate_hz)
+        held = self._read_for(kind, timeout_s, what)
+        found = locate_special(held, (kind,))
+        if found is None:
+            self._ingest(bytes(held))
+            return None
+        replaced = self._replaced_frames(held, found.start, found.end)
+        self._decoder.reset()
+        self._reset_stream_state()
+        self._ingest(bytes(held[found.end:]))
+        return found, replaced
+
+    def _read_for(self, kind: SpecialKind, timeout_s: float, what: str) -> bytearray:
+        """The bytes after a command, until its answer checks or the bound."""
         held = bytearray()
         limit = WAIT_FRAMES * self._frame_length
         deadline = time.monotonic() + timeout_s
         while len(held) < limit and time.monotonic() < deadline:
-            held += self._read_bytes(limit - len(held), "configuration request")
-            if locate_configuration(held) is not None:
+            held += self._read_bytes(limit - len(held), what)
+            if locate_special(held, (kind,)) is not None:
                 break
         return held
 
@@ -280,7 +343,13 @@ class Stim300Gyro:
         return FrameDecoder(datagram=layout.identifier, crlf=layout.crlf).feed(bytes(data)).counter
 
     def _ingest(self, chunk: bytes) -> None:
-        """Decode bytes read from the line (checking the stream's type first, once)."""
+        """Decode bytes read from the line (checking the stream's type first, once).
+
+        Until the first normal-mode datagram after a flush, start-up datagrams
+        are cut out first (:meth:`_cut_start_up`).
+        """
+        if self._watching:
+            chunk = self._cut_start_up(chunk)
         if not chunk:
             return
         if self.survey is None:
@@ -291,6 +360,22 @@ class Stim300Gyro:
         if len(decoded):
             self._surplus.append(decoded)
             self._surplus_count += len(decoded)
+            if self._watching:      # normal mode: the start-up is over; what was held is stream
+                self._watching = False
+                self._ingest(bytes(self._held_start_up))
+                self._held_start_up = bytearray()
+
+    def _cut_start_up(self, chunk: bytes) -> bytes:
+        """``chunk`` without the special datagrams a unit sends at start-up (§7.5.1), kept for
+        :meth:`take_start_up`. Bytes that may begin one not yet complete are held back,
+        unless a normal-mode datagram came (they precede it, so none can follow)."""
+        kept, found, partial = cut_specials(self._held_start_up + chunk)
+        self._start_up += found
+        if partial == len(kept) or self._counters(kept).size:
+            self._held_start_up = bytearray()
+            return kept
+        self._held_start_up = bytearray(kept[partial:])
+        return kept[:partial]
 
     def _check_stream(self, chunk: bytes) -> None:
         """Compare the datagram type and counter step the unit sends with the declared ones.
