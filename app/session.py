@@ -84,7 +84,8 @@ def station_instruments(procedure: Procedure, clock, sim: bool, seed: int | None
         if sim:
 
             try:
-                simulated = SimulatedStation(station, clock, seed=seed, sample_rate_hz=fs_hz).start()
+                simulated = SimulatedStation(station, clock, seed=seed, sample_rate_hz=fs_hz,
+                                             unit_serial=procedure.unit_under_test.serial).start()
             except ValueError as exc:
                 raise BadInput(str(exc)) from None
             addresses = simulated.addresses

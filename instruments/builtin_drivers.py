@@ -142,7 +142,8 @@ def _sim_stim300(req: SimRequest):
                    seed=req.seed, axis=axis_index(str(s["axis"])), crlf=bool(s["crlf"]),
                    datagram=_int(s, "datagram"),
                    accelerometer_range_g=_int(s, "accelerometer_range_g"),
-                   specific_force=req.specific_force, baudrate=_int(s, "baudrate"))
+                   specific_force=req.specific_force, baudrate=_int(s, "baudrate"),
+                   unit_serial=req.unit_serial)
 
 
 def _open_e36300(req: OpenRequest):

@@ -190,6 +190,8 @@ class SimRequest:
     sample_rate_hz: float | None = None
     #: a three-axis IMU's specific force at given times (its accelerometers), else None
     specific_force: Callable | None = None
+    #: the serial the simulated unit reports (the procedure's unit under test), if any
+    unit_serial: str | None = None
 
 
 #: a spec's cross-field rule: the settings as given (None where absent) -> the settings to use

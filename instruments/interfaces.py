@@ -14,6 +14,7 @@ import numpy as np
 
 from gyrocal.instruments.gyro.channels import SensorChannels
 from gyrocal.instruments.gyro.configuration_query import ConfigurationAnswer
+from gyrocal.instruments.gyro.identity_query import IdentityAnswer, StartUpRecord
 
 
 @dataclass(frozen=True)
@@ -196,3 +197,22 @@ class ConfigurableGyro(Protocol):
     def confirm_configuration(self, timeout_s: float | None = None,
                               let_pass: Callable[[float], None] | None = None
                               ) -> ConfigurationAnswer: ...
+
+
+@runtime_checkable
+class IdentifyingGyro(Protocol):
+    """A gyro that says who it is when asked (a STIM300's ``N<CR>``, ``I<CR>``) and when it
+    starts (its start-up datagrams).
+
+    ``ask_identity`` asks with the same bounded wait as ``confirm_configuration``;
+    no answer is no fault. Its serial then stands in the identity description
+    (``serial …``). ``take_start_up`` hands over what the unit sent when it
+    started since the last call (None: nothing).
+    """
+
+    #: the last answer (None: not asked yet)
+    unit_identity: IdentityAnswer | None
+
+    def ask_identity(self, timeout_s: float | None = None,
+                     let_pass: Callable[[float], None] | None = None) -> IdentityAnswer: ...
+    def take_start_up(self) -> StartUpRecord | None: ...

@@ -23,7 +23,7 @@ from typing import Any, Protocol
 from gyrocal.errors import NO_ROOM_ERRNOS
 from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments
-from gyrocal.instruments.interfaces import ConfigurableGyro, Identity
+from gyrocal.instruments.interfaces import ConfigurableGyro, IdentifyingGyro, Identity
 from gyrocal.models.imu_model import Mounting
 from gyrocal.models.sim_state import SimStateError
 from gyrocal.orchestrator.acquisition import Acquisition, AcquisitionPolicy, StepResult
@@ -306,8 +306,10 @@ class RunEngine:
             power_on(self.inst.supply, self.policy.unit_power, self.journal)
             # a unit just switched on sends after its start-up delay (turn_on.py)
             wait_first_frame(self.inst.gyro, self.clock, powered_s, "preflight")
+            self._journal_start_up("preflight")
         try:
             self._confirm_gyro_configuration()
+            self._ask_gyro_identity()
         finally:       # the gyro last: its identity carries what it said of its configuration
             self._identified(self.inst.gyro.identify(), identities)
         self.machine.identified()
@@ -344,6 +346,23 @@ class RunEngine:
         self.journal.append(JournalEvent.INSTRUMENT_IDENTIFIED, role=ident.role, driver=ident.driver,
                             address=ident.address, description=ident.description)
         self.folder.update_manifest(instruments=identities)
+
+    def _ask_gyro_identity(self) -> None:
+        """Ask the gyro who it is (a STIM300's ``N<CR>``, ``I<CR>``, TS1524 §8.1–8.2): its
+        serial goes into its identity, which the report checks against the procedure's unit
+        under test; no answer is journaled as not confirmed."""
+        gyro = self.inst.gyro
+        if isinstance(gyro, IdentifyingGyro):
+            answer = gyro.ask_identity(timeout_s=self.policy.read_timeout_margin_s,
+                                       let_pass=self.clock.elapse_reading)
+            self.journal.append(JournalEvent.GYRO_IDENTITY, **answer.record())
+
+    def _journal_start_up(self, when: str) -> None:
+        """Journal what the gyro sent when it started (its start-up datagrams), if anything."""
+        gyro = self.inst.gyro
+        record = gyro.take_start_up() if isinstance(gyro, IdentifyingGyro) else None
+        if record is not None:
+            self.journal.append(JournalEvent.GYRO_START_UP, when=when, **record.record())
 
     def _confirm_gyro_configuration(self) -> None:
         """Ask the gyro for its configuration (a STIM300's ``C<CR>``, TS1524 §8.3) before
@@ -568,6 +587,7 @@ class RunEngine:
         self.conditions.set_table_rate(0.0)
         off_s = step.settle_s if step.off_s is None else step.off_s
         cycle = power_cycle(supply, self.inst.gyro, self.clock, step.step_id, off_s)
+        self._journal_start_up(step.step_id)
         self.journal.append(JournalEvent.UNIT_POWER_CYCLE, step_id=step.step_id,
                             off_clock_s=round(cycle.off_clock_s, 6),
                             on_clock_s=round(cycle.on_clock_s, 6),

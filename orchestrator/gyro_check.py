@@ -1,7 +1,8 @@
 """The gyro part of ``gyrocal station check``: listen to the unit, judge what a run relies on.
 
-First asks the unit for its configuration (``C<CR>``, TS1524 §8.3, the one
-command sent; it changes nothing): a configuration that contradicts the
+First asks the unit for its configuration (``C<CR>``, TS1524 §8.3), then its
+part and serial numbers (``N<CR>``, ``I<CR>``, §8.1–8.2; none of the three
+commands changes anything): a configuration that contradicts the
 station (rate, datagram, gyro output unit, the axis, accelerometer range;
 Table 5-16) is the driver's fault naming both; no answer (a one-way replay)
 is reported as "configuration not confirmed", not as a problem. The driver's
@@ -41,9 +42,10 @@ def _bits(status: np.ndarray | None) -> tuple[int, int]:
 
 def check_gyro_stream(gyro: Stim300Gyro, sample_rate_hz: float) -> tuple[dict[str, Any], list[str]]:
     """(facts, problems) of the stream, as the station declares it at ``sample_rate_hz``."""
-    facts: dict[str, Any] = {"identity": gyro.identify().description}
     problems: list[str] = []
     answer = gyro.confirm_configuration(timeout_s=LISTEN_S)   # flushes; faults on a contradiction
+    unit = gyro.ask_identity(timeout_s=LISTEN_S)             # N, I: who the unit says it is
+    facts: dict[str, Any] = {"identity": gyro.identify().description, "unit": unit.describe()}
     facts["configuration"] = answer.describe()
     facts["configuration_confirmed"] = answer.confirmed
     survey = gyro.detect(timeout_s=LISTEN_S + 2.0)     # faults on a type or rate mismatch

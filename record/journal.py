@@ -49,6 +49,11 @@ class JournalEvent(str, Enum):
     #: what the gyro said when asked for its configuration at connect (a STIM300's C<CR>),
     #: or that it did not answer
     GYRO_CONFIGURATION = "gyro_configuration"
+    #: what the gyro said when asked who it is at connect (a STIM300's N<CR> and I<CR>)
+    GYRO_IDENTITY = "gyro_identity"
+    #: what the gyro sent unasked when it started after a power-on (a STIM300's start-up
+    #: datagrams: part number, serial, configuration, bias trim offset)
+    GYRO_START_UP = "gyro_start_up"
     PREFLIGHT_OK = "preflight_ok"
     RESUMED = "resumed"
     RESTORE_CONDITIONS = "restore_conditions"

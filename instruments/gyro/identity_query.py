@@ -34,6 +34,8 @@ SERIAL_NUMBER_COMMAND = b"I\r"
 #: no answer to N (no "serial" followed by a word: reported_serial must not read one)
 PART_NOT_CONFIRMED = "part number: not confirmed (no answer to N, TS1524 §8.1)"
 SERIAL_NOT_CONFIRMED = "serial: not confirmed (no answer to I, TS1524 §8.2)"
+#: not asked: the unit left C<CR> unanswered on this line (one-way, as a replay)
+NOT_ASKED = "part number, serial: not confirmed (not asked: no answer to C, TS1524 §8.3)"
 
 
 @dataclass(frozen=True)
@@ -42,6 +44,7 @@ class IdentityAnswer:
 
     part: PartNumber | None
     serial: SerialNumber | None
+    asked: bool = True
 
     @property
     def confirmed(self) -> bool:
@@ -49,6 +52,8 @@ class IdentityAnswer:
 
     def describe(self) -> str:
         """``unit part number 84167-… rev K, serial N…`` (the serial last, for the reader)."""
+        if not self.asked:
+            return f"unit {NOT_ASKED}"
         part = PART_NOT_CONFIRMED if self.part is None else self.part.describe()
         serial = SERIAL_NOT_CONFIRMED if self.serial is None else self.serial.describe()
         return f"unit {part}, {serial}"

@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import serial
@@ -73,6 +74,15 @@ _MAX_READ_BYTES = 4 << 20       # cap per read() so one call cannot hoard memory
 _FLUSH_SETTLE_S = 0.02          # > a USB-serial adapter's latency timer (FTDI default 16 ms)
 _SURVEY_MIN_FRAMES = 4          # datagrams that must check before the stream's type is judged
 _SURVEY_MAX_BYTES = 1 << 16     # no datagram of any type in this much: the line carries none
+
+
+@dataclass(frozen=True)
+class _Answer:
+    """A command's answer as cut from the stream (:meth:`Stim300Gyro._request`)."""
+
+    found: Found
+    replaced_frames: int | None     # the normal-mode datagrams it took the place of
+    rest: bytes                     # what was read after it
 
 
 class Stim300Gyro:
@@ -210,13 +220,21 @@ class Stim300Gyro:
         """Ask the unit its part number (``N<CR>``) and serial (``I<CR>``), TS1524 §8.1–8.2.
 
         Each through :meth:`_request` (bounded wait, answer cut from the stream);
-        an unanswered question is no fault: the answer says "not confirmed".
+        an unanswered question is no fault: the answer says "not confirmed". Not
+        asked when the unit left ``C<CR>`` unanswered on this line: it is one-way
+        (a replay), and each wait would be as long and as silent.
         """
+        if self.configuration is not None and self.configuration.configuration is None:
+            self.unit_identity = IdentityAnswer(None, None, asked=False)
+            return self.unit_identity
         part = self._request(PART_NUMBER_COMMAND, PART_NUMBER, timeout_s, let_pass)
+        self._continue_after(part)
         serial = self._request(SERIAL_NUMBER_COMMAND, SERIAL_NUMBER, timeout_s, let_pass)
+        self._continue_after(serial)
         self.unit_identity = IdentityAnswer(
-            None if part is None or not isinstance(part[0].value, PartNumber) else part[0].value,
-            None if serial is None or not isinstance(serial[0].value, SerialNumber) else serial[0].value)
+            None if part is None or not isinstance(part.found.value, PartNumber) else part.found.value,
+            None if serial is None or not isinstance(serial.found.value, SerialNumber)
+            else serial.found.value)
         return self.unit_identity
 
     def confirm_configuration(self, timeout_s: float | None = None,
@@ -228,15 +246,16 @@ class Stim300Gyro:
         not confirmed (not a fault).
         """
         answer = self._request(COMMAND, CONFIGURATION, timeout_s, let_pass)
-        if answer is None or not isinstance(answer[0].value, UnitConfiguration):
+        if answer is None or not isinstance(answer.found.value, UnitConfiguration):
             self.configuration = ConfigurationAnswer(None)
             return self.configuration
-        config = answer[0].value
+        config = answer.found.value
         problems = mismatches(config, Declared(self.sample_rate_hz, self.layout, self._axis,
                                                self.accelerometer_range_g))
-        self.configuration = ConfigurationAnswer(config, answer[1], tuple(problems))
-        if problems:
+        self.configuration = ConfigurationAnswer(config, answer.replaced_frames, tuple(problems))
+        if problems:       # before the stream after it is judged: the unit's word names it first
             raise InstrumentProtocolError(self.name, "configuration check", "; ".join(problems))
+        self._continue_after(answer)
         return self.configuration
 
     def take_start_up(self) -> StartUpRecord | None:
@@ -288,18 +307,19 @@ class Stim300Gyro:
             raise InstrumentConnectionError(self.name, command, f"write failed on {self.port}: {exc}") from exc
 
     def _request(self, command: bytes, kind: SpecialKind, timeout_s: float | None,
-                 let_pass: Callable[[float], None] | None) -> tuple[Found, int | None] | None:
+                 let_pass: Callable[[float], None] | None) -> _Answer | None:
         """Send a Normal Mode command and cut its answer from the stream (Table 8-1).
 
         The input is flushed, the command written, and the stream read until a
         datagram of ``kind`` whose CRC checks arrives, for at most ``timeout_s``
         and :data:`WAIT_FRAMES` normal-mode datagrams' worth of bytes.
         ``let_pass(span_s)`` is called once after the command: a simulated clock
-        lets the stream's time pass there. Found: what came before it is
-        dropped and the stream starts afresh right after it (as after a flush),
-        so the datagram(s) it replaced are neither lost frames nor garbage;
-        returns it and how many normal-mode datagrams it replaced. Not found:
-        everything read is decoded as the stream it is; returns None.
+        lets the stream's time pass there. Found: returns it, how many
+        normal-mode datagrams it replaced and the bytes after it, which
+        :meth:`_continue_after` decodes once the caller has judged the answer
+        (what came before it is dropped, so the datagram(s) it replaced are
+        neither lost frames nor garbage). Not found: everything read is decoded
+        as the stream it is; returns None.
         """
         timeout_s = self.timeout_s if timeout_s is None else float(timeout_s)
         what = f"{kind.name} request"
@@ -312,11 +332,16 @@ class Stim300Gyro:
         if found is None:
             self._ingest(bytes(held))
             return None
-        replaced = self._replaced_frames(held, found.start, found.end)
+        return _Answer(found, self._replaced_frames(held, found.start, found.end),
+                       bytes(held[found.end:]))
+
+    def _continue_after(self, answer: _Answer | None) -> None:
+        """The stream starts afresh right after an answer (as after a flush)."""
+        if answer is None:
+            return
         self._decoder.reset()
         self._reset_stream_state()
-        self._ingest(bytes(held[found.end:]))
-        return found, replaced
+        self._ingest(answer.rest)
 
     def _read_for(self, kind: SpecialKind, timeout_s: float, what: str) -> bytearray:
         """The bytes after a command, until its answer checks or the bound."""

@@ -60,14 +60,24 @@ What was injected is tallied in :attr:`SimulatedGyroPort.injected` so tests
 can compare it with what the driver counted.
 
 Commands: the unit answers ``C<CR>`` (TS1524 §8.3, p. 59) with its
-configuration datagram (stim_configuration.py), which replaces the next
-normal-mode datagram(s) it would have sent. The reader's writes arrive on the
+configuration datagram (stim_configuration.py), ``N<CR>`` with its Part Number
+datagram and ``I<CR>`` with its Serial Number datagram (§8.1, §8.2, p. 58;
+stim_identity.py; a unit given no serial of the Table 5-15 form does not
+answer ``I``), each replacing the next normal-mode datagram(s) it would have sent. The reader's writes arrive on the
 packet-mode master as data packets beside the flush statuses. On simulated
 time the command is looked for when the controller next advances the clock
 (it wrote the command before), and the answer replaces the first datagram(s)
 of that read span, so where it falls depends on the controller's calls alone;
 on a real clock it replaces the first datagram(s) of the next block. Other
 commands (Table 8-1) are not simulated and go unanswered.
+
+Start-up: a unit on a station's supply (``starts_from``, set by the simulated
+station) sends its part number, serial number and configuration datagrams
+(no bias trim offset: its configuration's byte 21 says so) when it starts,
+before its first normal-mode datagram (§7.5.1, p. 47; Table 5-2 Note 1, p. 8).
+They are sent back to back just before that datagram, in the start-up delay,
+so the normal-mode grid is as without them (the gap between them and the
+first normal-mode datagram is not given by the datasheet: unconfirmed).
 """
 
 from __future__ import annotations
@@ -107,6 +117,13 @@ from gyrocal.instruments.sim.stim_configuration import (
     SimUnitConfiguration,
     configuration_datagram,
     replaced_datagrams,
+)
+from gyrocal.instruments.sim.stim_identity import (
+    SIM_PART_NUMBER,
+    SIM_REVISION,
+    carries_serial,
+    part_number_datagram,
+    serial_number_datagram,
 )
 from gyrocal.models.clock import RealClock, SimClock
 from gyrocal.models.sim_state import decode, encode
@@ -176,6 +193,7 @@ class SimulatedGyroPort(PtyWriterPort):
         specific_force: SpecificForceSource | None = None,
         baudrate: int = 921600,
         gyro_output_code: int = 0,
+        unit_serial: str | None = None,
     ) -> None:
         if not sample_rate_hz > 0:
             raise ValueError(f"sample_rate_hz must be > 0, got {sample_rate_hz!r}")
@@ -215,19 +233,41 @@ class SimulatedGyroPort(PtyWriterPort):
         self._spans: deque[_Span] = deque()   # simulated clock: read spans not yet made
         self._tail: tuple[int, int] | None = None   # simulated clock: idle tail [k0, k1) not yet made
         self._making = False                  # the stream thread is making a span
-        self._init_commands(int(baudrate), int(gyro_output_code))
+        self._init_commands(int(baudrate), int(gyro_output_code), unit_serial)
 
-    def _init_commands(self, baudrate: int, gyro_output_code: int) -> None:
-        """What the unit answers C<CR> with (its gyro output code: 0 angular rate, Table 5-16
-        byte 5), and the state of the reader's commands."""
+    def _init_commands(self, baudrate: int, gyro_output_code: int, unit_serial: str | None) -> None:
+        """What the unit answers C, N and I with (its gyro output code: 0 angular rate, Table
+        5-16 byte 5; its serial: the procedure's, when Table 5-15 can carry it), and the
+        state of the reader's commands."""
         kind = self.layout.kind
         self.unit = SimUnitConfiguration(self.sample_rate_hz, kind.acceleration, kind.inclination,
                                          kind.temperature, kind.pps, self.crlf, baudrate,
                                          self.accelerometer_range_g, gyro_output_code)
+        self.unit_serial = unit_serial if carries_serial(unit_serial) else None
         self.configuration_answers = 0        # C<CR> answered
+        self.identity_answers = 0             # N<CR> and I<CR> answered
+        self.start_ups = 0                    # times the start-up datagrams were sent
         self._command_bytes = bytearray()     # the reader's writes, up to the next CR
-        self._config_requested = False        # C<CR> received, not answered yet
+        self._answers_due: list[bytes] = []   # answers to commands received, not sent yet
         self._flush_pending = False           # the reader flushed its input, not yet acted on
+        #: when the unit, on the station's supply, starts sending (None: off); None: always on
+        self.starts_from: Callable[[], float | None] | None = None
+
+    def _answer(self, command: bytes) -> bytes:
+        """The datagram a Normal Mode command asks for (Table 8-1), or b'' (not simulated)."""
+        if command == b"C" and self.unit.answers:
+            return configuration_datagram(self.unit)
+        if command == b"N":
+            return part_number_datagram(SIM_PART_NUMBER, SIM_REVISION, self.crlf)
+        if command == b"I" and self.unit_serial is not None:
+            return serial_number_datagram(self.unit_serial, self.crlf)
+        return b""
+
+    def start_up_datagrams(self) -> bytes:
+        """What the unit sends when it starts (§7.5.1): part number, serial, configuration."""
+        serial = b"" if self.unit_serial is None else serial_number_datagram(self.unit_serial, self.crlf)
+        configuration = configuration_datagram(self.unit) if self.unit.answers else b""
+        return part_number_datagram(SIM_PART_NUMBER, SIM_REVISION, self.crlf) + serial + configuration
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -286,7 +326,7 @@ class SimulatedGyroPort(PtyWriterPort):
                 self._queue_read_span(to_s - from_s)
             else:
                 # nobody reads: an answer the unit sent now is lost with the UART's other frames
-                self._config_requested = False
+                self._answers_due.clear()
                 self._hold_idle_tail(self._frames_before(to_s))
         except Exception as exc:  # noqa: BLE001 - reported through .error; the driver sees silence
             self.error = exc
@@ -419,16 +459,19 @@ class SimulatedGyroPort(PtyWriterPort):
         while b"\r" in self._command_bytes:        # CR executes a command (Table 8-2)
             command, _, rest = bytes(self._command_bytes).partition(b"\r")
             self._command_bytes = bytearray(rest)
-            if command == b"C" and self.unit.answers:
-                self._config_requested = True
+            answer = self._answer(command)
+            if answer:
+                self._answers_due.append(answer)
 
     def _take_answer(self) -> bytes:
-        """The configuration datagram if C<CR> is waiting for its answer, else b''."""
-        if not self._config_requested:
-            return b""
-        self._config_requested = False
-        self.configuration_answers += 1
-        return configuration_datagram(self.unit)
+        """The datagrams commands are waiting for, in the order asked, else b''."""
+        for answer in self._answers_due:
+            if answer[0] in (0xBC, 0xBD):
+                self.configuration_answers += 1
+            else:
+                self.identity_answers += 1
+        answers, self._answers_due = b"".join(self._answers_due), []
+        return answers
 
     def _splice_answer(self, data: bytes, n_garbage: int, k_first: int, answer: bytes
                        ) -> tuple[bytes, int, int]:
@@ -548,6 +591,7 @@ class SimulatedGyroPort(PtyWriterPort):
         Returns (bytes, garbage prefix length, grid index of the first frame written).
         """
         t_s = k / self.sample_rate_hz
+        grid = (int(k[0]), int(k[-1]))
         rate_out, temp_c = (self.source(t_s) if inputs is None
                             else self.source.emit(t_s, inputs))
         force = None if self.specific_force is None else self.specific_force(t_s, temp_c)
@@ -596,7 +640,22 @@ class SimulatedGyroPort(PtyWriterPort):
             n_bytes = int(params.get("n_bytes", 32))
             garbage = self._rng.integers(0, 256, n_bytes, dtype=np.uint8).tobytes()
             self.injected["garbage_bytes"] += n_bytes
+        garbage += self._start_up_before(grid, k[n_lost:])
         return garbage + frames.tobytes(), len(garbage), int(k[0]) + n_lost
+
+    def _start_up_before(self, grid: tuple[int, int], sent: np.ndarray) -> bytes:
+        """The start-up datagrams, when this block holds the unit's first normal-mode frame
+        since it was switched on (grid: the block's first and last frame numbers; sent: the
+        numbers of the frames it sends). Ahead of the frames, as a prefix, so the writers
+        keep their frame alignment."""
+        starts = None if self.starts_from is None else self.starts_from()
+        if starts is None:
+            return b""
+        k_start = self._frames_before(starts)
+        if not grid[0] <= k_start <= grid[1] or (sent.size and int(sent[0]) < k_start):
+            return b""
+        self.start_ups += 1
+        return self.start_up_datagrams()
 
     def _take_up_to(self, name: str, limit: int) -> int:
         """Consume up to ``limit`` firings of a per-frame fault (no work when not armed)."""

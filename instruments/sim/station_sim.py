@@ -43,6 +43,14 @@ class CoilCurrents(Protocol):
 
 
 @runtime_checkable
+class StartingUnit(Protocol):
+    """A simulated unit that sends something when it starts (a STIM300's start-up datagrams):
+    it asks ``starts_from`` when it begins to send."""
+
+    starts_from: Callable[[], float | None] | None
+
+
+@runtime_checkable
 class SwitchedOutput(Protocol):
     """A simulated supply that says when a channel's output was switched on (None: off)."""
 
@@ -67,6 +75,11 @@ class UnitPower:
 
     def on_since_s(self) -> float | None:
         return self.supply.on_since_s(self.channel)
+
+    def sends_from_s(self) -> float | None:
+        """When the unit, switched on, begins to send (None: off): after its start-up delay."""
+        on_s = self.on_since_s()
+        return None if on_s is None else on_s + self.startup_s
 
     def turn_on_offset_dph(self, on_s: float) -> float:
         """The offset of the power-on at ``on_s``: each new power-on draws the next value of
@@ -185,8 +198,10 @@ class SimulatedStation:
     def __init__(self, station, clock: RealClock | SimClock, seed: int | None = None,
                  model: GyroModel | ImuModel | None = None, gyro_block_frames: int | None = None,
                  sample_rate_hz: float | None = None,
-                 gyro_port: ReplayGyroPort | None = None) -> None:
-        """``gyro_port``: a replayed capture to serve as the gyro instead of the simulated one."""
+                 gyro_port: ReplayGyroPort | None = None, unit_serial: str | None = None) -> None:
+        """``gyro_port``: a replayed capture to serve as the gyro instead of the simulated one;
+        ``unit_serial``: the serial the simulated unit reports (the procedure's unit under test)."""
+        self.unit_serial = unit_serial
         sim = station.simulation
         if sim is None:
             raise ValueError(f"{station.file}: the station has no simulation: section; "
@@ -296,6 +311,9 @@ class SimulatedStation:
             request = self._request({**station.gyro.settings, "_block_frames": gyro_block_frames},
                                     self.gyro_faults, seed_offset=_SEED_PTY)
             self.gyro_port = _simulator(specs[Role.GYRO], request)
+            power = self.source.power if isinstance(self.source, GyroPhysicsSource) else None
+            if power is not None and isinstance(self.gyro_port, StartingUnit):
+                self.gyro_port.starts_from = power.sends_from_s
 
     def _coil_field(self, coil) -> Callable[[], float]:
         """B along the gyro's sensitive axis: the coil constant × (I(+) - I(-)) of the simulated
@@ -396,7 +414,7 @@ class SimulatedStation:
         return SimRequest(settings=settings, faults=faults, clock=self.clock,
                           seed=self.seed + seed_offset, chamber=self.chamber_physics,
                           table=self.table_physics, gyro_source=self.source,
-                          sample_rate_hz=self.sample_rate_hz,
+                          sample_rate_hz=self.sample_rate_hz, unit_serial=self.unit_serial,
                           specific_force=(self.source.specific_force
                                           if isinstance(self.source, ImuPhysicsSource)
                                           else self.tilt))
