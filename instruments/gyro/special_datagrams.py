@@ -19,7 +19,8 @@ Layouts, typed from the tables:
   (value + 55); byte 15 the revision character; 16 bytes before the CRC.
 * Serial Number (Table 5-15, p. 30): 0xB5 / 0xB7; byte 1 'N'; bytes 2–8
   fourteen BCD digits, high nibble first; 16 bytes before the CRC. The unit's
-  serial is the 'N' and the digits, as its Utility Mode prints it (§10, p. 96).
+  serial is the 'N' and the digits, as it lists them entering Service Mode (§8.7,
+  Figure 8-1, p. 60).
 * Bias Trim Offset (Table 5-17, p. 34): 0xD1 / 0xD2; bytes 1–27 nine 24-bit
   two's complement offsets (gyro x y z in the rate LSB of §7.5.2.2.2,
   accelerometers, inclinometers), bytes 28–31 reference of the last
