@@ -20,5 +20,5 @@ def reported_serial(description: str | None) -> str | None:
     fields = [f.strip() for f in description.split(",")]
     if len(fields) == 4 and " " not in fields[2]:
         return fields[2] or None                 # IEEE 488.2 *IDN?: maker,model,serial,firmware
-    match = re.search(r"\bserial\s+([^\s,]+)", description)
+    match = re.search(r"\bserial\s+([^\s,;]+)", description)   # ends at a space, comma or semicolon
     return match.group(1) if match else None

@@ -143,7 +143,9 @@ def instrument_findings(instruments: Mapping[str, Mapping[str, Any]]) -> Instrum
             else:
                 blockers.append(Blocker(role, "reference instrument out of calibration "
                                               f"(due {entry.get('calibration_due')})"))
-        reported = reported_serial(entry.get("description")) if role != "gyro" else None
+        # the gyro's declared serial is the procedure's unit under test; a unit that says its
+        # own (a STIM300's I<CR>, TS1524 §8.2) is checked against it like any instrument
+        reported = reported_serial(entry.get("description"))
         declared = entry.get("serial")
         mismatch = bool(reported and declared and reported.strip().upper()
                         != str(declared).strip().upper())

@@ -112,6 +112,40 @@ def test_reported_serial_differing_from_declared_is_flagged_and_blocks():
     assert "'ACT-0999'" in blockers[0].reason
 
 
+#: the gyro's identity as the STIM300 driver describes it after N<CR> and I<CR> (TS1524 §8.1-8.2)
+STIM300_SAYS = ("STIM300 datagram 0x94 (rate, temperature) (25-byte frames), 2000 Hz, 921600 baud, "
+                "unit under test: x axis; unit part number 84167-0000000-S0M rev G, "
+                "serial N00000000004242; configuration confirmed (C, TS1524 §8.3): ...")
+
+
+def test_a_unit_under_test_reporting_another_serial_is_flagged_as_the_table_is():
+    # the gyro's declared serial is the procedure's unit_under_test.serial (reports/build.py)
+    gyro = {"make": "unit under test", "serial": "N00000000001111", "calibration_due": None,
+            "calibration_overdue": False, "description": STIM300_SAYS}
+    found = instrument_findings(_instruments() | {"gyro": gyro})
+    assert found.checks["gyro"].to_json() == {"reported_serial": "N00000000004242",
+                                              "identity_mismatch": True}
+    assert [b.role for b in found.blockers] == ["gyro"]
+    assert "'N00000000001111'" in found.blockers[0].reason
+    assert "'N00000000004242'" in found.blockers[0].reason
+    same = instrument_findings(_instruments() | {"gyro": gyro | {"serial": "n00000000004242"}})
+    assert same.checks["gyro"].identity_mismatch is False and same.blockers == ()
+
+
+@pytest.mark.parametrize("description", [
+    STIM300_SAYS.replace("serial N00000000004242", "serial: not confirmed (no answer to I, "
+                                                   "TS1524 §8.2)"),
+    # an analog gyro read through a DMM: the chain's *IDN? is the meter's, not the unit's
+    "analog input chain: DC volts through Keysight Technologies,34465A,MY59001234,A.03.01; "
+    "last calibrated 2026-01-05; range 10 V, NPLC 0.02, sample timer 500 Hz",
+])
+def test_a_gyro_that_does_not_say_its_serial_is_not_checked(description):
+    gyro = {"serial": "N00000000001111", "calibration_overdue": False, "description": description}
+    found = instrument_findings({"gyro": gyro})
+    assert found.checks["gyro"].reported_serial is None
+    assert found.blockers == ()
+
+
 def test_rebuilt_report_of_a_run_with_an_expired_table_is_not_pass(smoke_run, tmp_path):
     run = tmp_path / "run"
     shutil.copytree(smoke_run, run)

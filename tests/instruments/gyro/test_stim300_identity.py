@@ -69,19 +69,21 @@ def test_the_commands_are_capital_n_and_i_then_cr():
 
 def test_the_unit_says_its_part_number_and_serial_and_the_identity_carries_them(rig):
     clock, sim, gyro = rig()
+    assert gyro.confirm_configuration(let_pass=clock.elapse_reading).confirmed   # C first
     answer = gyro.ask_identity(let_pass=clock.elapse_reading)
     assert sim.identity_answers == 2
     assert answer.part.part_number == SIM_PART_NUMBER and answer.part.revision == "G"
     assert answer.serial.serial == SERIAL and answer.confirmed
     description = gyro.identify().description
     assert f"unit part number {SIM_PART_NUMBER} rev G, serial {SERIAL}" in description
+    assert "; configuration confirmed" in description     # the serial's text ends before it
     assert reported_serial(description) == SERIAL          # what the report and the locks read
     clock.elapse_reading(400 / FS_HZ)
     block = gyro.read_samples(400, timeout_s=5.0)
     k = np.rint(block.rate / LSB).astype(np.int64)
-    # each question lets 100 frames pass; N's answer took frame 0's slot, I's frame 100's
+    # each question lets 100 frames pass; I's answer, the third, took frame 200's slot
     # (20 bytes, 0.22 ms at 921600 bit/s: one 2 kHz slot); the stream goes on right after it
-    assert k[0] == 101 and np.array_equal(np.diff(k), np.ones(399))
+    assert k[0] == 201 and np.array_equal(np.diff(k), np.ones(399))
     assert (block.lost_frames, block.crc_errors, block.garbage_bytes) == (0, 0, 0)
 
 
