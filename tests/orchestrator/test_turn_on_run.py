@@ -42,6 +42,12 @@ def test_a_silent_unit_after_power_on_faults_and_the_resumed_run_cycles_it_again
     assert main(["resume", str(out)]) == EXIT_OK, capsys.readouterr()
     cycles = _events(out, "unit_power_cycle")
     assert [c["step_id"] for c in cycles][:2] == ["T01.turnon", "T01.rep.c1"]
+    # each power-on's start-up datagrams (TS1524 §7.5.1) are cut from the stream and journaled
+    # (the procedure's serial SIM-0002 is not one Table 5-15 can carry: no serial datagram)
+    start_ups = _events(out, "gyro_start_up")
+    cycled = {c["step_id"] for c in cycles}
+    assert cycled <= {e["when"] for e in start_ups}
+    assert all(e["datagrams"] == ["part number", "configuration"] for e in start_ups)
     results = json.loads((out / "report" / "results.json").read_text())
     turn_on = results["turn_on"]["tests"][0]
     assert abs(turn_on["time_to_first_data_s"] - 0.8) <= turn_on["U_time_to_first_data_s"]
