@@ -177,7 +177,7 @@ def _front_matter(results: dict[str, Any], number: str, customer: str, approval:
         _kv([("Laboratory", f"{site.get('name') or '—'}, {site.get('address') or 'address not declared'}"),
              ("Customer", customer),
              ("Item calibrated", f"{uut.get('model')} serial {uut.get('serial')} "
-                                 f"(output units {uut.get('output_units')})"),
+                                 f"{_unit_says(results)}(output units {uut.get('output_units')})"),
              ("Input chain", _input_chain(results)),
              ("Date of calibration", calibration_dates(run)),
              ("Date of issue", approval.date.isoformat()),
@@ -187,6 +187,12 @@ def _front_matter(results: dict[str, Any], number: str, customer: str, approval:
                         f"{_software(run.get('software'))}; run {run.get('run_id')}"),
              ], body),
     ]
+
+
+def _unit_says(results: dict[str, Any]) -> str:
+    """The serial the unit itself reported (a STIM300's I<CR>), when it did."""
+    reported = ((results.get("instruments") or {}).get("gyro") or {}).get("reported_serial")
+    return f"(the unit reports serial {reported}) " if reported else ""
 
 
 def _measurement_sections(results: dict[str, Any], h2: Any, body: Any) -> list[Any]:

@@ -124,11 +124,10 @@ def _int24(body: bytes, offset: int) -> int:
 
 
 def _decode_bias_trim(body: bytes) -> BiasTrimOffset:
-    values = [_int24(body, 1 + 3 * i) for i in range(9)]
+    gx, gy, gz, ax, ay, az, ix, iy, iz = (_int24(body, 1 + 3 * i) for i in range(9))
     return BiasTrimOffset(
-        gyro_dps=tuple(v * DEFAULT_LSB for v in values[0:3]),    # type: ignore[arg-type]
-        accelerometer_counts=tuple(values[3:6]),                 # type: ignore[arg-type]
-        inclinometer_counts=tuple(values[6:9]),                  # type: ignore[arg-type]
+        gyro_dps=(gx * DEFAULT_LSB, gy * DEFAULT_LSB, gz * DEFAULT_LSB),
+        accelerometer_counts=(ax, ay, az), inclinometer_counts=(ix, iy, iz),
         reference=int.from_bytes(body[28:32], "big"),
         saves_left=int.from_bytes(body[32:34], "big"))
 

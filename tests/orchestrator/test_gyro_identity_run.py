@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from pypdf import PdfReader
 
 from gyrocal.cli import EXIT_OK, main
 from gyrocal.instruments.sim.stim_identity import SIM_PART_NUMBER
@@ -66,6 +67,10 @@ def test_the_unit_says_who_it_is_at_power_on_and_when_asked_and_the_report_check
     entry = results["instruments"]["gyro"]
     assert (entry["reported_serial"], entry["identity_mismatch"]) == (SERIAL, False)
     assert not any("gyro" in reason for reason in results["verdict"]["blocked_because"])
+    assert main(["certificate", str(out), "--customer", "ACME", "--number", "GC-1",
+                 "--approved-by", "A. Auditor", "--role", "Quality manager"]) == EXIT_OK
+    pdf = " ".join(page.extract_text() for page in PdfReader(out / "report" / "certificate.pdf").pages)
+    assert f"serial {SERIAL} (the unit reports serial {SERIAL})" in " ".join(pdf.split())
     # the same run declared for another unit: the unit's own word contradicts it
     plan_path = out / "plan.json"
     plan = json.loads(plan_path.read_text())
