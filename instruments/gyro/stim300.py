@@ -74,6 +74,7 @@ _MAX_READ_BYTES = 4 << 20       # cap per read() so one call cannot hoard memory
 _FLUSH_SETTLE_S = 0.02          # > a USB-serial adapter's latency timer (FTDI default 16 ms)
 _SURVEY_MIN_FRAMES = 4          # datagrams that must check before the stream's type is judged
 _SURVEY_MAX_BYTES = 1 << 16     # no datagram of any type in this much: the line carries none
+_START_UP_SCAN_BYTES = 4096     # start-up datagrams are looked for this much at a time (< 120 bytes)
 
 
 @dataclass(frozen=True)
@@ -392,15 +393,28 @@ class Stim300Gyro:
 
     def _cut_start_up(self, chunk: bytes) -> bytes:
         """``chunk`` without the special datagrams a unit sends at start-up (§7.5.1), kept for
-        :meth:`take_start_up`. Bytes that may begin one not yet complete are held back,
-        unless a normal-mode datagram came (they precede it, so none can follow)."""
-        kept, found, partial = cut_specials(self._held_start_up + chunk)
-        self._start_up += found
-        if partial == len(kept) or self._counters(kept).size:
-            self._held_start_up = bytearray()
-            return kept
-        self._held_start_up = bytearray(kept[partial:])
-        return kept[:partial]
+        :meth:`take_start_up`.
+
+        Looked for :data:`_START_UP_SCAN_BYTES` at a time, and only until a normal-mode
+        datagram shows (they precede it, so none can follow): a long read after a flush
+        is scanned in its first few kilobytes, not throughout. Bytes that may begin one
+        not yet complete are held back for the next chunk.
+        """
+        data = bytes(self._held_start_up) + chunk
+        self._held_start_up = bytearray()
+        out = bytearray()
+        while data:
+            kept, found, partial = cut_specials(data[:_START_UP_SCAN_BYTES])
+            data = data[_START_UP_SCAN_BYTES:]
+            self._start_up += found
+            if self._counters(kept).size:
+                return bytes(out + kept) + data
+            out += kept[:partial]
+            if not data:
+                self._held_start_up = bytearray(kept[partial:])
+            else:
+                data = kept[partial:] + data      # look again with what follows
+        return bytes(out)
 
     def _check_stream(self, chunk: bytes) -> None:
         """Compare the datagram type and counter step the unit sends with the declared ones.

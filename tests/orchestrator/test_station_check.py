@@ -160,6 +160,9 @@ def test_a_0x93_unit_at_250_hz_then_a_wrong_declaration(tmp_path: Path, capsys) 
     assert code == EXIT_OK, printed
     gyro = json.loads((tmp_path / "g.json").read_text())["instruments"]["gyro"]["facts"]
     assert gyro["datagram"].startswith("0x93") and gyro["counter_step"] == 8
+    # N<CR>, I<CR> (TS1524 §8.1-8.2): `sim serve` is given no procedure, so no serial to say
+    assert gyro["unit"] == ("unit part number 84167-0000000-S0M rev G, serial: not confirmed "
+                            "(no answer to I, TS1524 §8.2)")
     assert gyro["sample_rate_hz_by_counter"] == 250.0
     assert max(abs(a) for a in gyro["accelerometer_mean_g"]) == pytest.approx(1.0, abs=0.05)
     assert len(gyro["inclinometer_mean_g"]) == 3
@@ -188,6 +191,8 @@ def test_a_replayed_unit_does_not_answer_c_and_that_is_said_not_faulted(tmp_path
     assert code == EXIT_OK, printed
     gyro = json.loads(out.read_text())["instruments"]["gyro"]["facts"]
     assert gyro["configuration_confirmed"] is False
+    assert gyro["unit"] == ("unit part number, serial: not confirmed (not asked: no answer to C, "
+                            "TS1524 §8.3)")
     assert gyro["configuration"] == "configuration not confirmed: no answer to C (TS1524 §8.3)"
     assert "configuration not confirmed: no answer to C (TS1524 §8.3)" in printed.out
     assert gyro["datagram"].startswith("0x93")
