@@ -30,7 +30,6 @@ import pyarrow.parquet as pq
 
 from gyrocal.errors import EXIT_OK, BadInput
 from gyrocal.instruments.gyro.capture import read_capture
-from gyrocal.instruments.gyro.configuration import find_configuration
 from gyrocal.instruments.gyro.datagram import (
     DEFAULT_LSB,
     DecodedFrames,
@@ -42,6 +41,7 @@ from gyrocal.instruments.gyro.datagram_types import (
     DEFAULT_ACCELEROMETER_RANGE_G,
     INTERNAL_RATE_HZ,
 )
+from gyrocal.instruments.gyro.special_datagrams import find_configuration
 from gyrocal.instruments.gyro.survey import survey_stream
 from gyrocal.record.run_folder import SAMPLE_FLAG_GYRO_FLAGGED
 

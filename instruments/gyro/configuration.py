@@ -27,8 +27,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
-import numpy as np
-
 from gyrocal.instruments.gyro.crc32_mpeg2 import crc32_mpeg2
 from gyrocal.instruments.gyro.datagram_types import NORMAL_MODE_TYPES
 
@@ -180,23 +178,3 @@ def _filters(first: int, second: int) -> tuple[int | None, int | None, int | Non
     """x: bits 6–4 of ``first``, y: its bits 2–0, z: bits 6–4 of ``second`` (bytes 6–7, 9–10)."""
     return (FILTER_CODES.get(first >> 4 & 0x07), FILTER_CODES.get(first & 0x07),
             FILTER_CODES.get(second >> 4 & 0x07))
-
-
-def locate_configuration(data: bytes | bytearray) -> tuple[int, int, UnitConfiguration] | None:
-    """(start, end, decoded) of the first whole configuration datagram in ``data`` whose CRC checks."""
-    buf = np.frombuffer(bytes(data), dtype=np.uint8)
-    for start in np.flatnonzero((buf == ID_CONFIGURATION) | (buf == ID_CONFIGURATION_CRLF)).tolist():
-        end = start + configuration_length(data[start] == ID_CONFIGURATION_CRLF)
-        if end > len(data):
-            continue
-        try:
-            return start, end, decode_configuration(bytes(data[start:end]))
-        except ValueError:
-            continue
-    return None
-
-
-def find_configuration(data: bytes) -> UnitConfiguration | None:
-    """The first configuration datagram in a stream whose CRC checks, if any."""
-    found = locate_configuration(data)
-    return None if found is None else found[2]

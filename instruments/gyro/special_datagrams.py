@@ -206,6 +206,12 @@ def locate_special(data: bytes | bytearray, kinds: tuple[SpecialKind, ...] = STA
     return None
 
 
+def find_configuration(data: bytes) -> UnitConfiguration | None:
+    """The first configuration datagram in a stream whose CRC checks, if any."""
+    found = locate_special(data, (CONFIGURATION,))
+    return found.value if found is not None and isinstance(found.value, UnitConfiguration) else None
+
+
 def cut_specials(data: bytes | bytearray) -> tuple[bytes, list[Found], int]:
     """(``data`` without its start-up datagrams, those found in order, where an incomplete one
     may begin in what is left: the bytes from there on may still complete one)."""

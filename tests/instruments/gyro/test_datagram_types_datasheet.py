@@ -17,7 +17,7 @@ import pytest
 from crc_reference import bitwise_crc32_mpeg2 as bitwise_crc
 
 from gyrocal.instruments.gyro.channels import SensorChannels
-from gyrocal.instruments.gyro.configuration import decode_configuration, find_configuration
+from gyrocal.instruments.gyro.configuration import decode_configuration
 from gyrocal.instruments.gyro.datagram import FrameDecoder, encode_frame_array
 from gyrocal.instruments.gyro.datagram_types import (
     NORMAL_MODE_TYPES,
@@ -26,6 +26,7 @@ from gyrocal.instruments.gyro.datagram_types import (
     frames_per_counter_step,
     layout_of,
 )
+from gyrocal.instruments.gyro.special_datagrams import find_configuration
 from gyrocal.instruments.gyro.survey import survey_stream
 
 # Table 5-21: identifier → content, typed.
