@@ -66,6 +66,7 @@ def test_the_unit_says_who_it_is_at_power_on_and_when_asked_and_the_report_check
     results = json.loads((out / "report" / "results.json").read_text())
     entry = results["instruments"]["gyro"]
     assert (entry["reported_serial"], entry["identity_mismatch"]) == (SERIAL, False)
+    assert f"unit part number {SIM_PART_NUMBER} rev G, serial {SERIAL}" in entry["description"]
     assert not any("gyro" in reason for reason in results["verdict"]["blocked_because"])
     assert main(["certificate", str(out), "--customer", "ACME", "--number", "GC-1",
                  "--approved-by", "A. Auditor", "--role", "Quality manager"]) == EXIT_OK

@@ -13,14 +13,25 @@ test_special_datagrams.py).
 
 from __future__ import annotations
 
+import os
+import tty
+
 import numpy as np
 import pytest
 
+from gyrocal.instruments.errors import InstrumentTimeout
+from gyrocal.instruments.gyro.datagram_types import layout_of
 from gyrocal.instruments.gyro.identity_query import PART_NUMBER_COMMAND, SERIAL_NUMBER_COMMAND
 from gyrocal.instruments.gyro.stim300 import Stim300Gyro
 from gyrocal.instruments.identity import reported_serial
+from gyrocal.instruments.sim.gyro_frames import encode_sim_frames
 from gyrocal.instruments.sim.gyro_pty import SimulatedGyroPort
-from gyrocal.instruments.sim.stim_identity import SIM_PART_NUMBER
+from gyrocal.instruments.sim.stim_configuration import SimUnitConfiguration, configuration_datagram
+from gyrocal.instruments.sim.stim_identity import (
+    SIM_PART_NUMBER,
+    part_number_datagram,
+    serial_number_datagram,
+)
 from gyrocal.models.clock import SimClock
 
 pytestmark = pytest.mark.timeout(60)
@@ -111,3 +122,44 @@ def test_start_up_datagrams_after_a_power_on_are_cut_decoded_and_not_garbage(rig
     assert (said["part_number"], said["revision"], said["serial"]) == (SIM_PART_NUMBER, "G", SERIAL)
     assert "2000 samples/s, datagram 0x90" in said["configuration"]
     assert gyro.take_start_up() is None                    # handed over once
+
+
+def _frames(n: int) -> bytes:
+    """``n`` 0x90 datagrams of the ramp, by the simulator's encoder (frame k says k)."""
+    k = np.arange(n, dtype=np.int64)
+    rate = np.zeros((n, 3))
+    rate[:, 0] = k * LSB
+    return encode_sim_frames(k, rate, None, layout=layout_of(0x90, False), lsb=LSB,
+                             latency_us=250, sample_rate_hz=FS_HZ,
+                             accelerometer_range_g=10).tobytes()
+
+
+def test_start_up_datagrams_split_across_reads_and_after_line_noise_are_still_cut():
+    """What a power-on puts on the line, written into a pty in pieces: 4090 bytes of noise,
+    then the start-up datagrams (the first straddling the driver's 4 KiB look), then Normal
+    Mode. The noise is garbage; the datagrams are not, however the reads cut them."""
+    unit = SimUnitConfiguration(FS_HZ, False, False, False, False, False, 921600, 10)
+    start_up = (part_number_datagram(SIM_PART_NUMBER, "G", False)
+                + serial_number_datagram(SERIAL, False) + configuration_datagram(unit))
+    # bytes below 0x8F: no identifier of any datagram (Tables 5-13 to 5-21) among them
+    noise = np.random.default_rng(5).integers(0, 0x8F, 4090, dtype=np.uint8).tobytes()
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    gyro = Stim300Gyro(os.ttyname(slave), sample_rate_hz=FS_HZ, lsb=LSB, timeout_s=0.3,
+                       datagram=0x90)
+    try:
+        os.write(master, noise + start_up[:12])          # the part number datagram, cut short
+        with pytest.raises(InstrumentTimeout):
+            gyro.read_samples(1, timeout_s=0.3)
+        assert gyro.take_start_up() is None                # not whole yet: held, not garbage
+        os.write(master, start_up[12:] + _frames(300))
+        block = gyro.read_samples(300, timeout_s=5.0)
+    finally:
+        gyro.close()
+        os.close(master)
+        os.close(slave)
+    assert block.garbage_bytes == len(noise) and (block.crc_errors, block.lost_frames) == (0, 0)
+    assert np.array_equal(np.rint(block.rate / LSB), np.arange(300))
+    said = gyro.take_start_up().record()
+    assert said["datagrams"] == ["part number", "serial number", "configuration"]
+    assert said["serial"] == SERIAL
