@@ -30,7 +30,15 @@ with time, or a ramp in |t − t0|, drew markov_bias at 1.0). The probes:
   its own quadratic, as the cubic in time has its own lower orders (a cubic law
   about any other temperature is a cubic and a quadratic about the mean; the
   cubic column alone left the quadratic part to a Markov bias at 1.0);
-* a **scale factor drifting with time** (ppm per hour).
+* a **scale factor drifting with time** (ppm per hour);
+* a **decaying bias step** (deg/h): a jump at any of ``DECAY_POSITIONS`` times
+  between 10 % and 90 % of the record that relaxes with any of ``DECAY_TAUS``
+  time constants, H(t − t0)·e^(−(t − t0)/τ). A jump that relaxes (a mode hop, a
+  thermal shock, a disturbance settling) is neither a step nor a stationary
+  process: a bias step catches only its start and leaves the decay to a Markov
+  bias (named at 1.0), and a dT/dt bias catches it where it meets a ramp. It
+  starts after the record's start, where it would be the catalogue's
+  warmup_transient.
 
 Each is scored like a catalogue effect (the Δχ² of its columns after the
 refitted base and the whitening); its threshold is the (1 − α) point of its
@@ -64,6 +72,11 @@ POSITIONS = 150
 #: nearer an end is a linear ramp with a stub, which bias_ramp already is: a 10σ ramp lost 0.17
 #: of its probability to a turn at 10 %).
 ABS_RAMP_POSITIONS = 40
+#: Start times and time constants the decaying-step probe tries (start times between 10 % and
+#: 90 % of the record, τ log-spaced from three bins to a third of the record, like the
+#: catalogue's warm-up): 60 × 6 single columns, one matrix product against the null draws.
+DECAY_POSITIONS = 60
+DECAY_TAUS = 6
 #: Most frequencies the slow-sinusoid probe tries.
 MAX_FREQUENCIES = 200
 _DPH_PER_PPM_PER_DPS = 3600.0 * 1e-6
@@ -81,6 +94,7 @@ class ProbeKind(Enum):
     TEMP_RATE_X_TEMP = "term in dT/dt x (T - mean T)"
     TEMP_CUBIC = "bias cubic in temperature"
     SF_TIME_RAMP = "scale factor drifting with time"
+    DECAYING_STEP = "decaying bias step"
 
 
 @dataclass(frozen=True)
@@ -113,9 +127,14 @@ class ProbeInputs:
         return per_sample if self.bins is None else self.bins.mean(per_sample)
 
 
-def probe_columns(kind: ProbeKind, where: float, x: ProbeInputs) -> np.ndarray:
-    """The probe's regressors (n × dof) at ``where`` (a time, a frequency or a rate sign)."""
+def probe_columns(kind: ProbeKind, where: float, x: ProbeInputs, tau_s: float = 0.0) -> np.ndarray:
+    """The probe's regressors (n × dof) at ``where`` (a time, a frequency or a rate sign).
+
+    ``tau_s`` is the decaying step's time constant (the one probe with two shape parameters).
+    """
     t = x.time_s
+    if kind is ProbeKind.DECAYING_STEP:
+        return np.where(t >= where, np.exp(-np.maximum(t - where, 0.0) / tau_s), 0.0)[:, None]
     if kind is ProbeKind.BIAS_STEP:
         return (t >= where).astype(float)[:, None]
     if kind is ProbeKind.SF_STEP:
@@ -168,6 +187,11 @@ class Probe:
     #: the whitened, unprojected columns of the best instance (for the nested tests)
     white_columns: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), compare=False,
                                       repr=False)
+    #: the decaying step's time constant (s); 0 for every other kind
+    tau_s: float = 0.0
+    #: its best score on each simulated effect-free dataset (the column of the family maximum
+    #: that ``adequacy.family_threshold`` calibrates against)
+    null: np.ndarray = field(default_factory=lambda: np.zeros(0), compare=False, repr=False)
 
     @property
     def score(self) -> float:
@@ -213,7 +237,7 @@ class Probe:
 
     def signal_dph(self, x: ProbeInputs) -> np.ndarray:
         """The fitted probe on ``x`` (per bin or per sample), deg/h."""
-        return probe_columns(self.kind, self.where, x) @ np.asarray(self.coeffs)
+        return probe_columns(self.kind, self.where, x, self.tau_s) @ np.asarray(self.coeffs)
 
     def describe(self) -> str:
         k, s = self.kind, self.size
@@ -229,6 +253,9 @@ class Probe:
         if k is ProbeKind.ONE_SIGN_RATE2:
             sign = "positive" if self.where > 0 else "negative"
             return f"a rate² term on {sign} rates only of {s:+.3g} deg/h per (deg/s)²"
+        if k is ProbeKind.DECAYING_STEP:
+            return (f"a bias step of {s:+.3g} deg/h near t = {self.where:.0f} s decaying with "
+                    f"τ {self.tau_s:.0f} s")
         if k is ProbeKind.RATE_SIGN_BIAS:
             return f"a bias by rate sign of ±{abs(s):.3g} deg/h ({'+' if s > 0 else '−'} for positive rates)"
         return _DESCRIPTIONS[k].format(s=s, where=self.where)
@@ -263,21 +290,32 @@ def _projected(columns: np.ndarray, fit: Fit, whitener: Whitener) -> tuple[np.nd
 
 
 def _fitted(kind: ProbeKind, where: float, x: ProbeInputs, fit: Fit, whitener: Whitener,
-            threshold: float, n_candidates: int) -> Probe | None:
+            threshold: float, n_candidates: int, null: np.ndarray, tau_s: float = 0.0) -> Probe | None:
     """The probe at ``where`` fitted to the residual (its coefficients and Δχ²)."""
-    white, perp = _projected(probe_columns(kind, where, x), fit, whitener)
+    white, perp = _projected(probe_columns(kind, where, x, tau_s), fit, whitener)
     coef, *_ = np.linalg.lstsq(perp, fit.white_resid, rcond=None)
     explained = perp @ coef
     if not np.all(np.isfinite(coef)):
         return None
     return Probe(kind, float(where), tuple(float(c) for c in coef), float(explained @ explained),
-                 white.shape[1], threshold, n_candidates, white)
+                 white.shape[1], threshold, n_candidates, white, tau_s, null)
 
 
 def _single_column_family(kind: ProbeKind, where: np.ndarray, x: ProbeInputs, fit: Fit,
                           whitener: Whitener, z: np.ndarray, alpha: float) -> Probe | None:
     """One column per candidate (a step or turning time, a sign): vectorised over candidates."""
     columns = np.column_stack([probe_columns(kind, float(w), x)[:, 0] for w in where])
+    best = _best_column(columns, fit, whitener, z, alpha)
+    if best is None:
+        return None
+    k, threshold, null, count = best
+    return _fitted(kind, float(where[k]), x, fit, whitener, threshold, count, null)
+
+
+def _best_column(columns: np.ndarray, fit: Fit, whitener: Whitener, z: np.ndarray, alpha: float
+                 ) -> tuple[int, float, np.ndarray, int] | None:
+    """The column that best explains the residual, the (1 − α) point of the best on the null
+    draws, those null scores, and how many columns were usable (not spanned by the base)."""
     _, perp = _projected(columns, fit, whitener)
     norms = np.linalg.norm(perp, axis=0)
     usable = norms > 1e-9 * max(float(norms.max()), 1e-300)
@@ -285,9 +323,27 @@ def _single_column_family(kind: ProbeKind, where: np.ndarray, x: ProbeInputs, fi
         return None
     q = perp[:, usable] / norms[usable]
     k = int(np.argmax((q.T @ fit.white_resid) ** 2))
-    null = np.max((q.T @ z) ** 2, axis=0)
-    threshold = order_statistic_quantile(_null_scores(null, 1), 1.0 - alpha)
-    return _fitted(kind, float(where[usable][k]), x, fit, whitener, threshold, int(usable.sum()))
+    null = _null_scores(np.max((q.T @ z) ** 2, axis=0), 1)
+    threshold = order_statistic_quantile(null, 1.0 - alpha)
+    return int(np.flatnonzero(usable)[k]), threshold, null, int(usable.sum())
+
+
+def decaying_step_probe(fit: Fit, whitener: Whitener, x: ProbeInputs, z: np.ndarray,
+                        alpha: float) -> Probe | None:
+    """The best decaying bias step over start times and time constants (one column each)."""
+    duration_s = x.duration_s
+    width_s = duration_s / max(len(x.time_s), 1)
+    starts = duration_s * np.linspace(0.1, 0.9, DECAY_POSITIONS)
+    top = max(duration_s / 3.0, 6.0 * width_s)
+    taus = np.geomspace(min(3.0 * width_s, top / 2.0), top, DECAY_TAUS)
+    pairs = [(float(t0), float(tau)) for t0 in starts for tau in taus]
+    columns = np.column_stack([probe_columns(ProbeKind.DECAYING_STEP, t0, x, tau)[:, 0] for t0, tau in pairs])
+    best = _best_column(columns, fit, whitener, z, alpha)
+    if best is None:
+        return None
+    k, threshold, null, count = best
+    t0, tau = pairs[k]
+    return _fitted(ProbeKind.DECAYING_STEP, t0, x, fit, whitener, threshold, count, null, tau)
 
 
 def _one_shape(kind: ProbeKind, x: ProbeInputs, fit: Fit, whitener: Whitener, z: np.ndarray,
@@ -299,9 +355,9 @@ def _one_shape(kind: ProbeKind, x: ProbeInputs, fit: Fit, whitener: Whitener, z:
     if not good.any():
         return None
     q = q[:, good]
-    null = np.sum((q.T @ z) ** 2, axis=0)
-    threshold = order_statistic_quantile(_null_scores(null, q.shape[1]), 1.0 - alpha)
-    return _fitted(kind, 0.0, x, fit, whitener, threshold, 1)
+    null = _null_scores(np.sum((q.T @ z) ** 2, axis=0), q.shape[1])
+    threshold = order_statistic_quantile(null, 1.0 - alpha)
+    return _fitted(kind, 0.0, x, fit, whitener, threshold, 1, null)
 
 
 def slow_sine_probe(fit: Fit, whitener: Whitener, bins: Bins, x: ProbeInputs, z: np.ndarray,
@@ -325,8 +381,9 @@ def slow_sine_probe(fit: Fit, whitener: Whitener, bins: Bins, x: ProbeInputs, z:
         return np.where(usable[:, None], out, 0.0)
 
     k = int(np.argmax(gains(fit.white_resid[:, None])[:, 0]))
-    threshold = order_statistic_quantile(_null_scores(np.max(gains(z), axis=0), 2), 1.0 - alpha)
-    return _fitted(ProbeKind.SLOW_SINE, float(freqs[k]), x, fit, whitener, threshold, int(usable.sum()))
+    null = _null_scores(np.max(gains(z), axis=0), 2)
+    threshold = order_statistic_quantile(null, 1.0 - alpha)
+    return _fitted(ProbeKind.SLOW_SINE, float(freqs[k]), x, fit, whitener, threshold, int(usable.sum()), null)
 
 
 def all_probes(fit: Fit, whitener: Whitener, bins: Bins, x: ProbeInputs, z: np.ndarray,
@@ -339,7 +396,8 @@ def all_probes(fit: Fit, whitener: Whitener, bins: Bins, x: ProbeInputs, z: np.n
     probes = [_single_column_family(ProbeKind.BIAS_STEP, step_times, x, fit, whitener, z, alpha),
               slow_sine_probe(fit, whitener, bins, x, z, alpha),
               _one_shape(ProbeKind.TIME_CUBIC, x, fit, whitener, z, alpha),
-              _single_column_family(ProbeKind.ABS_TIME_RAMP, turning, x, fit, whitener, z, alpha)]
+              _single_column_family(ProbeKind.ABS_TIME_RAMP, turning, x, fit, whitener, z, alpha),
+              decaying_step_probe(fit, whitener, x, z, alpha)]
     if np.any(np.abs(x.rate_dps) > 0):
         probes += [_single_column_family(ProbeKind.SF_STEP, step_times, x, fit, whitener, z, alpha),
                    _one_shape(ProbeKind.SF_TIME_RAMP, x, fit, whitener, z, alpha)]

@@ -37,6 +37,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from gyrocal.analysis.discrepancy.adequacy import NOT_JUDGED, Adequacy, adequacy, judged
 from gyrocal.analysis.discrepancy.arbitration import (
     GAP_CHECK_MARGIN,
     explained_by_markov,
@@ -329,12 +330,15 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     # not move at all for the effect that was named)
     heads = [gap.headline for gap in gaps if gap.headline in metrics]
     primary = heads[0] if heads else choose_primary(metrics, bool(found))
-    last_probe = strongest(all_probes(after, ctx.whitener, ctx.bins, ctx.probe_bins,
-                                      ctx.rng.standard_normal((ctx.bins.n_bins, ctx.n_null)), ALPHA))
-    unexplained = (search.preempted is not None or search.nonstationary is not None
+    found, test, last_probe = _adequacy_pass(ctx, after, found)
+    unexplained = (search.preempted is not None or search.nonstationary is not None or test.inadequate
                    or metrics["g1_segment_mean"].after > order_statistic_quantile(null_g1, UNEXPLAINED_LEVEL))
     signals = _signals(ctx, after.model)
     where, notes = "", list(state.notes)
+    if test.inadequate and test.probe is not None:
+        notes.append(f"the named effects leave {test.probe.describe()} behind (score {test.statistic:.1f}, "
+                     f"family-wise threshold {test.threshold:.1f} over {ctx.n_null} effect-free draws): "
+                     "they are not the whole account")
     if unexplained:
         where, remainder_notes = _remainder(ctx, search, after, geometry, signals, scan_after, last_probe)
         notes += remainder_notes
@@ -343,6 +347,21 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
         list(search.iterations), ctx.bins, ctx.segments, np.unique(seg_of_bin), geometry,
         before.resid_bins, after.resid_bins, signals, scan_before, scan_after, noise.before,
         float(ctx.log.t_s[0]), notes, {gap.effect: gap.headline for gap in gaps})
+
+
+def _adequacy_pass(ctx: Context, after: Fit, found: list[FoundEffect]
+                   ) -> tuple[list[FoundEffect], Adequacy, Probe | None]:
+    """The probes once more on the final residual: what the named effects leave (adequacy.py).
+
+    Returns the named effects with their probabilities after the test, the test, and the
+    probe to describe what is left (the test's when it fired, else the strongest significant).
+    """
+    probes = all_probes(after, ctx.whitener, ctx.bins, ctx.probe_bins,
+                        ctx.rng.standard_normal((ctx.bins.n_bins, ctx.n_null)), ALPHA)
+    if not any(f.name not in NOT_JUDGED for f in found):
+        return found, Adequacy(0.0, math.inf, None), strongest(probes)
+    test = adequacy(probes, ALPHA)
+    return judged(ctx, after, found, test), test, test.probe if test.inadequate else strongest(probes)
 
 
 def _whole_record_metrics(ctx: Context, before: Fit, after: Fit, geometry: SegmentGeometry,
