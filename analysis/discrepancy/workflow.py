@@ -20,9 +20,14 @@
 5. Add it, refit everything jointly (shape parameters of found effects too),
    repeat up to ``max_effects``; then measure the gap before and after
    beside the noise floor and decide whether anything is left unexplained.
+6. Judge whether the named effects are the whole account (adequacy.py): the
+   probes once more on the final residual, their best score against the
+   family-wise threshold on effect-free draws; structure left behind makes
+   the result unexplained and takes the probability of a named effect it
+   replaces below 0.5.
 
 The code reads as that pipeline: ``_noise_pass`` → ``_search_pass`` (rounds of
-``_search_round``) → ``_gap_pass``, each returning what the next needs. The
+``_search_round``) → ``_gap_pass`` (with ``_adequacy_pass``), each returning what the next needs. The
 candidate effects sit behind one interface in a registry (candidates.py), the
 rules that arbitrate between them in arbitration.py, the log's shared inputs
 and whitening in context.py, the result types in result.py.
