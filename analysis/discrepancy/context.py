@@ -63,6 +63,8 @@ class Context:
         self.y_full = output_to_dph(log.gyro, model.scale_factor)
         self.y_bins = self.bins.mean(self.y_full)
         self.rate_bins_dps = self.bins.mean(log.table_rate_dps)
+        #: the rate-temperature probes' ΔT is about it, as the model's tempco laws are
+        self.reference_temp_c = model.reference_temp_c
         self._probe_full: ProbeInputs | None = None
         self.probe_bins = self.probe_inputs(binned=True)
         self.space = SearchSpace(float(log.t_s[-1] - log.t_s[0]), self.bins.width_s,
@@ -82,7 +84,7 @@ class Context:
             trend_bins = temperature_trend_c_per_min(self.bins.centre_s, self.bins.mean(log.chamber_temp_c))
             trend = np.interp(log.t_s - log.t_s[0], self.bins.centre_s, trend_bins)
             self._probe_full = ProbeInputs(log.t_s - log.t_s[0], log.table_rate_dps, log.chamber_temp_c,
-                                           trend)
+                                           trend, reference_temp_c=self.reference_temp_c)
         return replace(self._probe_full, bins=self.bins, _cache={}) if binned else self._probe_full
 
     def use_noise(self, noise: NoiseModel, model_name: str = "the gyro model") -> None:

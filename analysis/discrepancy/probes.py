@@ -39,6 +39,12 @@ with time, or a ramp in |t − t0|, drew markov_bias at 1.0). The probes:
   bias (named at 1.0), and a dT/dt bias catches it where it meets a ramp. It
   starts after the record's start, where it would be the catalogue's
   warmup_transient.
+* a **rate² with the rate's sign**, ω·|ω| (deg/h per (deg/s)²): an odd term the catalogue's
+  ω³ only approximates (the one-sign rate² is this and the catalogue's ω² in equal parts);
+* two **even rate terms growing with temperature**, |ω|·ΔT (deg/h per deg/s·degC) and
+  ω²·ΔT (deg/h per (deg/s)²·degC), ΔT about the model's reference temperature as its
+  tempco laws are: a bias in |ω|·ΔT and a rate² growing with temperature were named
+  markov_bias at 0.8 and above, for want of a shape in rate and temperature together.
 
 Each is scored like a catalogue effect (the Δχ² of its columns after the
 refitted base and the whitening); its threshold is the (1 − α) point of its
@@ -95,6 +101,9 @@ class ProbeKind(Enum):
     TEMP_CUBIC = "bias cubic in temperature"
     SF_TIME_RAMP = "scale factor drifting with time"
     DECAYING_STEP = "decaying bias step"
+    SIGNED_RATE2 = "rate squared with the rate's sign"
+    ABS_RATE_X_TEMP = "term in |rate| x (T - reference)"
+    RATE2_X_TEMP = "term in rate squared x (T - reference)"
 
 
 @dataclass(frozen=True)
@@ -114,6 +123,8 @@ class ProbeInputs:
     bins: Bins | None = None
     #: binned shapes already averaged over the samples (an overnight log has 10 M of them)
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
+    #: ΔT of the rate-temperature probes is about it (the model's); None: the record's mean
+    reference_temp_c: float | None = None
 
     @property
     def duration_s(self) -> float:
@@ -170,6 +181,9 @@ def _sample_shape(kind: ProbeKind, where: float, x: ProbeInputs) -> np.ndarray:
     if kind is ProbeKind.TEMP_CUBIC:
         dt = x.temp_c - float(np.mean(x.temp_c))
         return np.column_stack([x.reduce(dt * dt), x.reduce(dt ** 3)])
+    if kind in _RATE_SHAPES:
+        return x.reduce(_RATE_SHAPES[kind](w, x.temp_c - (
+            float(np.mean(x.temp_c)) if x.reference_temp_c is None else x.reference_temp_c)))[:, None]
     return x.reduce(x.temp_rate_c_per_min * (x.temp_c - float(np.mean(x.temp_c))))[:, None]
 
 
@@ -271,6 +285,19 @@ _DESCRIPTIONS: dict[ProbeKind, str] = {
     ProbeKind.ABS_TEMP_RATE:
         "a bias in |dT/dt| of {s:+.3g} deg/h per degC/min (same sign heating and cooling)",
     ProbeKind.TEMP_RATE_X_TEMP: "a bias in dT/dt·(T − mean T) of {s:+.3g} deg/h per degC·degC/min",
+    ProbeKind.SIGNED_RATE2: "a rate² term with the rate's sign (ω·|ω|) of {s:+.3g} deg/h per (deg/s)²",
+    ProbeKind.ABS_RATE_X_TEMP:
+        "a bias in |ω|·ΔT of {s:+.3g} deg/h per deg/s·degC (ΔT from the model's reference temperature)",
+    ProbeKind.RATE2_X_TEMP:
+        "a rate² growing with temperature, ω²·ΔT, of {s:+.3g} deg/h per (deg/s)²·degC "
+        "(ΔT from the model's reference temperature)",
+}
+
+#: the per-sample shapes of the probes in rate (and temperature), of (ω deg/s, ΔT degC)
+_RATE_SHAPES = {
+    ProbeKind.SIGNED_RATE2: lambda w, dt: w * np.abs(w),
+    ProbeKind.ABS_RATE_X_TEMP: lambda w, dt: np.abs(w) * dt,
+    ProbeKind.RATE2_X_TEMP: lambda w, dt: w * w * dt,
 }
 
 
@@ -404,7 +431,11 @@ def all_probes(fit: Fit, whitener: Whitener, bins: Bins, x: ProbeInputs, z: np.n
     if np.any(x.rate_dps > 0) and np.any(x.rate_dps < 0):
         probes += [_single_column_family(ProbeKind.ONE_SIGN_RATE2, np.array([1.0, -1.0]), x, fit,
                                          whitener, z, alpha),
-                   _one_shape(ProbeKind.RATE_SIGN_BIAS, x, fit, whitener, z, alpha)]
+                   _one_shape(ProbeKind.RATE_SIGN_BIAS, x, fit, whitener, z, alpha),
+                   _one_shape(ProbeKind.SIGNED_RATE2, x, fit, whitener, z, alpha)]
+    if np.any(np.abs(x.rate_dps) > 0) and np.ptp(x.temp_c) > 1.0:
+        probes += [_one_shape(kind, x, fit, whitener, z, alpha)
+                   for kind in (ProbeKind.ABS_RATE_X_TEMP, ProbeKind.RATE2_X_TEMP)]
     if np.ptp(x.temp_c) > 1.0:
         probes.append(_one_shape(ProbeKind.TEMP_CUBIC, x, fit, whitener, z, alpha))
     if np.ptp(x.temp_rate_c_per_min) > 0.1:
