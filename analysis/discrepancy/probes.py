@@ -52,7 +52,10 @@ best score on the same simulated effect-free data. A probe competes with a
 catalogue effect by two nested tests (``gain_given``): the probe must still
 add significantly once the effect is fitted, and the effect must add nothing
 significant once the probe is fitted; then the probe is the better account of
-the data and nothing is named.
+the data and nothing is named. A probe that adds nothing beyond the effect either
+(the two nearly collinear) must explain more than it by more than a probe does when
+the effect is true (``arbitration.excess_if_effect_true``): when the data cannot tell
+the two apart the catalogue effect is named, its probability shared with the probe.
 """
 
 from __future__ import annotations
