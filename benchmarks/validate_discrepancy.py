@@ -28,7 +28,6 @@ from pathlib import Path
 # the synthetic scenarios are test material (tests/support), shared with the benchmarks
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "support"))
 import argparse
-import re
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -36,6 +35,7 @@ from functools import cache
 
 import discrepancy_scenarios as scenarios  # noqa: E402
 import numpy as np
+from discrepancy_validation_tables import marked_sections  # noqa: E402
 
 from gyrocal.analysis.discrepancy.workflow import analyse
 from gyrocal.models.gyro_model import EffectSpec
@@ -169,11 +169,11 @@ def main() -> None:
         for outcome in pool.map(run_case, cases, chunksize=4):
             by_label.setdefault(outcome.case.label, []).append(outcome)
     elapsed = time.perf_counter() - start
-    # the section of validate_discrepancy_outside.py (new profiles, structure outside the
-    # catalogue) is its own: kept as it is
+    # the marked sections (validate_discrepancy_outside.py's, validate_discrepancy_fresh.py's) are
+    # their scripts' own: kept as they are
     old = Path(args.out).read_text(encoding="utf-8") if Path(args.out).exists() else ""
-    kept = re.search(r"<!-- outside-catalogue:begin -->.*?<!-- outside-catalogue:end -->\n?", old, re.S)
-    Path(args.out).write_text(_document(by_label, args, elapsed) + ("\n" + kept.group(0) if kept else ""),
+    kept = marked_sections(old)
+    Path(args.out).write_text(_document(by_label, args, elapsed) + ("\n" + kept if kept else ""),
                               encoding="utf-8")
     print(Path(args.out).read_text(encoding="utf-8"))
 

@@ -26,17 +26,16 @@ from pathlib import Path
 # the synthetic scenarios are test material (tests/support), shared with the benchmarks
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "support"))
 import argparse
-import re
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
 from functools import cache
 
 import discrepancy_scenarios as scenarios  # noqa: E402
+import discrepancy_validation_tables as tables  # noqa: E402
 import numpy as np
+from discrepancy_cases import Case  # noqa: E402
 
 from gyrocal.analysis.discrepancy.segments import temperature_trend_c_per_min
-from gyrocal.analysis.discrepancy.workflow import analyse
 from gyrocal.models.gyro_model import EffectSpec
 
 BEGIN, END = "<!-- outside-catalogue:begin -->", "<!-- outside-catalogue:end -->"
@@ -103,47 +102,15 @@ def profile(name: str) -> scenarios.Profile:
     return scenarios.procedure_profile(**PROFILES[name][1])
 
 
-@dataclass(frozen=True)
-class Case:
-    group: str               # "effect", "control", "unknown"
-    label: str
-    profile: str
-    hidden: tuple[EffectSpec, ...]
-    seed: int
-    unknown: str = ""
-    snr: float = 10.0
-
-
-@dataclass(frozen=True)
-class Outcome:
-    case: Case
-    found: list[tuple[str, float]]
-    unexplained: bool
-    where: str
-    headline: dict[str, tuple[str, float, float, float]]   # effect → (metric, before, after, floor)
-    seconds: float
-    cpu_seconds: float
-
-    @property
-    def held_out(self) -> bool:
-        return self.case.profile in HELD_OUT_PROFILES or self.case.unknown in FRESH
-
-
-def run_case(case: Case) -> Outcome:
-    start, cpu = time.perf_counter(), time.process_time()
+def run_case(case: Case) -> tables.Outcome:
     prof = profile(case.profile)
     extra = (scenarios.sized_extra(UNKNOWN[case.unknown](prof), case.snr, prof, max_bins=1000)
              if case.unknown else None)
-    samples = scenarios.simulate_log(prof, list(case.hidden), case.seed, extra_dph=extra)
-    result = analyse(scenarios.nominal_model(), scenarios.as_measured_log(samples), seed=case.seed,
-                     n_null=300, max_bins=1000)
-    heads = {}
-    for effect, key in result.effect_gaps.items():
-        m = result.metrics.get(key)
-        if m is not None:
-            heads[effect] = (key, m.before, m.after, m.noise_floor)
-    return Outcome(case, [(f.name, f.probability) for f in result.found], result.unexplained,
-                   result.where[:160], heads, time.perf_counter() - start, time.process_time() - cpu)
+    return tables.analyse_case(case, prof, extra)
+
+
+def held_out(o: tables.Outcome) -> bool:
+    return o.case.profile in HELD_OUT_PROFILES or o.case.unknown in FRESH
 
 
 def _cases(seeds: int, controls: int, profiles: list[str]) -> list[Case]:
@@ -191,99 +158,13 @@ def main() -> None:
     with ProcessPoolExecutor(args.workers) as pool:
         outcomes = list(pool.map(run_case, cases, chunksize=2))
     section = _section(outcomes, args, time.perf_counter() - start)
-    path = Path(args.out)
-    text = path.read_text(encoding="utf-8") if path.exists() else ""
-    block = f"{BEGIN}\n{section}{END}\n"
-    if BEGIN in text and END in text:
-        text = re.sub(re.escape(BEGIN) + ".*?" + re.escape(END) + "\n?", lambda _m: block, text, flags=re.S)
-    else:
-        text = text.rstrip("\n") + "\n\n" + block
-    path.write_text(text, encoding="utf-8")
+    tables.write_section(Path(args.out), BEGIN, END, section)
     print(section)
 
 
-def _pct(values: list[bool]) -> str:
-    return f"{100 * np.mean(values):.0f} %" if values else "–"
-
-
-def _own_gap_ok(o: Outcome) -> tuple[bool, bool] | None:
-    """(before ≥ 2× floor, after ≤ 1.5× floor) of the hidden effect's headline, when it was named."""
-    name = o.case.hidden[0].name
-    if name not in o.headline:
-        return None
-    _, before, after, floor = o.headline[name]
-    return before >= 2.0 * floor, after <= 1.5 * floor
-
-
-def _named_first(o: Outcome) -> bool:
-    return bool(o.found) and o.found[0][0] == o.case.hidden[0].name
-
-
-def _targets(outcomes: list[Outcome]) -> list[str]:
-    """The issue's Done-when figures on a set of runs (one table column)."""
-    by_label: dict[tuple[str, str], list[Outcome]] = {}
-    for o in outcomes:
-        by_label.setdefault((o.case.profile, o.case.label), []).append(o)
-    rows_10 = [[_named_first(o) for o in outs] for outs in by_label.values()
-               if outs[0].case.group == "effect" and outs[0].case.snr == 10.0]
-    tenth = [o for o in outcomes if o.case.group == "effect" and o.case.snr == 10.0]
-    controls = [o for o in outcomes if o.case.group == "control"]
-    unknowns = [o for o in outcomes if o.case.group == "unknown"]
-    claims = [(pr, n in {h.name for h in o.case.hidden}) for o in outcomes for n, pr in o.found]
-    high = [right for pr, right in claims if pr >= 0.99]
-    gaps = [g for g in (_own_gap_ok(o) for o in outcomes if o.case.group == "effect") if g is not None]
-    worst = min((float(np.mean(r)) for r in rows_10), default=float("nan")) * 100
-    return [f"{worst:.0f} % (pooled {_pct([_named_first(o) for o in tenth])} of {len(tenth)})",
-            f"{_pct([bool(o.found) for o in controls])} of {len(controls)}",
-            f"{_pct(high)} of {len(high)}",
-            f"{_pct([o.unexplained for o in unknowns])} of {len(unknowns)}",
-            _pct([any(pr >= 0.8 for _, pr in o.found) for o in unknowns]),
-            f"{_pct([g[0] for g in gaps])} of {len(gaps)}",
-            f"{_pct([g[1] for g in gaps])} of {len(gaps)}"]
-
-
-def _reliability(outcomes: list[Outcome]) -> list[str]:
-    claims = [(pr, n in {h.name for h in o.case.hidden}) for o in outcomes for n, pr in o.found]
-    lines = ["| stated probability | claims | mean stated | right |", "|---|---|---|---|"]
-    edges = [0.0, 0.5, 0.8, 0.9, 0.95, 0.99, 1.0001]
-    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
-        inside = [(pr, right) for pr, right in claims if lo <= pr < hi]
-        mean = f"{np.mean([pr for pr, _ in inside]):.3f}" if inside else "–"
-        lines.append(f"| {lo:.2f} – {min(hi, 1.0):.2f} | {len(inside)} | {mean} | {_pct([r for _, r in inside])} |")
-    return lines
-
-
-def _effect_rows(by_label: dict[tuple[str, str], list[Outcome]]) -> list[str]:
-    lines = ["| profile | hidden effect | runs | named first | own gap before ≥ 2× floor | "
-             "own gap after ≤ 1.5× floor | median CPU s |", "|---|---|---|---|---|---|---|"]
-    for (p, label), outs in by_label.items():
-        if outs[0].case.group != "effect":
-            continue
-        gaps = [g for g in (_own_gap_ok(o) for o in outs) if g is not None]
-        lines.append(f"| {p} | {label} | {len(outs)} | {_pct([_named_first(o) for o in outs])} | "
-                     f"{_pct([g[0] for g in gaps])} | {_pct([g[1] for g in gaps])} | "
-                     f"{np.median([o.cpu_seconds for o in outs]):.1f} |")
-    return lines
-
-
-def _other_rows(by_label: dict[tuple[str, str], list[Outcome]]) -> list[str]:
-    lines = ["| profile | case | runs | `unexplained` | any catalogue claim | claims ≥ 0.8 | what was named |",
-             "|---|---|---|---|---|---|---|"]
-    for (p, label), outs in by_label.items():
-        if outs[0].case.group == "effect":
-            continue
-        names = sorted({n for o in outs for n, _ in o.found})
-        lines.append(f"| {p} | {label} | {len(outs)} | {_pct([o.unexplained for o in outs])} | "
-                     f"{_pct([bool(o.found) for o in outs])} | "
-                     f"{_pct([any(pr >= 0.8 for _, pr in o.found) for o in outs])} | {', '.join(names) or '–'} |")
-    return lines
-
-
-def _section(outcomes: list[Outcome], args, elapsed: float) -> str:
-    by_label: dict[tuple[str, str], list[Outcome]] = {}
-    for o in outcomes:
-        by_label.setdefault((o.case.profile, o.case.label), []).append(o)
-    held = [o for o in outcomes if o.held_out]
+def _section(outcomes: list[tables.Outcome], args, elapsed: float) -> str:
+    rows = tables.by_label(outcomes)
+    held = [o for o in outcomes if held_out(o)]
     lines = ["## Off the tuning ground: new profiles and structure outside the catalogue (issue 29)", "",
              "Regenerate with", "",
              f"    .venv/bin/python benchmarks/validate_discrepancy_outside.py --seeds {args.seeds} "
@@ -300,19 +181,16 @@ def _section(outcomes: list[Outcome], args, elapsed: float) -> str:
               "Out-of-catalogue shapes are sized like the catalogue effects (known-shape SNR 10 of the "
               "whitened, base-projected signature, `scenarios.sized_extra`); the ones marked "
               "“no probe” have no matching probe.", "", "### Catalogue effects", ""]
-    lines += _effect_rows(by_label)
-    lines += ["", "### Controls and unknowns", ""] + _other_rows(by_label)
-    names = ["every catalogue effect at 10σ named first ≥ 90 % (worst row)", "effect-free controls with a claim ≤ 2 %",
-             "claims at ≥ 0.99 right ≥ 99 %", "unknowns `unexplained` ≥ 90 %",
-             "unknowns with a catalogue claim at ≥ 0.8", "named effect's own gap before ≥ 2× floor",
-             "named effect's own gap after ≤ 1.5× floor"]
+    lines += tables.effect_rows(rows)
+    lines += ["", "### Controls and unknowns", ""] + tables.other_rows(rows)
     lines += ["", "### Against the targets", "", "| target | all runs | held out (Q3, fresh shapes) |",
               "|---|---|---|"]
-    lines += [f"| {n} | {a} | {h} |" for n, a, h in zip(names, _targets(outcomes), _targets(held), strict=True)]
+    lines += [f"| {n} | {a.text} | {h.text} |" for n, a, h in
+              zip(tables.TARGET_NAMES, tables.targets(outcomes), tables.targets(held), strict=True)]
     lines += ["", "### Reliability of the stated probabilities (this set only)", "",
               "Every claim above, binned by its stated probability; right when the named effect was hidden "
-              "(every claim on a control or an unknown is wrong). All runs:", ""] + _reliability(outcomes)
-    lines += ["", "Held out only:", ""] + _reliability(held)
+              "(every claim on a control or an unknown is wrong). All runs:", ""] + tables.reliability_rows(outcomes)
+    lines += ["", "Held out only:", ""] + tables.reliability_rows(held)
     cpu_min = sum(o.cpu_seconds for o in outcomes) / 60
     lines += ["", f"{len(outcomes)} runs, {elapsed / 60:.1f} min wall on {args.workers} worker(s) "
               f"({cpu_min:.1f} CPU-min; the 2-core machine was shared by about 8 people).", ""]

@@ -1,0 +1,351 @@
+"""A fresh held-out validation set for the discrepancy workflow (issue 29): new profiles, new unknowns.
+
+Every profile (P1–P3, Q1–Q3) and every out-of-catalogue shape of
+``validate_discrepancy_outside.py`` has been looked at while the workflow was
+changed, so none of them is held-out validation any more. This set is new and
+is meant to stay unseen by whoever tunes the workflow:
+
+* three procedures unlike P1–P3 and Q1–Q3 (``PROFILES``): R1, 40 min at 400 Hz
+  with one slow eased ramp 25 → 45 °C and rate dwells repeated through it;
+  R2, a 6-hour 2 Hz staircase with soaks of different lengths joined by ramps
+  of different rates; R3, a 12-hour 1 Hz sinusoidal temperature cycle with
+  rate checks every 40 minutes;
+* structure a real gyro brings that the catalogue has not (``UNKNOWN``): a bias
+  held at the sign of the last rotation, an angular-acceleration bias, a
+  saturating scale factor, a bias by the sign of dT/dt, a random-walk burst, a
+  telegraph (popcorn) bias, flicker excess, a periodic term whose frequency
+  drifts with temperature, a bias through two thermal paths, a scale-factor
+  step at a temperature threshold, a noise level growing with |ω|, and two
+  combinations of a catalogue effect with an out-of-catalogue one.
+
+Sizes follow ``discrepancy_scenarios``: catalogue effects by known-shape SNR
+(``sized_effect``, ``sized_markov``); unknowns by the known-shape SNR of their
+binned shape (``sized_extra``), a periodic one by its norm against the white
+noise (what ``sized_effect`` does for periodic_interference), a noise-level
+change by its expected likelihood ratio snr² (what ``sized_markov`` does).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import cache
+
+import discrepancy_scenarios as scenarios
+import numpy as np
+from discrepancy_cases import Case
+from scipy.signal import lfilter
+
+from gyrocal.analysis.discrepancy.noise_model import NoiseModel
+from gyrocal.models.gyro_model import EffectSpec
+
+MAX_BINS = 1000       # the analysis' bins in the validation runs (sizes are SNRs of these bin means)
+
+#: every sized catalogue effect; a profile drops those it gives nothing to act on
+SIZED = ("thermal_lag", "temp_rate_bias", "temp_hysteresis", "bias_temp_quadratic",
+         "sf_temp_quadratic", "sf_nonlinearity_quadratic", "sf_nonlinearity_cubic",
+         "sf_asymmetry", "warmup_transient", "bias_ramp", "table_angle_harmonic",
+         "periodic_interference")
+
+
+@dataclass(frozen=True)
+class FreshProfile:
+    """A procedure of the fresh set and the catalogue effects' parameters on it."""
+
+    title: str
+    build: Callable[[], scenarios.Profile]
+    shapes: dict[str, dict[str, float]]      # shape parameters of the sized effects
+    dead_zone_dps: float                      # swallows the profile's lowest dwell rate
+    markov_taus_s: tuple[float, float]
+    pulse_arcsec: float
+    unobservable: tuple[str, ...] = field(default=())   # sized effects the profile cannot show
+
+    @property
+    def sized(self) -> tuple[str, ...]:
+        return tuple(n for n in SIZED if n not in self.unobservable)
+
+
+def scheduled_profile(duration_s: float, fs_hz: float, temp_c: Callable[[np.ndarray], np.ndarray],
+                      rate_cycle: tuple[tuple[float, float], ...], cycle_starts_s,
+                      accel_dps2: float) -> scenarios.Profile:
+    """A temperature path ``temp_c(t)`` and a cycle of (rate deg/s, seconds) table blocks at given starts.
+
+    Unlike ``procedure_profile`` the table tests need not sit in soaks: they run
+    wherever ``cycle_starts_s`` puts them (through a ramp, on a cycle); the table
+    is held still elsewhere and slews at ``accel_dps2`` between blocks.
+    """
+    t = np.arange(int(round(duration_s * fs_hz))) / fs_hz
+    rate = np.zeros_like(t)
+    for start in cycle_starts_s:
+        at = float(start)
+        for rate_dps, length_s in rate_cycle:
+            rate[(t >= at) & (t < at + length_s)] = rate_dps
+            at += length_s
+    return scenarios.Profile(t, scenarios._slewed(rate, fs_hz, accel_dps2), temp_c(t))
+
+
+def staircase_c(setpoints_c: tuple[float, ...], ramps_c_per_min: tuple[float, ...],
+                soaks_s: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Knots (s, °C) of soaks of the given lengths joined by ramps; the last soak lasts to the end."""
+    times, temps = [0.0], [setpoints_c[0]]
+    for i, rate in enumerate(ramps_c_per_min):
+        times.append(times[-1] + soaks_s[i])
+        temps.append(setpoints_c[i])
+        times.append(times[-1] + abs(setpoints_c[i + 1] - setpoints_c[i]) / rate * 60.0)
+        temps.append(setpoints_c[i + 1])
+    return np.array(times), np.array(temps)
+
+
+def _r1() -> scenarios.Profile:
+    """40 min at 400 Hz: 4 min at 25 °C, one eased 30-minute ramp to 45 °C, 6 min at 45 °C."""
+    def temp(t):
+        u = np.clip((t - 240.0) / 1800.0, 0.0, 1.0)
+        return 25.0 + 20.0 * 0.5 * (1.0 - np.cos(math.pi * u))
+    cycle = ((0.0, 60.0), (2.0, 180.0), (-2.0, 30.0), (20.0, 20.0), (-20.0, 20.0),
+             (150.0, 12.0), (-150.0, 12.0))
+    return scheduled_profile(2400.0, 400.0, temp, cycle, np.arange(0.0, 2400.0, 400.0), 100.0)
+
+
+R2_STAIRS = ((25.0, 5.0, 45.0, 15.0, 35.0, 25.0), (2.0, 1.5, 0.7, 2.5, 1.0),
+             (1800.0, 2400.0, 1200.0, 3600.0, 1800.0))
+
+
+def _r2() -> scenarios.Profile:
+    """6 h at 2 Hz: soaks of 30, 40, 20, 60, 30 min and the rest, ramps of 2, 1.5, 0.7, 2.5, 1 °C/min."""
+    knots_s, knots_c = staircase_c(*R2_STAIRS)
+    soak_starts = np.concatenate([[0.0], knots_s[2::2]])
+    starts = [s + 240.0 for s in soak_starts] + [knots_s[4] + 1800.0, knots_s[-1] + 2400.0]
+    cycle = ((0.0, 120.0), (0.5, 120.0), (-0.5, 120.0), (5.0, 60.0), (-5.0, 60.0),
+             (40.0, 60.0), (-40.0, 60.0), (3.0, 120.0))
+    return scheduled_profile(21600.0, 2.0, lambda t: np.interp(t, knots_s, knots_c), cycle,
+                             sorted(starts), 10.0)
+
+
+def _r3() -> scenarios.Profile:
+    """12 h at 1 Hz: 20 ± 25 °C on a 4-hour sine, a 10-minute rate check every 40 minutes."""
+    cycle = ((0.0, 60.0), (1.0, 120.0), (-1.0, 120.0), (10.0, 60.0), (-10.0, 60.0),
+             (100.0, 60.0), (-100.0, 60.0), (6.0, 60.0))
+    return scheduled_profile(43200.0, 1.0, lambda t: 20.0 + 25.0 * np.sin(2 * math.pi * t / 14400.0),
+                             cycle, np.arange(600.0, 43200.0 - 600.0, 2400.0), 20.0)
+
+
+PROFILES: dict[str, FreshProfile] = {
+    # one heating ramp only: h = +1 throughout, temp_hysteresis is the bias itself
+    "R1": FreshProfile("R1 (40 min, 400 Hz, one eased ramp 25 → 45 °C, dwells ±2…150 deg/s through it, "
+                       "100 deg/s²)", _r1,
+                       {"warmup_transient": {"tau_s": 300.0}, "table_angle_harmonic": {"phase_deg": -70.0},
+                        "periodic_interference": {"freq_hz": 12.48}},
+                       3.0, (20.0, 200.0), 0.5, unobservable=("temp_hysteresis",)),
+    "R2": FreshProfile("R2 (6 h, 2 Hz, staircase 25 → 5 → 45 → 15 → 35 → 25 °C, soaks of 20–60 min, "
+                       "ramps 0.7–2.5 °C/min, ±0.5…40 deg/s)", _r2,
+                       {"warmup_transient": {"tau_s": 1200.0}, "table_angle_harmonic": {"phase_deg": 150.0},
+                        "periodic_interference": {"freq_hz": 0.31}},
+                       1.0, (60.0, 900.0), 3.0),
+    "R3": FreshProfile("R3 (12 h, 1 Hz, sinusoidal −5 … 45 °C, period 4 h, rate checks ±1…100 deg/s "
+                       "every 40 min, 20 deg/s²)", _r3,
+                       {"warmup_transient": {"tau_s": 2400.0}, "table_angle_harmonic": {"phase_deg": 10.0},
+                        "periodic_interference": {"freq_hz": 0.23}},
+                       2.0, (120.0, 1500.0), 2.0),
+}
+
+
+@cache
+def profile(name: str) -> scenarios.Profile:
+    return PROFILES[name].build()
+
+
+# --- structure outside the catalogue -------------------------------------------------------------
+
+def _last_rotation_sign(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
+    """+1/−1 by the sign of the last non-zero table rate, held through statics (+1 before any)."""
+    sign = np.sign(p.table_rate_dps)
+    last = np.maximum.accumulate(np.where(sign != 0, np.arange(sign.size), 0))
+    held = sign[last]
+    return np.where(held == 0, 1.0, held)
+
+
+def _acceleration(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
+    return np.gradient(p.table_rate_dps, p.t_s)
+
+
+def _saturating_sf(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
+    return p.table_rate_dps * np.tanh(np.abs(p.table_rate_dps) / 30.0)
+
+
+def _temp_slope_c_per_min(p: scenarios.Profile) -> np.ndarray:
+    return np.gradient(p.chamber_temp_c, p.t_s) * 60.0
+
+
+def _slope_sign(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
+    slope = _temp_slope_c_per_min(p)
+    return np.where(np.abs(slope) > 0.02, np.sign(slope), 0.0)
+
+
+def _random_walk_burst(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
+    """A bias random walk between 40 and 55 % of the record, held at its last value after."""
+    inside = (p.t_s >= 0.40 * p.t_s[-1]) & (p.t_s < 0.55 * p.t_s[-1])
+    return np.cumsum(np.where(inside, rng.standard_normal(p.t_s.size), 0.0))
+
+
+def _telegraph(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
+    """±1 switching at exponential intervals (mean 600 s): popcorn noise, not Gaussian."""
+    switches = np.cumsum(rng.exponential(600.0, size=int(p.t_s[-1] / 60.0) + 10))
+    flips = np.searchsorted(switches, p.t_s)
+    return np.where(flips % 2 == 0, 1.0, -1.0) * rng.choice((-1.0, 1.0))
+
+
+def _flicker(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
+    """Noise with a 1/f power spectrum (amplitude ∝ f^−½), mean removed."""
+    spectrum = np.fft.rfft(rng.standard_normal(p.t_s.size))
+    f = np.fft.rfftfreq(p.t_s.size, 1.0 / p.fs_hz)
+    spectrum[0] = 0.0
+    spectrum[1:] /= np.sqrt(f[1:])
+    return np.fft.irfft(spectrum, n=p.t_s.size)
+
+
+def _drifting_periodic(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
+    """A sine whose frequency (0.29·fs, at most 37.5 Hz) moves by 0.1 %/°C with the chamber."""
+    f0 = min(0.29 * p.fs_hz, 37.5)
+    freq = f0 * (1.0 + 1e-3 * (p.chamber_temp_c - 25.0))
+    return np.sin(2.0 * math.pi * np.cumsum(freq) / p.fs_hz)
+
+
+def _lagged_c(p: scenarios.Profile, tau_s: float) -> np.ndarray:
+    a = 1.0 / (tau_s * p.fs_hz)
+    temp = p.chamber_temp_c
+    out, _ = lfilter([a], [1.0, a - 1.0], temp, zi=[temp[0] * (1.0 - a)])
+    return out
+
+
+def _two_thermal_paths(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
+    """Bias through two thermal paths: the chamber lagged by 120 s and by 2400 s, equal weights."""
+    return _lagged_c(p, 120.0) + _lagged_c(p, 2400.0)
+
+
+def _sf_step_hot(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
+    """Scale factor stepping above 62 % of the record's temperature span."""
+    temp = p.chamber_temp_c
+    threshold = temp.min() + 0.62 * (temp.max() - temp.min())
+    return np.where(temp > threshold, p.table_rate_dps, 0.0)
+
+
+def _rate_noise_shape(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
+    """Relative white-noise variance increase ∝ |ω| (scaled by the sizing)."""
+    return np.abs(p.table_rate_dps) / np.abs(p.table_rate_dps).max()
+
+
+@dataclass(frozen=True)
+class Unknown:
+    """An out-of-catalogue shape (deg/h per sample before sizing) and how it is sized.
+
+    ``sizing``: "bins" (known-shape SNR of its binned shape), "white" (norm
+    against the per-sample white noise, for shapes that live above the bins'
+    band), "noise" (``shape`` is a relative variance increase; sized by its
+    expected likelihood ratio). ``with_effect``: a catalogue effect hidden
+    beside it at the same SNR.
+    """
+
+    shape: Callable[[scenarios.Profile, np.random.Generator], np.ndarray]
+    sizing: str = "bins"
+    with_effect: str = ""
+
+
+UNKNOWN: dict[str, Unknown] = {
+    "bias held at the sign of the last rotation": Unknown(_last_rotation_sign),
+    "bias ∝ table angular acceleration": Unknown(_acceleration),
+    "scale factor saturating in |ω| (ω·tanh(|ω|/30 deg/s))": Unknown(_saturating_sf),
+    "bias by the sign of dT/dt (zero in soaks)": Unknown(_slope_sign),
+    "bias random-walk burst at 40–55 % of the record": Unknown(_random_walk_burst),
+    "two-level telegraph bias (mean dwell 600 s)": Unknown(_telegraph),
+    "flicker (1/f) excess": Unknown(_flicker),
+    "periodic term drifting 0.1 %/°C with temperature": Unknown(_drifting_periodic, "white"),
+    "bias through two thermal paths (τ 120 s and 2400 s)": Unknown(_two_thermal_paths),
+    "scale-factor step above a temperature threshold": Unknown(_sf_step_hot),
+    "white-noise level growing with |ω|": Unknown(_rate_noise_shape, "noise"),
+    "temp_rate_bias + bias ∝ table angular acceleration": Unknown(_acceleration, with_effect="temp_rate_bias"),
+    "sf_nonlinearity_cubic + bias held at the sign of the last rotation":
+        Unknown(_last_rotation_sign, with_effect="sf_nonlinearity_cubic"),
+}
+
+
+def white_sigma_dph(p: scenarios.Profile) -> float:
+    return NoiseModel.of_model(scenarios.nominal_model()).white_sigma_dph(p.fs_hz)
+
+
+def noise_scale(relative_var: np.ndarray, snr: float) -> float:
+    """c for which Σ (c·r − ln(1 + c·r)) = snr²: the expected likelihood ratio of the variance change.
+
+    2·KL between N(0, σ²(1 + c·r)) and N(0, σ²), summed over the samples.
+    """
+    def lr(c: float) -> float:
+        cr = c * relative_var
+        return float(np.sum(cr - np.log1p(cr)))
+    lo, hi = math.log(1e-9), math.log(1e6)
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if lr(math.exp(mid)) < snr * snr else (lo, mid)
+    return math.exp(0.5 * (lo + hi))
+
+
+def extra_dph(name: str, p: scenarios.Profile, snr: float, seed: int) -> np.ndarray:
+    """The out-of-catalogue structure ``name`` (deg/h per sample) at known-shape SNR ``snr``.
+
+    Random shapes draw from ``seed`` on a stream apart from the simulator's noise.
+    """
+    unknown = UNKNOWN[name]
+    rng = np.random.default_rng([seed, 29])
+    shape = unknown.shape(p, rng)
+    if unknown.sizing == "bins":
+        return scenarios.sized_extra(shape, snr, p, max_bins=MAX_BINS)
+    sigma = white_sigma_dph(p)
+    if unknown.sizing == "white":
+        return shape * (snr * sigma / float(np.linalg.norm(shape)))
+    return sigma * np.sqrt(noise_scale(shape, snr) * shape) * rng.standard_normal(shape.size)
+
+
+def catalogue_spec(name: str, pname: str, snr: float) -> EffectSpec:
+    prof = PROFILES[pname]
+    return scenarios.sized_effect(name, snr, profile(pname), shape=prof.shapes.get(name),
+                                  max_bins=MAX_BINS)
+
+
+def effect_cases(pname: str, seeds: int, snr: float = 10.0) -> list[Case]:
+    """Every catalogue effect the profile can show, alone, at ``snr``; seeds 9000 + k."""
+    prof, cases = PROFILES[pname], []
+    for name in prof.sized:
+        spec = catalogue_spec(name, pname, snr)
+        cases += [Case("effect", f"{name} ({snr:g}σ)", pname, (spec,), 9000 + s, snr=snr) for s in range(seeds)]
+    for tau in prof.markov_taus_s:
+        spec = scenarios.sized_markov(snr, tau, profile(pname))
+        cases += [Case("effect", f"markov_bias τ {tau:g} s ({snr:g}σ)", pname, (spec,), 9100 + s, snr=snr)
+                  for s in range(seeds)]
+    if snr == 10.0:
+        spec = EffectSpec("dead_zone", {"threshold_dps": prof.dead_zone_dps})
+        cases += [Case("effect", f"dead_zone {prof.dead_zone_dps:g} deg/s", pname, (spec,), 9200 + s)
+                  for s in range(seeds)]
+        spec = EffectSpec("quantization", {"pulse_arcsec": prof.pulse_arcsec})
+        cases += [Case("effect", f"quantization {prof.pulse_arcsec:g}″", pname, (spec,), 9300 + s)
+                  for s in range(seeds)]
+    return cases
+
+
+def fresh_cases(seeds: int, controls: int, unknown_seeds: int, profiles=tuple(PROFILES),
+                near_seeds: int = 0, near_snr: float = 5.0) -> list[Case]:
+    """The whole set: per profile the catalogue at 10σ (``near_seeds`` also at ``near_snr``),
+    ``controls`` effect-free runs and every unknown ``unknown_seeds`` times."""
+    cases: list[Case] = []
+    for pname in profiles:
+        cases += effect_cases(pname, seeds)
+        if near_seeds:
+            cases += effect_cases(pname, near_seeds, near_snr)
+        cases += [Case("control", "control", pname, (), 9400 + s) for s in range(controls)]
+        for name, unknown in UNKNOWN.items():
+            hidden = (catalogue_spec(unknown.with_effect, pname, 10.0),) if unknown.with_effect else ()
+            cases += [Case("unknown", name, pname, hidden, 9500 + s, name) for s in range(unknown_seeds)]
+    return cases
+
+
+def case_extra_dph(case: Case) -> np.ndarray | None:
+    """The case's structure outside the catalogue (None for effects and controls)."""
+    return extra_dph(case.unknown, profile(case.profile), case.snr, case.seed) if case.unknown else None
