@@ -103,6 +103,8 @@ def _set_description(args) -> list[str]:
         prof = fresh.PROFILES[p]
         left_out = (f"; not sized there: {', '.join(prof.unobservable)} (nothing for it to act on)"
                     if prof.unobservable else "")
+        left_out += (f"; unknowns not run there (catalogue effects on this path): {', '.join(prof.catalogue_alike)}"
+                     if prof.catalogue_alike else "")
         lines.append(f"- **{prof.title}**: dead zone {prof.dead_zone_dps:g} deg/s, Markov τ "
                      f"{' and '.join(f'{t:g}' for t in prof.markov_taus_s)} s, pulse {prof.pulse_arcsec:g}″"
                      f"{left_out}")
@@ -148,7 +150,8 @@ def _separability(profiles: list[str]) -> list[str]:
                 continue
             signal = sig.project(fresh.extra_dph(name, fresh.profile(p), 10.0, 9500))
             closest, left = fresh.closest_catalogue(p, signal)
-            lines.append(f"| {p} | {name} (seed 9500) | {closest} | {left:.1f} |")
+            skipped = " (not run here: a catalogue effect on this profile)" if name in fresh.PROFILES[p].catalogue_alike else ""
+            lines.append(f"| {p} | {name} (seed 9500){skipped} | {closest} | {left:.1f} |")
     return lines
 
 
