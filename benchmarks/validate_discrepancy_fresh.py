@@ -133,7 +133,7 @@ def _targets(outcomes: list[tables.Outcome]) -> list[str]:
 def _separability(profiles: list[str]) -> list[str]:
     """Per profile: each effect's and unknown's closest single catalogue effect, and the SNR it leaves.
 
-    A property of the set, computed without the workflow (``fresh.signatures``):
+    A property of the set, computed without the workflow (``fresh.snr_space``):
     an effect that leaves little beside its closest look-alike cannot be named
     first reliably by any method at 10σ; an unknown that leaves little beside a
     catalogue effect is nearly that effect on this profile.
@@ -141,14 +141,13 @@ def _separability(profiles: list[str]) -> list[str]:
     lines = ["| profile | hidden (10σ) | closest other catalogue effect | SNR left after it |",
              "|---|---|---|---|"]
     for p in profiles:
-        sig = fresh.signatures(p)
-        for name, signal in sig.effects.items():
-            closest, left = fresh.closest_catalogue(p, signal, leave_out=name)
+        for name in fresh.catalogue_columns(p):
+            closest, left = fresh.closest_catalogue(p, fresh.effect_signature(p, name), leave_out=name)
             lines.append(f"| {p} | {name} | {closest} | {left:.1f} |")
         for name, unknown in fresh.UNKNOWN.items():
             if unknown.sizing != "bins" or unknown.with_effect:
                 continue
-            signal = sig.project(fresh.extra_dph(name, fresh.profile(p), 10.0, 9500))
+            signal = fresh.snr_space(p).project(fresh.extra_dph(name, fresh.profile(p), 10.0, 9500))
             closest, left = fresh.closest_catalogue(p, signal)
             skipped = " (not run here: a catalogue effect on this profile)" if name in fresh.PROFILES[p].catalogue_alike else ""
             lines.append(f"| {p} | {name} (seed 9500){skipped} | {closest} | {left:.1f} |")
@@ -162,7 +161,8 @@ def _section(outcomes: list[tables.Outcome], args, elapsed: float) -> str:
     lines += _set_description(args)
     lines += ["### What the profiles can tell apart", "",
               "Whitened, base-projected binned signatures at 10σ (norm 10), before any analysis: the SNR "
-              "left once the closest single catalogue effect is fitted to them. sf_nonlinearity_quadratic "
+              "left once the closest single catalogue effect is fitted to them (thermal_lag's column at "
+              f"τ {fresh.LAG_COLUMN_TAU_S:g} s). sf_nonlinearity_quadratic "
               "and sf_asymmetry (ω² against |ω|) stay close on any rate ladder.", ""]
     lines += _separability(args.profiles.split(","))
     lines += ["", "### Catalogue effects", ""] + tables.effect_rows(rows, interval=True)

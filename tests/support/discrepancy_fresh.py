@@ -38,6 +38,8 @@ from discrepancy_cases import Case
 from scipy.signal import lfilter
 
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
+from gyrocal.analysis.discrepancy.scoring import gls_fit
+from gyrocal.analysis.discrepancy.signatures import placeholder_spec
 from gyrocal.models.gyro_model import EffectSpec
 
 MAX_BINS = 1000       # the analysis' bins in the validation runs (sizes are SNRs of these bin means)
@@ -378,24 +380,22 @@ def case_extra_dph(case: Case) -> np.ndarray | None:
 # --- what the profiles can tell apart (a property of the set, not of the workflow) ---------------
 
 @dataclass(frozen=True)
-class Signatures:
-    """Whitened, base-projected binned signatures on one profile (the space the sizes are SNRs in)."""
+class SnrSpace:
+    """The space the sizes are SNRs in, on one profile: binned, whitened, ⊥ the refitted base."""
 
-    effects: dict[str, np.ndarray]      # each sized effect at 10σ (norm ≈ 10), one column
-    columns: dict[str, np.ndarray]      # each sized effect's fitted columns (orthonormal)
-    project: Callable[[np.ndarray], np.ndarray]   # a per-sample shape (deg/h) → its whitened, ⊥-base bins
+    bins: object
+    builder: object
+    base: object
+    base_bins: np.ndarray
+    project_binned: Callable[[np.ndarray], np.ndarray]
+
+    def project(self, shape_dph: np.ndarray) -> np.ndarray:
+        """A per-sample shape (deg/h) → its whitened, base-projected bin means."""
+        return self.project_binned(self.bins.mean(shape_dph))
 
 
 @cache
-def signatures(pname: str) -> Signatures:
-    """Every deterministic catalogue effect's 10σ signature and column space on ``pname``.
-
-    periodic_interference is left out: it lives above the bins' band (its sizing
-    is spectral), so its binned signature is nothing to compare.
-    """
-    from gyrocal.analysis.discrepancy.scoring import gls_fit  # lazy: test material only
-    from gyrocal.analysis.discrepancy.signatures import placeholder_spec  # lazy: test material only
-
+def snr_space(pname: str) -> SnrSpace:
     nominal, prof = scenarios.nominal_model(), profile(pname)
     bins, builder, whitener = scenarios._snr_tools(nominal, prof, NoiseModel.of_model(nominal), MAX_BINS)
     base = scenarios.true_base(nominal)
@@ -405,21 +405,40 @@ def signatures(pname: str) -> Signatures:
     def perp(binned: np.ndarray) -> np.ndarray:
         wc = whitener.white(binned)
         return wc - basis @ (basis.T @ wc)
+    return SnrSpace(bins, builder, base, base_bins, perp)
 
-    effects, columns = {}, {}
+
+#: thermal_lag's column in ``catalogue_columns``: its signature at this τ (the lag family's shape)
+LAG_COLUMN_TAU_S = 300.0
+
+
+@cache
+def catalogue_columns(pname: str) -> dict[str, np.ndarray]:
+    """Each deterministic sized catalogue effect's fitted columns in ``snr_space`` (orthonormal).
+
+    periodic_interference is left out: it lives above the bins' band (its sizing
+    is spectral), so its binned columns are nothing to compare.
+    """
+    space, columns = snr_space(pname), {}
     for name in PROFILES[pname].sized:
         if name == "periodic_interference":
             continue
-        spec = catalogue_spec(name, pname, 10.0)
-        signal = perp(bins.mean(builder.rate_dph(base.with_effect(spec))) - base_bins)
-        effects[name] = signal
         if name == "thermal_lag":
-            cols = signal[:, None]
+            lagged = space.base.with_effect(EffectSpec(name, {"tau_s": LAG_COLUMN_TAU_S}))
+            cols = space.project_binned(space.bins.mean(space.builder.rate_dph(lagged)) - space.base_bins)[:, None]
         else:
-            cols = perp(builder.extra_columns(base, placeholder_spec(name, PROFILES[pname].shapes.get(name, {})))[1])
+            spec = placeholder_spec(name, PROFILES[pname].shapes.get(name, {}))
+            cols = space.project_binned(space.builder.extra_columns(space.base, spec)[1])
         q, r = np.linalg.qr(cols)
         columns[name] = q[:, np.abs(np.diag(r)) > 1e-9 * np.abs(r).max()]
-    return Signatures(effects, columns, lambda shape: perp(bins.mean(shape)))
+    return columns
+
+
+def effect_signature(pname: str, name: str) -> np.ndarray:
+    """The sized catalogue effect's 10σ signature in ``snr_space`` (norm ≈ 10)."""
+    space = snr_space(pname)
+    truth = space.base.with_effect(catalogue_spec(name, pname, 10.0))
+    return space.project_binned(space.bins.mean(space.builder.rate_dph(truth)) - space.base_bins)
 
 
 def residual_snr(signal: np.ndarray, columns: np.ndarray) -> float:
@@ -428,8 +447,10 @@ def residual_snr(signal: np.ndarray, columns: np.ndarray) -> float:
 
 
 def closest_catalogue(pname: str, signal: np.ndarray, leave_out: str = "") -> tuple[str, float]:
-    """The single catalogue effect that explains most of ``signal`` and the SNR left after it."""
-    sig = signatures(pname)
-    left = {n: residual_snr(signal, c) for n, c in sig.columns.items() if n != leave_out}
+    """The single catalogue effect that explains most of ``signal`` and the SNR left after it.
+
+    The SNR left is given at ``signal``'s own size: pass it sized (norm 10) or scale it.
+    """
+    left = {n: residual_snr(signal, c) for n, c in catalogue_columns(pname).items() if n != leave_out}
     name = min(left, key=left.get)
     return name, left[name]

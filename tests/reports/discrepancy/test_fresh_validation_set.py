@@ -10,6 +10,8 @@ a catalogue effect there. None of this runs the workflow.
 
 from __future__ import annotations
 
+import functools
+
 import discrepancy_fresh as fresh
 import discrepancy_scenarios as scenarios
 import numpy as np
@@ -67,19 +69,24 @@ def test_r3_cycles_sinusoidally_between_minus_5_and_45_c():
     assert np.sum(np.diff(np.sign(np.diff(temp))) != 0) == 6    # three 4-hour cycles: 6 turning points
 
 
-def _bins_snr(prof: scenarios.Profile, extra_dph: np.ndarray) -> float:
-    """√χ² of the base refitted to noise-free base + extra bin means: the known-shape SNR, via gls_fit."""
+@functools.cache
+def _r2_fit_tools():
     nominal = scenarios.nominal_model()
+    prof = fresh.profile("R2")
     bins, builder, whitener = scenarios._snr_tools(nominal, prof, NoiseModel.of_model(nominal), fresh.MAX_BINS)
     base = scenarios.true_base(nominal)
-    y = bins.mean(builder.rate_dph(base) + extra_dph)
-    return float(np.sqrt(gls_fit(builder, whitener, y, base).chi2))
+    return bins, builder, whitener, base, builder.rate_dph(base)
 
 
-@pytest.mark.parametrize("name", [n for n, u in fresh.UNKNOWN.items() if u.sizing == "bins" and not u.with_effect])
-def test_each_binned_unknown_has_known_shape_snr_10_on_r2(name):
+def test_each_binned_unknown_has_known_shape_snr_10_on_r2():
+    """√χ² of the base refitted to noise-free base + extra bin means (gls_fit, not the sizing's projection)."""
     prof = fresh.profile("R2")
-    assert _bins_snr(prof, fresh.extra_dph(name, prof, 10.0, 9500)) == pytest.approx(10.0, rel=0.02)
+    bins, builder, whitener, base, base_dph = _r2_fit_tools()
+    for name, unknown in fresh.UNKNOWN.items():
+        if unknown.sizing != "bins" or unknown.with_effect:
+            continue
+        y = bins.mean(base_dph + fresh.extra_dph(name, prof, 10.0, 9500))
+        assert np.sqrt(gls_fit(builder, whitener, y, base).chi2) == pytest.approx(10.0, rel=0.02), name
 
 
 def test_the_drifting_periodic_term_has_white_noise_snr_10_and_drifts_with_temperature():
@@ -138,11 +145,11 @@ def test_controls_hold_no_effect_and_no_extra_structure():
 @pytest.mark.parametrize("pname", ["R2", "R3"])
 def test_no_unknown_run_on_a_profile_is_a_catalogue_effect_there(pname):
     """Every binned unknown run on the profile leaves ≥ 3σ of its 10σ beside its closest catalogue effect."""
-    sig = fresh.signatures(pname)
+    space, prof = fresh.snr_space(pname), fresh.profile(pname)
     for name, unknown in fresh.UNKNOWN.items():
         if unknown.sizing != "bins" or unknown.with_effect or name in fresh.PROFILES[pname].catalogue_alike:
             continue
-        signal = sig.project(fresh.extra_dph(name, fresh.profile(pname), 10.0, 9500))
-        assert np.linalg.norm(signal) == pytest.approx(10.0, rel=0.02)
+        signal = space.project(unknown.shape(prof, fresh.shape_rng(9500)))   # unsized: the ratio is what counts
+        signal *= 10.0 / np.linalg.norm(signal)
         closest, left = fresh.closest_catalogue(pname, signal)
         assert left >= 3.0, (name, closest, left)
