@@ -16,7 +16,7 @@ meant to be run against it, not tuned on. Measures, with Wilson 95 % intervals:
 Writes its section into docs/discrepancy-validation.md between its markers
 (``validate_discrepancy.py`` keeps the section when it regenerates the rest).
 One run costs about 4 CPU-s on R1 (960 k samples) and about 1 CPU-s on R2 and
-R3 (43 k samples); the defaults take about 13 CPU-min.
+R3 (43 k samples); the defaults (430 runs) take about 14 CPU-min, about 8 min wall on 2 idle cores.
 
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --workers 2
 """
