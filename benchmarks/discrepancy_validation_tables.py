@@ -73,6 +73,11 @@ def pct(values: list[bool], interval: bool = False) -> str:
     return text
 
 
+def cell(text: str) -> str:
+    """Text for a Markdown table cell: a "|" (as in |ω|) escaped so it does not split the cell."""
+    return text.replace("|", "\\|")
+
+
 def by_label(outcomes: list[Outcome]) -> dict[tuple[str, str], list[Outcome]]:
     rows: dict[tuple[str, str], list[Outcome]] = {}
     for o in outcomes:
@@ -165,7 +170,7 @@ def effect_rows(rows: dict[tuple[str, str], list[Outcome]], interval: bool = Fal
         if outs[0].case.group != "effect":
             continue
         gaps = [g for g in (own_gap_ok(o) for o in outs) if g is not None]
-        lines.append(f"| {p} | {label} | {len(outs)} | {pct([named_first(o) for o in outs], interval)} | "
+        lines.append(f"| {p} | {cell(label)} | {len(outs)} | {pct([named_first(o) for o in outs], interval)} | "
                      f"{pct([g[0] for g in gaps])} | {pct([g[1] for g in gaps])} | "
                      f"{np.median([o.cpu_seconds for o in outs]):.1f} |")
     return lines
@@ -180,7 +185,7 @@ def other_rows(rows: dict[tuple[str, str], list[Outcome]], interval: bool = Fals
             continue
         names = sorted({n for o in outs for n, _ in o.found})
         hidden = pct([any(o.case.is_right(n) for n, _ in o.found) for o in outs]) if outs[0].case.hidden else "–"
-        lines.append(f"| {p} | {label} | {len(outs)} | {pct([o.unexplained for o in outs], interval)} | "
+        lines.append(f"| {p} | {cell(label)} | {len(outs)} | {pct([o.unexplained for o in outs], interval)} | "
                      f"{pct([wrong_claims(o) for o in outs], interval)} | "
                      f"{pct([wrong_claims(o, 0.8) for o in outs], interval)} | {hidden} | "
                      f"{', '.join(names) or '–'} |")

@@ -150,7 +150,7 @@ def _separability(profiles: list[str]) -> list[str]:
             signal = fresh.snr_space(p).project(fresh.extra_dph(name, fresh.profile(p), 10.0, 9500))
             closest, left = fresh.closest_catalogue(p, signal)
             skipped = " (not run here: a catalogue effect on this profile)" if name in fresh.PROFILES[p].catalogue_alike else ""
-            lines.append(f"| {p} | {name} (seed 9500){skipped} | {closest} | {left:.1f} |")
+            lines.append(f"| {p} | {tables.cell(name)} (seed 9500){skipped} | {closest} | {left:.1f} |")
     return lines
 
 
