@@ -20,6 +20,7 @@ Writes its section into docs/discrepancy-validation.md between the markers
 
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
