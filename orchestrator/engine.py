@@ -56,13 +56,13 @@ POSITION_BAND_DEG = 0.001
 MOVE_TIMEOUT_S = 120.0
 
 
-#: Step kinds whose executor ends with their ``step_completed`` line: the simulated state
-#: journaled there is the state the next step starts from. (A drive-off static closes
-#: the interlock after it, a frequency-response or tilt step returns the table to rate
-#: mode, a magnetic step switches the coil off, a remount checks the mount: a resumed
-#: dry run after one of those goes on from its own re-soak, as a real run does.)
-EXACT_RESUME_KINDS = frozenset({StepKind.RAMP, StepKind.SOAK, StepKind.STATIC, StepKind.ALLAN,
-                                StepKind.DWELL, StepKind.THRESHOLD, StepKind.RATE_LIMIT})
+#: Step kinds that act after their ``step_completed`` line: a drive-off static closes the
+#: interlock, a frequency-response step leaves synthesis mode, a tilt step (the last of a
+#: run of them) returns the table to 0 deg and rate mode, a magnetic step switches the coil
+#: off. In a dry run the state the next step starts from is journaled after that act, in a
+#: ``sim_state_saved`` line; every other step's is on its ``step_completed`` line.
+ACTS_AFTER_COMPLETED = frozenset({StepKind.DRIVE_OFF, StepKind.FREQUENCY_RESPONSE,
+                                  StepKind.MAGNETIC, StepKind.TILT})
 
 
 #: events after which a run is no cut-short uninterrupted run (engine._restore_simulation)
@@ -98,6 +98,10 @@ class Rehearsal(Protocol):
 
     def restore(self, state: dict[str, Any]) -> bool:
         """Put the simulated station back into a snapshot's state (False: it keeps none)."""
+
+    def gyro_bytes_waiting(self) -> Callable[[], bool] | None:
+        """What a first-frame poll asks the simulated gyro: did it make bytes since the
+        last poll? (None: the gyro cannot tell; the poll waits in wall time, ``turn_on.py``)"""
 
 
 @dataclass(frozen=True)
@@ -200,7 +204,7 @@ class RunEngine:
             self.inst, self.conditions, self.acquisition, self.machine, self.journal, self.folder,
             self.progress, self.operator, self.mountings, self.policy.pause_poll_s,
             attempts_before=lambda step_id: self._attempts_before.get(step_id, 0),
-            elapsed_s=self._elapsed)
+            elapsed_s=self._elapsed, completed_fields=self._completed_fields)
 
     # -- public ----------------------------------------------------------------------------
     def run(self) -> str:
@@ -305,7 +309,8 @@ class RunEngine:
             self._commanded = True
             power_on(self.inst.supply, self.policy.unit_power, self.journal)
             # a unit just switched on sends after its start-up delay (turn_on.py)
-            wait_first_frame(self.inst.gyro, self.clock, powered_s, "preflight")
+            wait_first_frame(self.inst.gyro, self.clock, powered_s, "preflight",
+                             waiting=self._gyro_bytes_waiting())
             self._journal_start_up("preflight")
         try:
             self._confirm_gyro_configuration()
@@ -385,6 +390,11 @@ class RunEngine:
         if executor is None:
             raise RunFaultError(f"plan step {step.step_id}: no executor for kind {step.kind!r}")
         executor(step)
+        if self.rehearsal is not None and step.kind in ACTS_AFTER_COMPLETED:
+            state = self.rehearsal.snapshot()
+            if state is not None:
+                self.journal.append(JournalEvent.SIM_STATE_SAVED, step_id=step.step_id,
+                                    sim_state=state)
 
     def _restore_conditions(self, step: PlanStep) -> None:
         """On resume, bring chamber and table back to the conditions of ``step`` first.
@@ -410,41 +420,73 @@ class RunEngine:
         """A dry run goes on from the simulated state its last completed step journaled.
 
         Only when that step is the one right before ``step`` in the plan (steps
-        complete in plan order) and journaled a state (``EXACT_RESUME_KINDS``), and
-        no fault came after it: a run that faulted (a rehearsed fault, a stuck
-        chamber) is not a cut-short uninterrupted run, and its journaled state may
-        hold the fault itself. Otherwise the run goes on from its own re-soak, as
-        on a real station.
+        complete in plan order) and no fault came after it: a run that faulted (a
+        rehearsed fault, a stuck chamber) is not a cut-short uninterrupted run, and
+        its journaled state may hold the fault itself; then, or without a state, the
+        run goes on from its own re-soak, as on a real station. A step that acts
+        after its ``step_completed`` line (``ACTS_AFTER_COMPLETED``) journaled the
+        state after its act (``sim_state_saved``); killed before that line, the
+        state on its ``step_completed`` line is restored and the act done again.
         """
         if self.rehearsal is None:
             return
-        index = self.steps.index(step)
-        completed = [e for e in events if e.get("event") == "step_completed"]
-        if index == 0 or not completed or "sim_state" not in completed[-1] \
-                or completed[-1].get("step_id") != self.steps[index - 1].step_id:
-            return
-        after = events[events.index(completed[-1]) + 1:]
-        if any(e.get("event") in _NOT_CUT_SHORT for e in after):
+        source, redo = self._state_to_restore(events, self.steps.index(step))
+        if source is None:
             return
         try:
-            if not self.rehearsal.restore(completed[-1]["sim_state"]):
+            if not self.rehearsal.restore(source["sim_state"]):
                 return
         except SimStateError as exc:
             raise RunFaultError(
-                f"the simulated state journaled at line {completed[-1].get('seq')} "
-                f"({completed[-1].get('step_id')}) does not fit this station: {exc}; was the "
+                f"the simulated state journaled at line {source.get('seq')} "
+                f"({source.get('step_id')}) does not fit this station: {exc}; was the "
                 f"journal edited? `gyrocal verify {self.folder.path}` checks it") from None
         self.journal.append(JournalEvent.SIM_STATE_RESTORED, step_id=step.step_id,
-                            from_seq=completed[-1].get("seq"),
-                            clock_s=completed[-1]["sim_state"].get("clock_s"))
+                            from_seq=source.get("seq"), clock_s=source["sim_state"].get("clock_s"))
+        if redo is not None:
+            self._act_after_completed(redo)
+
+    def _state_to_restore(self, events: list[dict[str, Any]], index: int
+                          ) -> tuple[dict[str, Any] | None, PlanStep | None]:
+        """The journal line whose ``sim_state`` the step at ``index`` starts from, and the
+        step whose act after its step_completed line must be done again (None: none)."""
+        completed = [e for e in events if e.get("event") == JournalEvent.STEP_COMPLETED]
+        if index == 0 or not completed \
+                or completed[-1].get("step_id") != self.steps[index - 1].step_id:
+            return None, None
+        after = events[events.index(completed[-1]) + 1:]
+        if any(e.get("event") in _NOT_CUT_SHORT for e in after):
+            return None, None
+        previous = self.steps[index - 1]
+        if previous.kind in ACTS_AFTER_COMPLETED:
+            saved = [e for e in after if e.get("event") == JournalEvent.SIM_STATE_SAVED
+                     and e.get("step_id") == previous.step_id and "sim_state" in e]
+            if saved:
+                return saved[-1], None
+            return (completed[-1], previous) if "sim_state" in completed[-1] else (None, None)
+        return (completed[-1], None) if "sim_state" in completed[-1] else (None, None)
+
+    def _act_after_completed(self, step: PlanStep) -> None:
+        """What a step of ``ACTS_AFTER_COMPLETED`` does after its step_completed line."""
+        acts: dict[StepKind, Callable[[PlanStep], None]] = {
+            StepKind.DRIVE_OFF: self._drive_back_on,
+            StepKind.FREQUENCY_RESPONSE: self._leave_synthesis,
+            StepKind.MAGNETIC: self._coil_off,
+            StepKind.TILT: self._leave_tilt,
+        }
+        acts[step.kind](step)
 
     def _completed_fields(self, step: PlanStep) -> dict[str, Any]:
-        """What a ``step_completed`` line adds in a dry run: the simulated state the next
-        step starts from (see :class:`Rehearsal`)."""
-        if self.rehearsal is None or step.kind not in EXACT_RESUME_KINDS:
+        """What a ``step_completed`` line adds in a dry run: the simulated state at that
+        moment (see :class:`Rehearsal`); the state the next step starts from, but after a
+        step of ``ACTS_AFTER_COMPLETED``, which journals that after its act."""
+        if self.rehearsal is None:
             return {}
         state = self.rehearsal.snapshot()
         return {} if state is None else {"sim_state": state}
+
+    def _gyro_bytes_waiting(self) -> Callable[[], bool] | None:
+        return None if self.rehearsal is None else self.rehearsal.gyro_bytes_waiting()
 
     def _ramp_follows(self, step: PlanStep) -> bool:
         """A remount right before a ramp needs no temperature of its own."""
@@ -474,6 +516,11 @@ class RunEngine:
         self.journal.append(JournalEvent.TABLE_DRIVE, step_id=step.step_id, drive="off",
                             interlock_closed=False)
         self._log_step(step)
+        self._drive_back_on(step)
+
+    def _drive_back_on(self, step: PlanStep) -> None:
+        """After a drive-off static: close the interlock (read back) and re-enter rate mode."""
+        table = self.inst.table
         table.close_interlock()
         if not table.interlock_closed():
             raise RunFaultError(f"table: after {step.step_id}: the interlock did not close again")
@@ -507,6 +554,11 @@ class RunEngine:
             self.clock.sleep(step.settle_s - REST_BEFORE_SYNTHESIS_S)
         self.machine.settled()
         self._log_step(step, reference=sine)
+        self._leave_synthesis(step)
+
+    def _leave_synthesis(self, step: PlanStep) -> None:
+        """After a frequency-response step: the table back in rate mode, at rest."""
+        table = self.inst.table
         table.set_rate_mode()
         table.set_rate_dps(0.0)
         self.conditions.forget_demand()
@@ -528,8 +580,13 @@ class RunEngine:
                             angle_deg=step.angle_deg, read_deg=read_deg)
         self.clock.sleep(step.settle_s)
         self._log_step(step)
+        self._leave_tilt(step)
+
+    def _leave_tilt(self, step: PlanStep) -> None:
+        """After the last tilt step of a run of them: the table to 0 deg, rate mode, at rest."""
         following = self.steps[self.steps.index(step) + 1:]
         if not following or following[0].kind != StepKind.TILT:
+            table = self.inst.table
             self._move_to_angle(step, 0.0)
             table.set_rate_mode()
             table.set_rate_dps(0.0)
@@ -556,18 +613,29 @@ class RunEngine:
         if coil is None or step.field_t is None:
             raise RunFaultError(f"{step.step_id}: a magnetic step needs the station's coil")
         self.conditions.set_table_rate(0.0)
-        for when in ("set", "after"):
-            reading = coil.set_field(step.field_t) if when == "set" else coil.read()
-            problem = coil.mismatch(reading, step.field_t)
-            self.journal.append(JournalEvent.COIL_FIELD, step_id=step.step_id, when=when,
-                                set_field_t=step.field_t, field_t=reading.field_t,
-                                positive_current_a=reading.positive_current_a,
-                                negative_current_a=reading.negative_current_a,
-                                ok=problem is None)
-            if problem is not None:
-                raise RunFaultError(f"coil: {step.step_id}: {problem}")
-            if when == "set":
-                self._log_step(step)
+        self._coil_reading(step, "set")
+        self._log_step(step)
+        self._coil_off(step)
+
+    def _coil_reading(self, step: PlanStep, when: str) -> None:
+        """Set the step's field (``set``) or read it back (``after``), journaled and judged."""
+        coil = self.inst.coil
+        assert coil is not None and step.field_t is not None
+        reading = coil.set_field(step.field_t) if when == "set" else coil.read()
+        problem = coil.mismatch(reading, step.field_t)
+        self.journal.append(JournalEvent.COIL_FIELD, step_id=step.step_id, when=when,
+                            set_field_t=step.field_t, field_t=reading.field_t,
+                            positive_current_a=reading.positive_current_a,
+                            negative_current_a=reading.negative_current_a,
+                            ok=problem is None)
+        if problem is not None:
+            raise RunFaultError(f"coil: {step.step_id}: {problem}")
+
+    def _coil_off(self, step: PlanStep) -> None:
+        """After a magnetic step: the field read back, then the coil off (read back off)."""
+        coil = self.inst.coil
+        assert coil is not None
+        self._coil_reading(step, "after")
         reading = coil.off()
         if reading.positive_on or reading.negative_on:
             raise RunFaultError(f"coil: after {step.step_id}: a channel still reads on")
@@ -586,7 +654,8 @@ class RunEngine:
             raise RunFaultError(f"{step.step_id}: a turn_on step needs the station's supply")
         self.conditions.set_table_rate(0.0)
         off_s = step.settle_s if step.off_s is None else step.off_s
-        cycle = power_cycle(supply, self.inst.gyro, self.clock, step.step_id, off_s)
+        cycle = power_cycle(supply, self.inst.gyro, self.clock, step.step_id, off_s,
+                            waiting=self._gyro_bytes_waiting())
         self._journal_start_up(step.step_id)
         self.journal.append(JournalEvent.UNIT_POWER_CYCLE, step_id=step.step_id,
                             off_clock_s=round(cycle.off_clock_s, 6),

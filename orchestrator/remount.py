@@ -167,7 +167,9 @@ class RemountExecutor:
     def __init__(self, instruments: Instruments, conditions: Conditions, acquisition: Acquisition,
                  machine: RunStateMachine, journal: Journal, folder: RunFolder, progress: Progress,
                  operator: FixtureOperator, mountings: Mapping[str, Mounting], poll_s: float,
-                 attempts_before: Callable[[str], int], elapsed_s: Callable[[], float]) -> None:
+                 attempts_before: Callable[[str], int], elapsed_s: Callable[[], float],
+                 completed_fields: Callable[[PlanStep], dict[str, Any]] = lambda step: {}
+                 ) -> None:
         self.inst = instruments
         self.conditions = conditions
         self.acquisition = acquisition
@@ -180,6 +182,8 @@ class RemountExecutor:
         self.poll_s = poll_s
         self.attempts_before = attempts_before
         self.elapsed_s = elapsed_s
+        #: what the step_completed line adds (a dry run's simulated state: engine.Rehearsal)
+        self.completed_fields = completed_fields
 
     def mounting_of(self, step: PlanStep) -> Mounting:
         if step.mounting not in self.mountings:
@@ -213,7 +217,8 @@ class RemountExecutor:
         self.machine.unpause()
         self.inst.table.set_rate_mode()
         fields = self.mount_check(step, mounting)
-        self.journal.append(JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=attempt, **fields)
+        self.journal.append(JournalEvent.STEP_COMPLETED, step_id=step.step_id, attempt=attempt,
+                            **fields, **self.completed_fields(step))
 
     def ensure(self, step: PlanStep) -> None:
         mounting = self.mounting_of(step)

@@ -9,6 +9,7 @@ its width (the report's U). The engine then logs the step as any other, from tha
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from gyrocal.instruments.errors import InstrumentTimeout
@@ -20,6 +21,12 @@ FIRST_FRAME_TIMEOUT_S = 30.0
 FIRST_FRAME_POLL_S = 0.02
 #: how long (wall time) one poll waits for bytes already sent
 _POLL_READ_S = 0.05
+#: a dry run's poll that knows bytes are waiting: long enough for any load on the machine
+_SIM_READ_S = 5.0
+
+#: a dry run's simulated gyro: did it make bytes since the last poll?
+#: (None: a real gyro, whose poll waits ``_POLL_READ_S`` of wall time)
+BytesWaiting = Callable[[], bool] | None
 
 
 @dataclass(frozen=True)
@@ -38,7 +45,7 @@ class PowerCycle:
 
 
 def power_cycle(supply, gyro, clock, step_id: str, off_s: float,
-                poll_s: float = FIRST_FRAME_POLL_S) -> PowerCycle:
+                poll_s: float = FIRST_FRAME_POLL_S, waiting: BytesWaiting = None) -> PowerCycle:
     """Off (read back), wait ``off_s``, on, poll for the first frame; RunFaultError if the
     output does not read back off or no frame comes within FIRST_FRAME_TIMEOUT_S."""
     supply.set_output(False)
@@ -49,18 +56,24 @@ def power_cycle(supply, gyro, clock, step_id: str, off_s: float,
     gyro.flush()
     on_clock_s = clock.now_s()
     supply.set_output(True)
-    first_clock_s = wait_first_frame(gyro, clock, on_clock_s, step_id, poll_s)
+    first_clock_s = wait_first_frame(gyro, clock, on_clock_s, step_id, poll_s, waiting)
     return PowerCycle(off_clock_s, on_clock_s, first_clock_s, poll_s)
 
 
 def wait_first_frame(gyro, clock, on_clock_s: float, what: str,
-                     poll_s: float = FIRST_FRAME_POLL_S) -> float:
+                     poll_s: float = FIRST_FRAME_POLL_S, waiting: BytesWaiting = None) -> float:
     """Poll until a valid frame arrives; the clock time at the end of the interval it came
-    in. Also what the preflight does after powering the unit (its start-up delay)."""
+    in. Also what the preflight does after powering the unit (its start-up delay).
+
+    In a dry run (``waiting`` given) a poll does not race the simulated gyro's stream
+    thread in wall time, which made the first frame's interval, and with it every later
+    time stamp, move with the machine's load: whether the simulator made bytes in the
+    interval is known, so the read waits long for them, or not at all."""
     while True:
         clock.elapse_reading(poll_s)
+        timeout_s = _POLL_READ_S if waiting is None else (_SIM_READ_S if waiting() else 0.0)
         try:
-            gyro.read_samples(1, timeout_s=_POLL_READ_S)
+            gyro.read_samples(1, timeout_s=timeout_s)
         except InstrumentTimeout:
             if clock.now_s() - on_clock_s > FIRST_FRAME_TIMEOUT_S:
                 raise RunFaultError(f"gyro: {what}: no valid frame within "

@@ -60,6 +60,9 @@ class JournalEvent(str, Enum):
     #: a resumed dry run put its simulated station back into the state a completed step
     #: journaled (``sim_state`` of the step_completed line ``from_seq``; engine.Rehearsal)
     SIM_STATE_RESTORED = "sim_state_restored"
+    #: a dry run's state after a step that acts after its step_completed line (a drive-off,
+    #: frequency-response, tilt or magnetic step; engine.ACTS_AFTER_COMPLETED)
+    SIM_STATE_SAVED = "sim_state_saved"
     STEP_STARTED = "step_started"
     STEP_COMPLETED = "step_completed"
     STEP_BAD = "step_bad"

@@ -31,6 +31,10 @@ _TOTALIZE = re.compile(r"^CONF(?:IGURE)?:TOT(?:ALIZE)?:TIM(?:ED)?\s+([0-9.eE+-]+
 
 
 class SimulatedCounter(SimulatedScpiInstrument):
+    #: what a resumed dry run restores (models/sim_state.py): the gate, the reading memory,
+    #: the next gate and the pulse phase carried between gates
+    SIM_STATE = ("gate_s", "sample_count", "_memory", "_k_next", "_phase", "_t_init")
+
     def __init__(self, source: Callable, clock: Clock, pulse_weight_arcsec: float,
                  faults: FaultInjector | None = None) -> None:
         super().__init__(faults or FaultInjector(FAULTS, owner="simulated counter"), IDN)

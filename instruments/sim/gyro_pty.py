@@ -233,6 +233,7 @@ class SimulatedGyroPort(PtyWriterPort):
         self._spans: deque[_Span] = deque()   # simulated clock: read spans not yet made
         self._tail: tuple[int, int] | None = None   # simulated clock: idle tail [k0, k1) not yet made
         self._making = False                  # the stream thread is making a span
+        self._bytes_made = 0                  # simulated clock: bytes made (bytes_made())
         self._init_commands(int(baudrate), int(gyro_output_code), unit_serial)
 
     def _init_commands(self, baudrate: int, gyro_output_code: int, unit_serial: str | None) -> None:
@@ -377,6 +378,7 @@ class SimulatedGyroPort(PtyWriterPort):
             data, n_garbage, _ = self._encode_block(k, inputs)
             if made == 0 and span.answer:
                 data, _, _ = self._splice_answer(data, n_garbage, k0, span.answer)
+            self._bytes_made += len(data)
             self.next_frame = k0 + size
             made += size
             wanted -= size - (self.injected["lose_frames"] + self.injected["corrupt_frames"] - before)
@@ -389,6 +391,15 @@ class SimulatedGyroPort(PtyWriterPort):
         """Draw the injected garbage from ``seed`` from now on (a dry run's attempt)."""
         self._wait_made()
         self._rng = np.random.default_rng(seed)
+
+    def bytes_made(self) -> int:
+        """Simulated clock: bytes made so far (read spans and idle tails), once every queued
+        span is made. A deterministic function of the controller's calls, unlike what the
+        pty holds at a wall-clock instant (the kernel moves written bytes to the reader's
+        side in its own time), so a first-frame poll can tell whether frames came in its
+        interval without racing the stream thread (``orchestrator/turn_on.py``)."""
+        self._wait_made()
+        return self._bytes_made
 
     def sim_state(self) -> dict:
         """Where the frame grid is and the garbage stream (``models/sim_state.py``), once
@@ -432,6 +443,7 @@ class SimulatedGyroPort(PtyWriterPort):
         if self._reader_flushed():
             return
         data, _, _ = self._encode_block(np.arange(k_start, k_end, dtype=np.int64))
+        self._bytes_made += len(data)
         # Written here, under the lock, before the read span is queued; what does not
         # fit is lost, as in a full UART.
         with self._out_lock, contextlib.suppress(BlockingIOError):

@@ -14,6 +14,7 @@ run's mount check must catch before it calibrates anything.
 
 from __future__ import annotations
 
+import math
 import threading
 
 import numpy as np
@@ -30,6 +31,9 @@ HOME_MOUNTING = Mounting(2, 1.0)
 
 class SimulatedFixture:
     """The hexahedron fixture: its current mounting, turned on request."""
+
+    #: what a resumed dry run restores (models/sim_state.py): the face it stands on
+    SIM_STATE = ("_mounting",)
 
     def __init__(self, faults: FaultInjector | None = None,
                  mounting: Mounting = HOME_MOUNTING) -> None:
@@ -55,6 +59,10 @@ class SimulatedFixture:
 
 class ImuPhysicsSource:
     """Feeds the simulated gyro port all three axes for the table/chamber state at each frame."""
+
+    #: what a resumed dry run restores (models/sim_state.py): each axis's gyro state, the
+    #: accelerometers' noise stream and the fixture's mounting
+    SIM_STATE = ("simulators", "_acc_rng", "fixture")
 
     def __init__(self, model: ImuModel, fs_hz: float, seed: int, table, chamber,
                  latitude_deg: float, fixture: SimulatedFixture, start_s: float,
@@ -100,13 +108,7 @@ class ImuPhysicsSource:
              ) -> tuple[np.ndarray, np.ndarray]:
         """All three axes for frames at ``t_s`` seeing ``inputs`` (a gap is skipped first)."""
         t_s = np.asarray(t_s, dtype=float)
-        first = self.simulators[0]
-        if float(t_s[0]) - first.t_next_s > 0.5 / first.fs_hz:
-            for axis, sim in enumerate(self.simulators):
-                def inputs_at(grid: np.ndarray, axis: int = axis):
-                    rates, chamber, angle = self.axis_inputs(grid)
-                    return rates[:, axis], chamber, angle
-                sim.skip_to(float(t_s[0]), inputs_at, self.skip_step_s)
+        self._skip_to(float(t_s[0]))
         rates, chamber, angle = inputs
         outputs = []
         sensor = None
@@ -115,6 +117,21 @@ class ImuPhysicsSource:
             outputs.append(samples.gyro)
             sensor = samples.sensor_temp_c if sensor is None else sensor
         return np.stack(outputs, axis=1), sensor
+
+    def _skip_to(self, t0_s: float) -> None:
+        """Evolve every axis without emitting up to the frame at ``t0_s`` (a gap)."""
+        first = self.simulators[0]
+        if t0_s - first.t_next_s > 0.5 / first.fs_hz:
+            for axis, sim in enumerate(self.simulators):
+                def inputs_at(grid: np.ndarray, axis: int = axis):
+                    rates, chamber, angle = self.axis_inputs(grid)
+                    return rates[:, axis], chamber, angle
+                sim.skip_to(t0_s, inputs_at, self.skip_step_s)
+
+    def catch_up(self, t_s: float) -> None:
+        """Evolve the axes to the first frame at or after ``t_s`` without emitting, as a gap
+        is skipped first: a snapshot then holds the state of now (``station_sim.py``)."""
+        self._skip_to(math.ceil(t_s * self.fs_hz - 1e-6) / self.fs_hz)
 
     def __call__(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         t_s = np.asarray(t_s, dtype=float)

@@ -51,6 +51,13 @@ class StartingUnit(Protocol):
 
 
 @runtime_checkable
+class CountsMadeBytes(Protocol):
+    """A simulated gyro on simulated time that counts the bytes it made for the reader."""
+
+    def bytes_made(self) -> int: ...
+
+
+@runtime_checkable
 class SwitchedOutput(Protocol):
     """A simulated supply that says when a channel's output was switched on (None: off)."""
 
@@ -61,6 +68,10 @@ class SwitchedOutput(Protocol):
 class UnitPower:
     """The simulated unit on a supply channel: silent while the output is off and for
     ``startup_s`` after it is switched on; its warm-up transient starts at the switch-on."""
+
+    #: what a resumed dry run restores (models/sim_state.py): the power-on offsets drawn
+    #: so far and their stream
+    SIM_STATE = ("_rng", "_offsets")
 
     supply: SwitchedOutput
     channel: int
@@ -364,10 +375,12 @@ class SimulatedStation:
         last one (:meth:`restore`) before its first remaining step, so it goes on
         from the very state the interrupted session reached: the simulated time,
         the chamber's air and setpoint, the table's motion and mode, the gyro's
-        noise, Markov and walk levels, thermal lag and hysteresis, the frame grid
-        and every random stream. What is not kept (a supply, a coil, a tilt force,
-        an IMU fixture, a replayed capture, a gyro other than the STIM300 pty) makes
-        it None: such a run resumes as a real one does, from its own re-soak.
+        (or each IMU axis's) noise, Markov and walk levels, thermal lag and
+        hysteresis, the frame grid or the SCPI gyro's reading memory, the supply's
+        outputs and the powered unit's turn-on draws, the fixture's mounting, the
+        inclinometers' and accelerometers' noise, and every random stream. None on
+        a real-time clock (``--speed N``) or with a replayed capture (its bytes run
+        in wall time): such a run resumes as a real one does, from its own re-soak.
         """
         if not self._keeps_everything():
             return None
@@ -375,39 +388,68 @@ class SimulatedStation:
         # the unit's physics brought to now: idle tails, which carried it along while
         # nobody read, are made only when read (gyro_pty.py)
         self.source.catch_up(self.clock.now_s())
-        return {"clock_s": self.clock.now_s(),
-                "gyro_port": port,
-                "chamber": capture(self.chamber_physics),
-                "table": capture(self.table_physics),
-                "gyro": capture(self.source)}
+        state = {"clock_s": self.clock.now_s(), "gyro_port": port,
+                 "chamber": capture(self.chamber_physics), "table": capture(self.table_physics),
+                 "gyro": capture(self.source)}
+        return state | {name: capture(part) for name, part in self._optional_parts().items()}
+
+    def _optional_parts(self) -> dict[str, Any]:
+        """The simulators this station has beyond chamber, table and gyro, by snapshot key."""
+        parts: dict[str, Any] = {}
+        if self.supply_server is not None:
+            parts["supply"] = self.supply_server
+        if isinstance(self.source, GyroPhysicsSource) and self.source.power is not None:
+            parts["unit_power"] = self.source.power
+        if self.tilt is not None:
+            parts["tilt"] = self.tilt
+        return parts
 
     def restore(self, state: dict[str, Any]) -> bool:
         """Put the station back into ``state`` (from :meth:`snapshot` of this station).
 
         False (nothing restored) when this station keeps no snapshot (a resumed dry
         run on a real-time clock, ``--speed N``). A snapshot that does not fit
-        (an edited journal) is a :class:`SimStateError`.
+        (an edited journal, another station) is a :class:`SimStateError`.
         """
         if not self._keeps_everything() or not isinstance(self.clock, SimClock):
             return False
+        parts = self._optional_parts()
+        extra = set(state) - {"clock_s", "gyro_port", "chamber", "table", "gyro"} - set(parts)
+        if extra:
+            raise SimStateError(f"snapshot holds {sorted(extra)}, which this station has not")
         try:
             restore(self.gyro_port, state["gyro_port"])
             self.clock.restore_s(float(state["clock_s"]))
             restore(self.chamber_physics, state["chamber"])
             restore(self.table_physics, state["table"])
             restore(self.source, state["gyro"])
+            for name, part in parts.items():
+                restore(part, state[name])
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             if isinstance(exc, SimStateError):
                 raise
             raise SimStateError(f"{type(exc).__name__}: {exc}") from None
         return True
 
+    def gyro_bytes_waiting(self) -> Callable[[], bool] | None:
+        """Whether the simulated STIM300 made bytes since the last call (``gyro_pty.py``): a
+        first-frame poll's question; None for a gyro that cannot tell (a replay, a SCPI gyro)."""
+        port = self.gyro_port
+        if not isinstance(port, CountsMadeBytes) or not isinstance(self.clock, SimClock):
+            return None
+        seen = [port.bytes_made()]
+
+        def made_since() -> bool:
+            before, seen[0] = seen[0], port.bytes_made()
+            return seen[0] > before
+        return made_since
+
     def _keeps_everything(self) -> bool:
-        source = self.source
+        """Simulated time, a seed, and a gyro whose state the codec knows (a replayed
+        capture's is not: ``replay_pty.py`` writes it in wall time)."""
+        port = self.gyro_port
         return (isinstance(self.clock, SimClock) and self.seed is not None
-                and isinstance(source, GyroPhysicsSource) and source.power is None
-                and source.field is None and self.tilt is None and self.supply_server is None
-                and callable(getattr(self.gyro_port, "sim_state", None)))
+                and (callable(getattr(port, "sim_state", None)) or hasattr(port, "SIM_STATE")))
 
     def _request(self, settings, faults: FaultInjector, seed_offset: int = 0) -> SimRequest:
         """What every simulator of this station sees: its settings and faults, and the shared bench."""

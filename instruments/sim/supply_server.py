@@ -29,6 +29,10 @@ _CHANNEL = re.compile(r"\(@(\d)\)\s*$")
 
 
 class SimulatedE36300(SimulatedScpiInstrument):
+    #: what a resumed dry run restores (models/sim_state.py): levels, outputs, when each was
+    #: switched on (a powered unit's warm-up runs from it), the load current's noise stream
+    SIM_STATE = ("voltage_v", "current_a", "output", "_on_since_s", "_rng")
+
     def __init__(self, faults: FaultInjector | None = None, load_ohm: float = 20.0,
                  noise_a: float = 2e-4, seed: int = 0, clock=None) -> None:
         super().__init__(faults or FaultInjector(FAULTS, owner="simulated supply"), IDN)

@@ -22,6 +22,9 @@ from gyrocal.models.table import TablePhysics
 class TiltForce:
     """(frame times, sensor temperature) -> the block's acceleration channels, g."""
 
+    #: what a resumed dry run restores (models/sim_state.py): the inclinometers' noise stream
+    SIM_STATE = ("_rng",)
+
     def __init__(self, table: TablePhysics, gravity_g: float, inclinometer, seed: int) -> None:
         self.table, self.gravity_g, self.errors = table, float(gravity_g), inclinometer
         self._rng = np.random.default_rng(seed)

@@ -61,6 +61,10 @@ _WORDS = ("FUNC", "TRIG:SOUR", "TRIG:SLOP", "SAMP:SOUR", "DISP:TEXT")
 
 
 class SimulatedTruevolt(SimulatedScpiInstrument):
+    #: what a resumed dry run restores (models/sim_state.py): the settings, the reading
+    #: memory and the sample timer
+    SIM_STATE = ("settings", "_memory", "_k_next", "_t_init", "_waiting_for_trigger")
+
     def __init__(self, source: Callable, clock: Clock, faults: FaultInjector | None = None) -> None:
         super().__init__(faults or FaultInjector(FAULTS, owner="simulated DMM"), IDN)
         self.source, self.clock = source, clock

@@ -99,9 +99,10 @@ def test_a_killed_and_resumed_dry_run_equals_the_uninterrupted_one(h, tmp_path, 
             _assert_equal_run(h, out, name, expected, expected_results)
 
 
-def _assert_equal_run(h, out: Path, name: str, expected, expected_results) -> None:
+def _assert_equal_run(h, out: Path, name: str, expected, expected_results,
+                      plan: list[str] | None = None, cut_step: str = "T01.sf.+20dps") -> None:
     events = h.events(out)
-    assert h.completed_ids(out) == list(h.SMALL_PLAN), name
+    assert h.completed_ids(out) == (list(h.SMALL_PLAN) if plan is None else plan), name
     got = counted_samples(out)
     assert set(got) == set(expected), name
     for step_id, (attempt, columns) in expected.items():
@@ -111,7 +112,7 @@ def _assert_equal_run(h, out: Path, name: str, expected, expected_results) -> No
             other = got_columns[column]
             assert values.dtype == other.dtype and values.tobytes() == other.tobytes(), (
                 name, step_id, column)
-        if name == "mid-step" and step_id == "T01.sf.+20dps":
+        if name == "mid-step" and step_id == cut_step:
             # cut mid-way: run again as a new attempt, with the cut attempt's draws
             assert (attempt, got_attempt) == (1, 2), name
     results = json.loads((out / "report" / "results.json").read_text())
@@ -123,9 +124,10 @@ def _assert_equal_run(h, out: Path, name: str, expected, expected_results) -> No
     else:       # the resumed session went on from the state the killed one had journaled
         restored = [e for e in events if e["event"] == "sim_state_restored"]
         assert len(restored) == 1 and "resumed" in kinds, name
-        completed = next(e for e in events if e["seq"] == restored[0]["from_seq"])
-        assert completed["event"] == "step_completed", name
-        assert restored[0]["clock_s"] == completed["sim_state"]["clock_s"], name
+        source = next(e for e in events if e["seq"] == restored[0]["from_seq"])
+        # a step that acts after its step_completed line journals its state after the act
+        assert source["event"] in ("step_completed", "sim_state_saved"), name
+        assert restored[0]["clock_s"] == source["sim_state"]["clock_s"], name
 
 
 def test_what_a_simulated_station_keeps_and_refuses(h) -> None:
@@ -157,3 +159,67 @@ def test_what_a_simulated_station_keeps_and_refuses(h) -> None:
         assert real.snapshot() is None and real.restore(state) is False
     finally:
         real.stop()
+
+
+def _seq(events: list[dict[str, Any]], event: str, step_id: str) -> int:
+    return next(e["seq"] for e in events if e["event"] == event and e.get("step_id") == step_id)
+
+
+#: shipped procedures on stations with more than chamber, table and gyro, and where each
+#: is killed: mid-step (the step is run again as a new attempt; ``cut`` names it), between
+#: a step that acts after its step_completed line and the next (after its act and the
+#: state journaled then), and in between (the act done, its state not yet journaled).
+SHIPPED_KILLS: dict[str, dict[str, Any]] = {
+    # the supply's coil channels, the powered unit, the Faraday effect
+    "magnetic-sensitivity": {
+        "cut": "T01.mag.zero",
+        "points": lambda ev: {
+            "mid-step": f"before:{_seq(ev, 'step_completed', 'T01.mag.zero')}",
+            "after-act": f"after:{_seq(ev, 'sim_state_saved', 'T01.mag.pos')}",
+            "before-state-saved": f"before:{_seq(ev, 'sim_state_saved', 'T01.mag.pos')}"}},
+    # the table on its side in position mode, the inclinometers' noise; the last tilt of a
+    # run of them returns the table to 0 deg and rate mode after its step_completed line
+    "tilt-linearity": {
+        "cut": "T01.tilt2.-25deg",
+        "points": lambda ev: {
+            "mid-step": f"before:{_seq(ev, 'step_completed', 'T01.tilt2.-25deg')}",
+            "before-state-saved": f"before:{_seq(ev, 'sim_state_saved', 'T01.tilt1.zero')}"}},
+    # three axes on the fixture, in its second mounting; the remount's state restored
+    "imu-5-temps-3-mountings": {
+        "cut": "T01.MY.static",
+        "points": lambda ev: {
+            "mid-step": f"before:{_seq(ev, 'step_completed', 'T01.MY.static')}"}},
+}
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize("name", sorted(SHIPPED_KILLS))
+def test_a_shipped_procedure_killed_and_resumed_equals_the_uninterrupted_run(
+        name, h, tmp_path, capsys) -> None:
+    """The supply, coil, tilt and IMU fixture simulators are restored as the single-axis
+    station's are: the shipped procedure, killed where its simulators hold state."""
+    procedure = h.REPO_ROOT / "procedures" / f"{name}.yaml"
+    reference = tmp_path / "reference"
+    assert main(run_args(procedure, reference)) in (0, 1)
+    expected = counted_samples(reference)
+    expected_results = json.loads((reference / "report" / "results.json").read_text())
+    events = h.events(reference)
+    plan = h.completed_ids(reference)
+    # every step's state is journaled: on its step_completed line or after its act
+    with_state = {e["step_id"] for e in events if "sim_state" in e
+                  and e["event"] in ("step_completed", "sim_state_saved")}
+    assert with_state == set(plan)
+    case = SHIPPED_KILLS[name]
+    with ForkServer(h.REPO_ROOT) as server:
+        for point_name, point in case["points"](events).items():
+            out = tmp_path / point_name
+            status = server.run(run_args(procedure, out), {CRASH_AT_ENV: point},
+                                tmp_path / f"{point_name}.err")
+            assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, (
+                name, point_name, status)
+            capsys.readouterr()
+            assert main(["resume", str(out)]) in (0, 1), (name, point_name,
+                                                          capsys.readouterr())
+            _assert_equal_run(h, out, point_name, expected, expected_results, plan=plan,
+                              cut_step=case["cut"])
