@@ -437,14 +437,22 @@ def _metrics_table() -> str:
     return "\n".join(rows)
 
 
-_DRY_RUN_RESUME = """In a dry run each `step_completed` line of a ramp, soak, static, dwell, Allan, threshold or
-rate-limit step also carries `sim_state`: the simulated station's state at that moment
-(simulated time, chamber air and setpoint, table motion, the gyro's noise and model state, the
-frame grid, every random stream). A resumed dry run restores the last one before its first
-remaining step and journals `sim_state_restored`, so it goes on exactly where the killed
-session was; a step cut mid-way is run again as a new attempt drawing the cut attempt's random
-streams. Its counted samples and results.json equal the uninterrupted run's. (Not after a
-fault: a run that faulted resumes from its own re-soak, as on a station.)"""
+_DRY_RUN_RESUME = """In a dry run each `step_completed` line also carries `sim_state`: the simulated station's
+state at that moment (simulated time, chamber air and setpoint, table motion and mode, the gyro's
+or each IMU axis's noise and model state, the frame grid or a SCPI gyro's reading memory, the
+supply's outputs and the powered unit's turn-on draws, the fixture's mounting, every random
+stream). A drive-off, frequency-response, tilt or magnetic step acts after that line (closes
+the interlock, leaves synthesis or position mode, switches the coil off) and journals the state
+after its act in `sim_state_saved`. A resumed dry run restores the last state before its first
+remaining step and journals `sim_state_restored`, so it goes on exactly where the killed session
+was (killed between such a step's `step_completed` and `sim_state_saved`, it restores the
+former and does the act again); a step cut mid-way is run again as a new attempt drawing the cut
+attempt's random streams. Its counted samples and results.json equal the uninterrupted run's.
+Not kept: a run that faulted resumes from its own re-soak, as on a station (its state may hold
+the rehearsed fault); so does a dry run on a real-time clock (`--speed N`), and a run against
+`gyrocal sim serve` (another process's simulators, which the run cannot snapshot; a replayed
+capture, `--replay-gyro`, is written in wall time and looped, so where it was when the run was
+killed is nowhere recorded)."""
 
 
 def run_folder_doc() -> str:

@@ -1,11 +1,19 @@
 """A seeded dry run is reproducible bit for bit (issue 30).
 
 Simulated time moves only with the controller's calls and every attempt's
-random draws come from (seed, step id, attempt), so two runs of the shipped
-smoke procedure with one seed must write the same samples, the same
-journal (apart from wall times, the hash chain that covers them, the run
-identity and the loopback ports the simulators happened to get) and the
-same results.json (apart from the run identity and wall times).
+random draws come from (seed, step id, attempt), so two runs of a shipped
+procedure with one seed must write the same samples, the same journal (apart
+from wall times, the hash chain that covers them, the run identity and the
+loopback ports the simulators happened to get) and the same results.json
+(apart from the run identity and wall times): ``tests/support/dry_run_compare.py``.
+
+Here the shipped procedures whose dry run takes seconds, one per kind of
+simulated station: the single-axis STIM300 (smoke), the supply with a coil
+and a powered unit (magnetic-sensitivity), the analog gyro through a SCPI DMM
+(kvg25-analog-dmm), the RLG through a SCPI counter (rlg-pulse-counter), the
+table's drive switched off (table-interference). Every shipped procedure,
+the long ones included, in full: ``benchmarks/check_dry_run_determinism.py``
+(its table: docs/dry-run-determinism.md).
 """
 
 from __future__ import annotations
@@ -17,64 +25,50 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
 from gyrocal.cli import main
 from gyrocal.models.seeding import attempt_seed
+from tests.support.dry_run_compare import columns, differences, results
 
 REPO = Path(__file__).resolve().parents[2]
-SMOKE = REPO / "procedures" / "smoke.yaml"
-
-#: journal fields that may differ between two runs of one seed
-JOURNAL_FREE = {"wall_time", "ended_at", "prev_sha256", "sha256", "run_id", "identity", "address",
-                "files"}
-#: results.json keys that name the run or a wall time, or the loopback addresses
-RESULTS_FREE = {"run_id", "started_at", "steps_started_at", "steps_done_at", "ended_at",
-                "report_built_at", "first_wall_time", "last_wall_time", "address"}
-
-
-def columns(run_dir: Path) -> dict[str, dict[str, np.ndarray]]:
-    """Every chunk of the run, decoded to arrays, by its path in the run folder."""
-    chunks = {}
-    for path in sorted((run_dir / "samples").rglob("*.parquet")):
-        table = pq.read_table(path)
-        chunks[str(path.relative_to(run_dir))] = {
-            name: table.column(name).to_numpy() for name in table.column_names}
-    return chunks
-
-
-def without(value, free: set[str]):
-    """``value`` with the keys in ``free`` removed at every depth."""
-    if isinstance(value, dict):
-        return {k: without(v, free) for k, v in value.items() if k not in free}
-    if isinstance(value, list):
-        return [without(v, free) for v in value]
-    return value
-
-
-def journal(run_dir: Path) -> list[dict]:
-    lines = (run_dir / "journal.jsonl").read_text().splitlines()
-    return [without(json.loads(line), JOURNAL_FREE) for line in lines]
+#: shipped procedures whose dry run takes seconds, one per kind of simulated station
+QUICK = ("smoke", "magnetic-sensitivity", "kvg25-analog-dmm", "rlg-pulse-counter",
+         "table-interference")
 
 
 @pytest.mark.slow
 @pytest.mark.timeout(300)
-def test_two_runs_of_the_smoke_procedure_with_one_seed_are_identical(tmp_path: Path) -> None:
+@pytest.mark.parametrize("name", QUICK)
+def test_two_runs_of_a_shipped_procedure_with_one_seed_are_identical(name, tmp_path: Path) -> None:
+    procedure = REPO / "procedures" / f"{name}.yaml"
     runs = [tmp_path / "first", tmp_path / "second"]
     for out in runs:
-        assert main(["run", str(SMOKE), "--sim", "--seed", "7", "--out", str(out)]) in (0, 1)
-    first, second = (columns(out) for out in runs)
-    assert list(first) == list(second) and len(first) >= 10
-    for chunk, cols in first.items():
-        assert list(cols) == list(second[chunk])
-        for name, values in cols.items():
-            other = second[chunk][name]
-            assert values.dtype == other.dtype and values.tobytes() == other.tobytes(), (chunk, name)
-    assert journal(runs[0]) == journal(runs[1])
-    results = [json.loads((out / "report" / "results.json").read_text()) for out in runs]
-    assert results[0]["run"]["run_id"] != results[1]["run"]["run_id"]
-    assert without(results[0], RESULTS_FREE) == without(results[1], RESULTS_FREE)
+        assert main(["run", str(procedure), "--sim", "--seed", "7", "--out", str(out)]) in (0, 1)
+    assert len(columns(runs[0])) >= 10
+    assert results(runs[0])["run"]["run_id"] != results(runs[1])["run"]["run_id"]
+    assert differences(*runs) == []
+
+
+def test_the_comparison_finds_a_changed_sample_journal_field_and_result(tmp_path: Path) -> None:
+    """What the test above relies on: a difference anywhere it looks is named."""
+    runs = []
+    for name, value in (("a", 1.0), ("b", 1.0 + 2**-40)):
+        run = tmp_path / name
+        (run / "samples" / "S1").mkdir(parents=True)
+        (run / "report").mkdir()
+        pq.write_table(pa.table({"gyro": np.array([0.5, value])}),
+                       run / "samples" / "S1" / "attempt1-chunk00000.parquet")
+        (run / "journal.jsonl").write_text(json.dumps(
+            {"event": "step_completed", "wall_time": value, "samples": value}) + "\n")
+        (run / "report" / "results.json").write_text(json.dumps(
+            {"run": {"run_id": name, "started_at": name}, "sf": value}))
+        runs.append(run)
+    assert differences(*runs) == ["samples/S1/attempt1-chunk00000.parquet: column gyro",
+                                  "journal line 1 (step_completed): ['samples']",
+                                  "results.json .sf"]
 
 
 def test_attempt_streams_differ_by_seed_step_and_attempt_and_not_by_process() -> None:
