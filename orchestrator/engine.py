@@ -78,7 +78,9 @@ class Rehearsal(Protocol):
     for step. Every completed step's ``step_completed`` line of a dry run carries
     the station's state at that moment (``sim_state``); a resumed run restores
     the last one right before its first remaining step, after its own preflight
-    and re-soak, so that step starts from the state the uninterrupted run had.
+    and re-soak, so that step starts from the state the uninterrupted run had
+    (after a step that acts after its ``step_completed`` line, the state
+    journaled after the act: ``ACTS_AFTER_COMPLETED``).
     A step cut mid-way is run again from its start; its new attempt draws from
     the streams of the attempt the uninterrupted run would have been at (one
     more than the step's ``step_bad`` attempts: an attempt cut by a kill is no

@@ -223,3 +223,50 @@ def test_a_shipped_procedure_killed_and_resumed_equals_the_uninterrupted_run(
                                                           capsys.readouterr())
             _assert_equal_run(h, out, point_name, expected, expected_results, plan=plan,
                               cut_step=case["cut"])
+
+
+def test_the_supply_unit_power_tilt_and_imu_fixture_go_back_into_their_snapshot(h) -> None:
+    """The simulators beyond chamber, table and gyro keep their state in the snapshot: the
+    supply's outputs and the time each was switched on, the powered unit's turn-on draws
+    (sim-series: a supply and a unit with a start-up delay), the inclinometers' noise
+    stream (sim-tilt), the IMU fixture's mounting and each axis's state (sim-imu); a
+    snapshot of one station does not go into another."""
+    from gyrocal.instruments.sim.station_sim import SimulatedStation
+    from gyrocal.models.clock import SimClock
+    from gyrocal.models.imu_model import Mounting
+    from gyrocal.models.sim_state import SimStateError
+    from gyrocal.orchestrator.station import load_station
+
+    stations = h.REPO_ROOT / "stations"
+    series = load_station(stations / "sim-series.yaml")
+    with SimulatedStation(series, SimClock(), seed=3, sample_rate_hz=250.0) as sim:
+        supply, power = sim.supply_server, sim.source.power
+        supply.answer("OUTP ON")
+        sim.clock.sleep(5.0)
+        power.turn_on_offset_dph(0.0)           # the power-on at 0 s has drawn its offset
+        state = json.loads(json.dumps(sim.snapshot(), sort_keys=True, allow_nan=False))
+        assert {"supply", "unit_power"} <= set(state)
+        supply.answer("OUTP OFF")
+        next_offset_dph = power.turn_on_offset_dph(9.0)     # a second power-on draws on
+        assert sim.restore(state)
+        assert supply.output[1] and supply.on_since_s(1) == 0.0
+        assert list(power._offsets) == [0.0]
+        assert power.turn_on_offset_dph(9.0) == next_offset_dph     # the same draw again
+    tilt = load_station(stations / "sim-tilt.yaml")
+    with SimulatedStation(tilt, SimClock(), seed=3, sample_rate_hz=250.0) as sim:
+        state = json.loads(json.dumps(sim.snapshot(), sort_keys=True, allow_nan=False))
+        first = sim.tilt(np.array([0.0, 0.004])).incl_g
+        assert sim.restore(state)
+        assert np.array_equal(sim.tilt(np.array([0.0, 0.004])).incl_g, first)
+    imu = load_station(stations / "sim-imu.yaml")
+    with SimulatedStation(imu, SimClock(), seed=3, sample_rate_hz=250.0) as sim:
+        sim.fixture.mount(Mounting(1, 1.0))
+        sim.clock.sleep(2.0)
+        state = json.loads(json.dumps(sim.snapshot(), sort_keys=True, allow_nan=False))
+        axes = [axis["object"]["attrs"]["_index"] for axis in
+                state["gyro"]["attrs"]["simulators"]["list"]]
+        assert axes == [500, 500, 500]          # each axis brought to now (2 s at 250 Hz)
+        sim.fixture.mount(Mounting(0, -1.0))
+        assert sim.restore(state) and sim.fixture.mounting == Mounting(1, 1.0)
+        with pytest.raises(SimStateError, match="supply"):
+            sim.restore({**state, "supply": {}})
