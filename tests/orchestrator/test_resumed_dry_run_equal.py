@@ -184,6 +184,28 @@ SHIPPED_KILLS: dict[str, dict[str, Any]] = {
         "points": lambda ev: {
             "mid-step": f"before:{_seq(ev, 'step_completed', 'T01.tilt2.-25deg')}",
             "before-state-saved": f"before:{_seq(ev, 'sim_state_saved', 'T01.tilt1.zero')}"}},
+    # the table's drive off (interlock open) after a powered static
+    "table-interference": {
+        "cut": "T01.interference.off",
+        "points": lambda ev: {
+            "mid-step": f"before:{_seq(ev, 'step_completed', 'T01.interference.off')}"}},
+    # the analog gyro through a SCPI DMM: its reading memory and sample timer
+    "kvg25-analog-dmm": {
+        "cut": "T01.sf.+50dps",
+        "points": lambda ev: {
+            "mid-step": f"before:{_seq(ev, 'step_completed', 'T01.sf.+50dps')}"}},
+    # the RLG through a SCPI counter: its gates and the pulse phase carried between them
+    "rlg-pulse-counter": {
+        "cut": "T01.sf.+50dps",
+        "points": lambda ev: {
+            "mid-step": f"before:{_seq(ev, 'step_completed', 'T01.sf.+50dps')}"}},
+    # frequency response (synthesis mode left after step_completed), a powered unit's
+    # turn-on cycles (the supply, the start-up delay, each power-on's bias draw)
+    "acceptance-series": {
+        "cut": "T01.rep.c3",
+        "points": lambda ev: {
+            "before-state-saved": f"before:{_seq(ev, 'sim_state_saved', 'T01.freq.2Hz')}",
+            "mid-step": f"before:{_seq(ev, 'step_completed', 'T01.rep.c3')}"}},
     # three axes on the fixture, in its second mounting; the remount's state restored
     "imu-5-temps-3-mountings": {
         "cut": "T01.MY.static",
