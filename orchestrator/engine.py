@@ -101,6 +101,10 @@ class Rehearsal(Protocol):
     def restore(self, state: dict[str, Any]) -> bool:
         """Put the simulated station back into a snapshot's state (False: it keeps none)."""
 
+    def gyro_command_heard(self) -> Callable[[], bool] | None:
+        """Wait until the simulated gyro has taken the command just written (None: it takes
+        none); the command's time passes only then, so its answer lands at one place."""
+
     def gyro_bytes_waiting(self) -> Callable[[], bool] | None:
         """What a first-frame poll asks the simulated gyro: did it make bytes since the
         last poll? (None: the gyro cannot tell; the poll waits in wall time, ``turn_on.py``)"""
@@ -361,7 +365,7 @@ class RunEngine:
         gyro = self.inst.gyro
         if isinstance(gyro, IdentifyingGyro):
             answer = gyro.ask_identity(timeout_s=self.policy.read_timeout_margin_s,
-                                       let_pass=self.clock.elapse_reading)
+                                       let_pass=self._let_command_pass())
             self.journal.append(JournalEvent.GYRO_IDENTITY, **answer.record())
 
     def _journal_start_up(self, when: str) -> None:
@@ -380,7 +384,7 @@ class RunEngine:
             return
         try:
             gyro.confirm_configuration(timeout_s=self.policy.read_timeout_margin_s,
-                                       let_pass=self.clock.elapse_reading)
+                                       let_pass=self._let_command_pass())
         finally:        # what it said is journaled when it contradicts the station too
             if gyro.configuration is not None:
                 self.journal.append(JournalEvent.GYRO_CONFIGURATION, **gyro.configuration.record())
@@ -486,6 +490,18 @@ class RunEngine:
             return {}
         state = self.rehearsal.snapshot()
         return {} if state is None else {"sim_state": state}
+
+    def _let_command_pass(self) -> Callable[[float], None]:
+        """How a gyro command's time passes: in a dry run, once the simulated unit has the
+        command (``Rehearsal.gyro_command_heard``), then the clock; else the clock alone."""
+        heard = None if self.rehearsal is None else self.rehearsal.gyro_command_heard()
+        if heard is None:
+            return self.clock.elapse_reading
+
+        def let_pass(span_s: float) -> None:
+            heard()
+            self.clock.elapse_reading(span_s)
+        return let_pass
 
     def _gyro_bytes_waiting(self) -> Callable[[], bool] | None:
         return None if self.rehearsal is None else self.rehearsal.gyro_bytes_waiting()

@@ -91,6 +91,7 @@ import select
 import struct
 import termios
 import threading
+import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -153,6 +154,8 @@ class StagedGyroSource(Protocol):
     def emit(self, t_s: np.ndarray, inputs: SourceInputs) -> tuple[np.ndarray, np.ndarray | None]:
         """The gyro's output for frames at ``t_s`` that see ``inputs`` (continues its state)."""
 
+#: simulated clock: most wall time a controller waits for its command to cross the pty
+HEAR_TIMEOUT_S = 2.0
 _POLL_S = 0.05          # how often blocking waits look at the stop flag
 _REAL_BLOCK_WALL_S = 0.01      # real clock: a block spans at most this much wall time
 _REAL_MAX_LAG_S = 2.0          # real clock: frames older than this (clock s) behind the clock are dropped
@@ -249,6 +252,7 @@ class SimulatedGyroPort(PtyWriterPort):
         self.identity_answers = 0             # N<CR> and I<CR> answered
         self.start_ups = 0                    # times the start-up datagrams were sent
         self._command_bytes = bytearray()     # the reader's writes, up to the next CR
+        self._commands_heard = 0              # commands executed (CR received), answered or not
         self._answers_due: list[bytes] = []   # answers to commands received, not sent yet
         self._flush_pending = False           # the reader flushed its input, not yet acted on
         #: when the unit, on the station's supply, starts sending (None: off); None: always on
@@ -471,9 +475,33 @@ class SimulatedGyroPort(PtyWriterPort):
         while b"\r" in self._command_bytes:        # CR executes a command (Table 8-2)
             command, _, rest = bytes(self._command_bytes).partition(b"\r")
             self._command_bytes = bytearray(rest)
+            self._commands_heard += 1
             answer = self._answer(command)
             if answer:
                 self._answers_due.append(answer)
+
+    def hear_command(self, timeout_s: float = HEAR_TIMEOUT_S) -> bool:
+        """Simulated time: wait until a command the reader has written has crossed the pty.
+
+        A write on the slave reaches the master through the kernel's flip-buffer work,
+        asynchronously: looked for only when the controller next advances the clock
+        (``_poll_master``), a command could be missed under load and answered a span
+        later or never — the dry run would then differ from run to run. The
+        controller calls this after writing a command and before it lets the
+        command's time pass, so the command is always heard at that moment. Wall
+        time, bounded (False: nothing arrived); called on the controller's thread,
+        where the clock's advances run too.
+        """
+        heard = self._commands_heard
+        deadline = time.monotonic() + timeout_s
+        while True:
+            self._poll_master()
+            if self._commands_heard > heard:
+                return True
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            select.select([self._master_fd], [], [], remaining)
 
     def _take_answer(self) -> bytes:
         """The datagrams commands are waiting for, in the order asked, else b''."""

@@ -51,6 +51,13 @@ class StartingUnit(Protocol):
 
 
 @runtime_checkable
+class HearsCommands(Protocol):
+    """A simulated gyro that takes the commands its reader writes (``gyro_pty.py``)."""
+
+    def hear_command(self) -> bool: ...
+
+
+@runtime_checkable
 class CountsMadeBytes(Protocol):
     """A simulated gyro on simulated time that counts the bytes it made for the reader."""
 
@@ -443,6 +450,15 @@ class SimulatedStation:
             before, seen[0] = seen[0], port.bytes_made()
             return seen[0] > before
         return made_since
+
+    def gyro_command_heard(self) -> Callable[[], bool] | None:
+        """What the driver waits for after writing a command on simulated time: the simulated
+        STIM300 has taken it off the pty (``gyro_pty.hear_command``), so where its answer
+        falls depends on the controller's calls alone; None for a gyro that takes none."""
+        port = self.gyro_port
+        if not isinstance(port, HearsCommands) or not isinstance(self.clock, SimClock):
+            return None
+        return port.hear_command
 
     def _keeps_everything(self) -> bool:
         """Simulated time, a seed, and a gyro whose state the codec knows (a replayed

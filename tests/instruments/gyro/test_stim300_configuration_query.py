@@ -166,3 +166,26 @@ def test_a_unit_configured_as_declared_has_nothing_to_say():
 def test_each_contradiction_names_both_values_and_the_table(byte3, byte5, expected):
     found = mismatches(decode_configuration(typed_answer(byte3, byte5)), DECLARED)
     assert len(found) == 1 and expected in found[0]
+
+
+def test_on_simulated_time_the_simulator_hears_a_command_before_its_time_passes(rig):
+    """A slave write reaches the pty master through the kernel's flip-buffer work, in its
+    own time; the dry-run engine waits for the simulated unit to take the command
+    (``hear_command``) before it lets the command's time pass, so the answer's place in
+    the stream never depends on the scheduler: the first datagram after the command,
+    every time. Nothing written: nothing heard, within the bound."""
+    for attempt in range(5):
+        clock = SimClock()
+        sim, gyro = rig(clock)
+        assert sim.hear_command(timeout_s=0.02) is False
+        heard = []
+
+        def let_pass(span_s: float, sim=sim, clock=clock, heard=heard) -> None:
+            heard.append(sim.hear_command())
+            clock.elapse_reading(span_s)
+
+        first = sim.next_frame
+        assert gyro.confirm_configuration(let_pass=let_pass).confirmed and heard == [True]
+        clock.elapse_reading(100 / FS_HZ)
+        k = np.rint(gyro.read_samples(100, timeout_s=5.0).rate / LSB).astype(np.int64)
+        assert k[0] == first + 1, attempt            # the answer took the command's next slot
