@@ -8,6 +8,8 @@ classes directly, so the layer check (tests/test_layout.py) sees every import.
 
 from __future__ import annotations
 
+import time
+
 from gyrocal.instruments.chamber.watlow_f4 import WatlowF4
 from gyrocal.instruments.chamber.watlow_f4t import WatlowF4T
 from gyrocal.instruments.driver_spec import (
@@ -122,7 +124,8 @@ def _open_stim300(req: OpenRequest):
                        with_temperature=bool(s["with_temperature"]), lsb=rate_lsb,
                        timeout_s=req.timeout_s, axis=str(s["axis"]), crlf=bool(s["crlf"]),
                        datagram=_int(s, "datagram"),
-                       accelerometer_range_g=_int(s, "accelerometer_range_g"))
+                       accelerometer_range_g=_int(s, "accelerometer_range_g"),
+                       transport_wait=time.sleep if req.clock is None else req.clock.transport_wait)
 
 
 def _sim_stim300(req: SimRequest):

@@ -64,11 +64,13 @@ def open_table(config, address: str, on_retry=None) -> RateTable:
     return _as(open_role(Role.TABLE, config, address, on_retry), RateTable, config.driver)
 
 
-def open_gyro(config, port: str, sample_rate_hz: float | None = None) -> GyroStream:
-    """The gyro driver of ``config`` (a station's GyroConfig) on ``port``."""
+def open_gyro(config, port: str, sample_rate_hz: float | None = None,
+              clock: Clock | None = None) -> GyroStream:
+    """The gyro driver of ``config`` (a station's GyroConfig) on ``port``; ``clock``, the
+    run's, decides how long its transport waits take (wall time without one)."""
     fs_hz = float(sample_rate_hz or config.sample_rate_hz)
-    return _as(open_role(Role.GYRO, config, port, sample_rate_hz=fs_hz), GyroStream,
-               config.driver)
+    return _as(open_role(Role.GYRO, config, port, sample_rate_hz=fs_hz, clock=clock),
+               GyroStream, config.driver)
 
 
 def open_supply(config, address: str, on_retry=None) -> PowerSupply:
@@ -115,7 +117,7 @@ def open_instruments(station, clock: Clock, addresses=None,
         opened.append(open_chamber(c, addresses.chamber if addresses else c.address,
                                    hook("chamber")))
         opened.append(open_table(t, addresses.table if addresses else t.address, hook("table")))
-        opened.append(open_gyro(g, addresses.gyro if addresses else g.port, fs_hz))
+        opened.append(open_gyro(g, addresses.gyro if addresses else g.port, fs_hz, clock))
         if s is not None:
             opened.append(open_supply(s, addresses.supply if addresses else s.address,
                                       hook("supply")))

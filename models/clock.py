@@ -10,6 +10,14 @@ stream subscribes to the clock to produce exactly the frames of the time that
 elapsed. Nobody else moves simulated time, so the same commands give the same
 times, the same physics and (with the same seeds) the same samples, however
 the threads are scheduled.
+
+Two kinds of wait, kept apart: what the *physics* needs (a settle, a soak, a
+dwell: ``sleep``, simulated time advanced on demand) and what a *transport*
+needs (bytes a USB-serial adapter still holds after a flush: ``transport_wait``,
+wall time on a real port). The clock decides how long each takes: on a real
+clock both wait; on simulated time the first moves the clock and the second
+returns at once, since every simulated port makes its bytes only in the
+controller's own calls (``instruments/sim/gyro_pty.py``), so none is in flight.
 """
 
 from __future__ import annotations
@@ -34,6 +42,9 @@ class Clock(Protocol):
 
     def elapse_reading(self, dt_s: float) -> None:
         """Let ``dt_s`` pass while a stream is read (a real read takes that time itself)."""
+
+    def transport_wait(self, dt_s: float) -> None:
+        """Let ``dt_s`` wall seconds pass for bytes a transport has in flight (not clock time)."""
 
     @property
     def simulated(self) -> bool:
@@ -62,6 +73,13 @@ class RealClock:
 
     def elapse_reading(self, dt_s: float) -> None:
         """Nothing to do: on real time the read itself waits for its samples."""
+
+    def transport_wait(self, dt_s: float) -> None:
+        """Sleep ``dt_s`` of wall time, unscaled by ``speed``: a port's in-flight bytes
+        (an adapter's latency timer, a writer thread's last write) arrive in wall time
+        however fast the clock runs."""
+        if dt_s > 0:
+            time.sleep(dt_s)
 
     def wait_until(self, t_s: float) -> None:
         """Block until the clock reads at least ``t_s`` (used to pace streams)."""
@@ -134,6 +152,17 @@ class SimClock:
             listeners = list(self._listeners)
         for listener in listeners:
             listener(before_s, after_s, reading)
+
+    def transport_wait(self, dt_s: float) -> None:
+        """Return at once: nothing is in flight on simulated time.
+
+        Only simulated ports live on a SimClock (``gyrocal run`` refuses a changed
+        clock on real instruments), and they send bytes only in the controller's
+        own advances; a simulated gyro drops what it made before a reader's
+        flush at the controller's next advance, before it makes any new frame
+        (``SimulatedGyroPort._honour_reader_flush``). So the second flush a driver
+        makes after waiting finds exactly what it would have found after the wait.
+        """
 
     def restore_s(self, t_s: float) -> None:
         """Set the time to ``t_s``, earlier or later, telling no listener.

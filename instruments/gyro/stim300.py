@@ -102,8 +102,12 @@ class Stim300Gyro:
         crlf: bool = False,
         datagram: int | None = None,
         accelerometer_range_g: int = DEFAULT_ACCELEROMETER_RANGE_G,
+        transport_wait: Callable[[float], None] = time.sleep,
     ) -> None:
         self.port = port
+        #: how the flush waits for in-flight bytes: wall time on a real port; the run's
+        #: clock decides (``Clock.transport_wait``: at once on simulated time)
+        self._transport_wait = transport_wait
         self.name = name
         self.baudrate = int(baudrate)
         self.sample_rate_hz = float(sample_rate_hz)
@@ -163,11 +167,14 @@ class Stim300Gyro:
         FTDI parts) or in the kernel's tty flip buffers — arrive just after
         the flush and would be read as the first samples of the next step,
         though they describe the conditions before it. So the input is
-        flushed, left for :data:`_FLUSH_SETTLE_S`, and flushed again.
+        flushed, left for :data:`_FLUSH_SETTLE_S`, and flushed again. The wait is
+        the transport's, not the physics': ``transport_wait`` (the run's clock) makes
+        it in wall time on a real port and skips it on simulated time, where a
+        simulated gyro drops what it made before the flush itself.
         """
         try:
             self._serial.reset_input_buffer()
-            time.sleep(_FLUSH_SETTLE_S)
+            self._transport_wait(_FLUSH_SETTLE_S)
             self._serial.reset_input_buffer()
         except (serial.SerialException, OSError) as exc:
             raise InstrumentConnectionError(self.name, "flush", str(exc)) from exc

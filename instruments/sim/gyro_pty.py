@@ -327,7 +327,8 @@ class SimulatedGyroPort(PtyWriterPort):
             self._wait_made()
             self._poll_master()
             if reading:
-                self._send_tail()
+                if not self._honour_reader_flush():
+                    self._send_tail()
                 self._queue_read_span(to_s - from_s)
             else:
                 # nobody reads: an answer the unit sent now is lost with the UART's other frames
@@ -437,15 +438,35 @@ class SimulatedGyroPort(PtyWriterPort):
         self._reader_flushed()          # our own flush's status: a later one is the reader's
         self._tail = (k_start, k_end) if k_end > k_start else None
 
+    def _honour_reader_flush(self) -> bool:
+        """If the reader flushed its input since the last look, drop everything made before.
+
+        Frames made and not yet read (a fault's make-up surplus, the held idle tail)
+        were sampled before the flush: on a serial port they were in the flushed
+        queue or in flight with it. Here they go, under the writer's lock and in the
+        controller's thread before any new frame is made, whatever the writer had
+        already pushed into the pty since the flush included. So nothing made before
+        a reader's flush ever reaches it, and a driver's wait for in-flight bytes
+        (``Clock.transport_wait``) has nothing to wait for on simulated time.
+        Returns whether the reader had flushed.
+        """
+        if not self._reader_flushed():
+            return False
+        with self._out_lock:
+            self._out.clear()
+            termios.tcflush(self._slave_fd, termios.TCIFLUSH)
+        self._reader_flushed()          # our own flush's status: a later one is the reader's
+        self._tail = None
+        return True
+
     def _send_tail(self) -> None:
-        """The held idle tail into the pty, before a read's frames, unless the reader
-        flushed its input since (the tail would have been in the flushed queue)."""
+        """The held idle tail into the pty, before a read's frames (the caller has
+        checked that the reader did not flush its input since: the tail would have been
+        in the flushed queue)."""
         if self._tail is None:
             return
         k_start, k_end = self._tail
         self._tail = None
-        if self._reader_flushed():
-            return
         data, _, _ = self._encode_block(np.arange(k_start, k_end, dtype=np.int64))
         self._bytes_made += len(data)
         # Written here, under the lock, before the read span is queued; what does not

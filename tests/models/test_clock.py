@@ -1,4 +1,5 @@
 import threading
+import time
 
 import pytest
 
@@ -33,3 +34,17 @@ def test_make_clock_parses_speed():
         make_clock("fast")
     with pytest.raises(ValueError):
         RealClock(0)
+
+
+def test_transport_wait_is_wall_time_on_a_real_clock_and_none_on_simulated_time():
+    """A transport's wait (bytes in flight after a flush) is wall time however fast a real
+    clock runs, and neither waits nor moves simulated time (the simulated port drops what
+    it made before a flush itself: tests/instruments/sim/test_gyro_pty.py)."""
+    fast = RealClock(speed=1000.0)
+    start = time.monotonic()
+    fast.transport_wait(0.05)
+    assert time.monotonic() - start >= 0.05          # not 0.05 / 1000
+    sim = SimClock(start_s=3.0)
+    start = time.monotonic()
+    sim.transport_wait(5.0)
+    assert time.monotonic() - start < 1.0 and sim.now_s() == 3.0

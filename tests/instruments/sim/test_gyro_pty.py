@@ -207,3 +207,34 @@ def test_frames_sampled_before_the_readers_flush_never_arrive_after_it():
     [stalled_s] = stalled_at
     assert stalled_s < flushed_s - 0.1
     assert first_sampled_s >= flushed_s - 1.0 / fs_hz, (stalled_s, flushed_s, first_sampled_s)
+
+
+def test_on_simulated_time_nothing_made_before_a_readers_flush_reaches_it_without_a_wait():
+    """A driver's flush waits for in-flight bytes through ``Clock.transport_wait``, which
+    on a SimClock returns at once: the simulated port itself drops, at the controller's next
+    advance, every frame it made before the reader's flush. Here that is a lost frame's
+    make-up block of 20,000 frames (360 kB, more than a pty holds, so most of it is still in
+    the writer's queue at the flush: no wall-time wait would have let it through); after the
+    flush the reader gets exactly the frames of the next read span, none of the block."""
+    from gyrocal.instruments.gyro.stim300 import Stim300Gyro
+
+    clock = SimClock()
+    faults = FaultInjector(FAULTS, owner="simulated gyro")
+    with SimulatedGyroPort(source, clock, sample_rate_hz=FS_HZ, lsb=LSB, faults=faults,
+                           block_frames=20_000) as sim:
+        gyro = Stim300Gyro(sim.port_name, sample_rate_hz=FS_HZ, lsb=LSB, timeout_s=5.0,
+                           transport_wait=clock.transport_wait)
+        try:
+            faults.arm("lose_frames", 1)
+            clock.elapse_reading(1000 / FS_HZ)      # 1,000 frames, one lost: made up by a block
+            assert len(gyro.read_samples(1000)) == 1000
+            assert sim.next_frame == 21_000
+            gyro.flush()
+            clock.elapse_reading(200 / FS_HZ)
+            block = gyro.read_samples(200)
+        finally:
+            gyro.close()
+    k = np.arange(21_000, 21_200)
+    # TS1524 §7.5.2.2.18: the counter counts the 2000 Hz internal samples, 2 per frame at 1 kHz
+    assert np.array_equal(np.asarray(block.counter), (2 * k) % 256)
+    assert np.array_equal(np.asarray(block.rate), np.rint(source(k / FS_HZ)[0] / LSB) * LSB)
