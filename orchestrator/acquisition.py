@@ -164,9 +164,8 @@ class Acquisition:
         chunk_index = 0
         last_index = -1
         timeout_s = self.read_timeout_s(block_n / fs)
-        while result.samples < n_total:
-            want = min(block_n, n_total - result.samples)
-            self.clock.elapse_reading(want / fs)
+        want = self._elapse_next(min(block_n, n_total), fs)
+        while want > 0:
             block = gyro.read_samples(want, timeout_s=timeout_s)
             result.count(block)
             index = np.asarray(block.index, dtype=np.int64)
@@ -174,19 +173,35 @@ class Acquisition:
                     plausible, step, attempt, result, len(block), index):
                 return result        # nothing of this attempt is calibration data
             index, last_index = _continuing(index, last_index)
-            pending.add(block, index)
             reading = self.inst.table.read_rate_dps()
             self._check_table_rate(result, demand_now(), reading)
             self.progress.update(table_dps=reading, elapsed_s=self.elapsed_s())
-            if pending.n >= chunk_n or result.samples >= n_total:
+            chunk_due = pending.n + len(block) >= chunk_n or result.samples >= n_total
+            if chunk_due:
                 self._poll_chamber_into(context_t, context_chamber, t0 + (last_index + 1) / fs)
-                columns = self._assemble(pending.columns, t0, fs, context_t, context_chamber,
-                                         rate_dps, angle_start, reference)
-                angle_start = self._write_chunk(step, attempt, chunk_index, pending, columns,
-                                                result)
-                chunk_index += 1
-                pending = _Pending()
+            want = self._elapse_next(min(block_n, n_total - result.samples), fs)
+            pending.add(block, index)
+            if chunk_due:
+                angle_start = self._write_chunk(step, attempt, chunk_index, pending, self._assemble(
+                    pending.columns, t0, fs, context_t, context_chamber, rate_dps, angle_start,
+                    reference), result)
+                chunk_index, pending = chunk_index + 1, _Pending()
         return result
+
+    def _elapse_next(self, frames: int, fs: float) -> int:
+        """Let the next block's ``frames`` pass (returned), before this block is assembled
+        and written.
+
+        Every instrument call of a block (the read, the table readback, a chunk's chamber
+        poll) is made before it, at the same clock times as if it came after; only the
+        work that calls no instrument (the columns, the Parquet chunk) follows, so on
+        simulated time the gyro's thread makes the next block's frames meanwhile, on the
+        other core (the frames depend on the controller's calls alone, not on when they
+        are made). On a real clock it moves nothing: the unit streams by itself.
+        """
+        if frames > 0:
+            self.clock.elapse_reading(frames / fs)
+        return frames
 
     def _poll_chamber_into(self, context_t: list[float], context_chamber: list[float],
                            t_s: float) -> None:

@@ -40,18 +40,28 @@ class MountedStep:
         return good
 
 
+#: what :func:`unit_temp_c` reads, besides each section's own columns and flags
+TEMPERATURE_COLUMNS = ("sensor_temp_c", "chamber_temp_c")
+
+
 def mounted_steps(run_dir: Path, plan: PlanRecord, events: list[dict[str, Any]],
                   kind: StepKind, columns: Sequence[str], notes: list[str],
-                  missing_note: str) -> Iterator[MountedStep]:
+                  missing_note: str, flags: Sequence[str]) -> Iterator[MountedStep]:
     """Completed ``kind`` steps run in a declared mounting whose logs hold ``columns``; a step
-    without them is left out with ``missing_note`` (formatted with ``step_id``) in ``notes``."""
+    without them is left out with ``missing_note`` (formatted with ``step_id``) in ``notes``.
+
+    Only ``columns``, the ``flags`` the section will judge rows by (:meth:`MountedStep.good`)
+    and the temperatures are read: an IMU chunk holds some twenty columns (accelerometers,
+    inclinometers, three temperatures, statuses), and reading every one of them for each of a
+    six-mounting plan's 330 steps was most of its report's time."""
     mountings = {m.name: Mounting(m.up_axis, m.sign) for m in plan.mountings}
     run = RunSamples(run_dir, events)
+    wanted = [*columns, *flags, *TEMPERATURE_COLUMNS]
     for step_id in run.logged:
         step = plan.step(step_id)
         if step is None or step.kind != kind or step.mounting not in mountings:
             continue
-        logged = run.step(step_id, good_only=False)
+        logged = run.step(step_id, wanted, good_only=False)
         if not all(c in logged for c in columns):
             notes.append(missing_note.format(step_id=step_id))
             continue

@@ -32,6 +32,8 @@ from gyrocal.record.step_kind import StepKind
 from gyrocal.reports.sections.imu_accel import AccelerometerResults, accelerometer_section
 
 _AXIS_COLUMNS = ("gyro_x", "gyro_y", "gyro_z")
+#: the flag column a dwell's rows are judged by (the record's: the gyro marked the sample)
+_FLAGS = ("status",)
 
 
 def read_imu_dwells(run_dir: Path, plan: PlanRecord, events: list[dict[str, Any]],
@@ -40,9 +42,10 @@ def read_imu_dwells(run_dir: Path, plan: PlanRecord, events: list[dict[str, Any]
     fs_hz = plan.sample_rate_hz
     dwells = []
     for logged in mounted_steps(run_dir, plan, events, StepKind.DWELL, _AXIS_COLUMNS, notes,
-                                "imu: step {step_id} has no three-axis columns; left out"):
+                                "imu: step {step_id} has no three-axis columns; left out",
+                                flags=_FLAGS):
         samples, step = logged.samples, logged.step
-        good = logged.good(("status",))
+        good = logged.good(_FLAGS)
         turns = step.revolutions
         whole = int(turns) if turns and float(turns).is_integer() else "all"
         means = [dwell_mean(samples[c][good], fs_hz, 0.0, step.rate_dps,

@@ -38,6 +38,8 @@ from gyrocal.record.plan_record import PlanRecord
 from gyrocal.record.step_kind import StepKind
 
 _ACC_COLUMNS = ("acc_x_g", "acc_y_g", "acc_z_g")
+#: the flag columns a static's rows are judged by (the accelerometers' own status, the record's)
+_FLAGS = ("acc_status", "status")
 #: standard uncertainty assumed for a measured local gravity the station gives without one (m/s²)
 MEASURED_GRAVITY_U_MPS2 = 1.0e-5
 
@@ -59,9 +61,10 @@ def read_statics(run_dir: Path, plan: PlanRecord, events: list[dict[str, Any]],
     """Every completed static of a mountings plan, reduced to three accelerometer means."""
     statics = []
     for logged in mounted_steps(run_dir, plan, events, StepKind.STATIC, _ACC_COLUMNS, notes,
-                                "imu accelerometers: step {step_id} logged no acc_x_g…; left out"):
+                                "imu accelerometers: step {step_id} logged no acc_x_g…; left out",
+                                flags=_FLAGS):
         samples, step = logged.samples, logged.step
-        good = logged.good(("acc_status", "status"))
+        good = logged.good(_FLAGS)
         means = [static_mean(samples[c][good]) for c in _ACC_COLUMNS]
         statics.append(AccStatic(logged.step_id, step.temp_index, step.setpoint_c,
                                  unit_temp_c(samples, good),
