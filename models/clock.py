@@ -160,8 +160,9 @@ class SimClock:
         clock on real instruments), and they send bytes only in the controller's
         own advances; a simulated gyro drops what it made before a reader's
         flush at the controller's next advance, before it makes any new frame
-        (``SimulatedGyroPort._honour_reader_flush``). So the second flush a driver
-        makes after waiting finds exactly what it would have found after the wait.
+        (``SimulatedGyroPort._honour_reader_flush``). So after its flush a reader
+        gets exactly the frames of its next read, as after a long enough wait on a
+        real port, and deterministically (a wall-time wait would race the writer).
         """
 
     def restore_s(self, t_s: float) -> None:
