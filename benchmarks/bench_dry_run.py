@@ -54,7 +54,8 @@ def main() -> int:
     runs, baseline = run_rounds(REPO, args.procedure, args.seed, args.repeat, args.baseline)
     run = median_runs(runs)
     block_n = max(1, int(10.0 * fs_hz))          # the engine's default 10 s read block
-    floor = pty_floor(run.samples, fs_hz, procedure.station.gyro.with_temperature, block_n)
+    floor = pty_floor(run.samples, fs_hz, procedure.station.gyro.with_temperature, block_n,
+                      datagram=procedure.station.gyro.datagram)
 
     rows = [
         ("procedure", args.procedure),

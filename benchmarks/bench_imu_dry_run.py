@@ -51,7 +51,7 @@ def main() -> int:
     wall_s, results = run.wall_s, run.results
     fs_hz = procedure.defaults.sample_rate_hz
     floor = pty_floor(run.samples, fs_hz, procedure.station.gyro.with_temperature,
-                      max(1, int(10.0 * fs_hz)))
+                      max(1, int(10.0 * fs_hz)), datagram=procedure.station.gyro.datagram)
 
     print(f"procedure               {PROCEDURE}")
     print(f"steps                   {len(plan.steps)} ({sum(s.kind == 'remount' for s in plan.steps)} remounts)")

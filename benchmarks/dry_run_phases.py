@@ -167,8 +167,13 @@ class PtyFloor:
     cpu_s: float        # user+sys of this process (writer thread and reader) meanwhile
 
 
-def pty_floor(n_frames: int, fs_hz: float, with_temperature: bool, block_n: int) -> PtyFloor:
-    """Push ``n_frames`` pre-encoded frames through a pty and decode them; wall and CPU."""
+def pty_floor(n_frames: int, fs_hz: float, with_temperature: bool, block_n: int,
+              datagram: int | None = None) -> PtyFloor:
+    """Push ``n_frames`` pre-encoded frames through a pty and decode them; wall and CPU.
+
+    ``datagram``: the station's type (TS1524 Table 5-21); an IMU's 0xA7 frames are 59
+    bytes, 0x94's 25, and the pty's cost goes with the bytes.
+    """
     period = 256 * 1024                       # a whole number of counter cycles: seamless repeats
     rate = np.zeros((period, 3))
     rate[:, 0] = np.random.default_rng(0).normal(0.0, 1.0, period)
@@ -176,7 +181,7 @@ def pty_floor(n_frames: int, fs_hz: float, with_temperature: bool, block_n: int)
     # the datasheet's counter at this rate (TS1524 §7.5.2.2.18), or the driver's stream
     # check refuses the stream as the wrong rate
     counter = counter_values(np.arange(period, dtype=np.int64), counter_step(fs_hz))
-    data = encode_frame_array(rate, counter, temp_c=temp).tobytes()
+    data = encode_frame_array(rate, counter, temp_c=temp, datagram=datagram).tobytes()
     frame_len = len(data) // period
     master, slave = os.openpty()
     tty.setraw(slave)
@@ -193,7 +198,7 @@ def pty_floor(n_frames: int, fs_hz: float, with_temperature: bool, block_n: int)
             sent += len(chunk)
 
     gyro = Stim300Gyro(port, sample_rate_hz=fs_hz, with_temperature=with_temperature,
-                       timeout_s=30.0)
+                       timeout_s=30.0, datagram=datagram)
     try:
         writer = threading.Thread(target=write, daemon=True)
         cpu_before = os.times()
