@@ -153,19 +153,20 @@ class Acquisition:
         plausible = self._plausibility(step, fs, at_rate_since_wall_s)
         t0 = self.clock.now_s()
         angle_start = (t0, 0.0, self._safe_position())
-        context_t = [t0]
-        context_chamber = [self.poll_chamber()]
+        context_t, context_chamber = [t0], [self.poll_chamber()]
         def demand_now() -> float:
             return rate_dps if reference is None else float(reference.rate_dps(self.clock.now_s()))
 
         self._check_table_rate(result, demand_now(), self.inst.table.read_rate_dps())
         angle_start = (t0, demand_now(), angle_start[2])
-        pending = _Pending()
-        chunk_index = 0
-        last_index = -1
+        pending, chunk_index, last_index = _Pending(), 0, -1
         timeout_s = self.read_timeout_s(block_n / fs)
         want = self._elapse_next(min(block_n, n_total), fs)
+        ahead = self.clock.simulated     # see _block_context
         while want > 0:
+            chunk_due = pending.n + want >= chunk_n or result.samples + want >= n_total
+            chamber_c = self._block_context(result, demand_now, chunk_due) if ahead else None
+            following = self._elapse_next(min(block_n, n_total - result.samples - want), fs)
             block = gyro.read_samples(want, timeout_s=timeout_s)
             result.count(block)
             index = np.asarray(block.index, dtype=np.int64)
@@ -173,15 +174,13 @@ class Acquisition:
                     plausible, step, attempt, result, len(block), index):
                 return result        # nothing of this attempt is calibration data
             index, last_index = _continuing(index, last_index)
-            reading = self.inst.table.read_rate_dps()
-            self._check_table_rate(result, demand_now(), reading)
-            self.progress.update(table_dps=reading, elapsed_s=self.elapsed_s())
-            chunk_due = pending.n + len(block) >= chunk_n or result.samples >= n_total
-            if chunk_due:
-                self._poll_chamber_into(context_t, context_chamber, t0 + (last_index + 1) / fs)
-            want = self._elapse_next(min(block_n, n_total - result.samples), fs)
+            if not ahead:
+                chamber_c = self._block_context(result, demand_now, chunk_due)
             pending.add(block, index)
+            want = following
             if chunk_due:
+                context_t.append(t0 + (last_index + 1) / fs)
+                context_chamber.append(float(chamber_c))    # type: ignore[arg-type]
                 angle_start = self._write_chunk(step, attempt, chunk_index, pending, self._assemble(
                     pending.columns, t0, fs, context_t, context_chamber, rate_dps, angle_start,
                     reference), result)
@@ -189,30 +188,37 @@ class Acquisition:
         return result
 
     def _elapse_next(self, frames: int, fs: float) -> int:
-        """Let the next block's ``frames`` pass (returned), before this block is assembled
-        and written.
+        """Let the next block's ``frames`` pass (returned), before this block is read.
 
-        Every instrument call of a block (the read, the table readback, a chunk's chamber
-        poll) is made before it, at the same clock times as if it came after; only the
-        work that calls no instrument (the columns, the Parquet chunk) follows, so on
-        simulated time the gyro's thread makes the next block's frames meanwhile, on the
-        other core (the frames depend on the controller's calls alone, not on when they
-        are made). On a real clock it moves nothing: the unit streams by itself.
+        On simulated time the gyro's thread then makes the next block's frames while
+        this one crosses the pty, is decoded, assembled and written, on the other core;
+        the frames depend on the controller's calls alone, not on when they are made,
+        and every instrument call of this block was made before (:meth:`_block_context`).
+        On a real clock it moves nothing: the unit streams by itself.
         """
         if frames > 0:
             self.clock.elapse_reading(frames / fs)
         return frames
 
-    def _poll_chamber_into(self, context_t: list[float], context_chamber: list[float],
-                           t_s: float) -> None:
-        """The chamber is polled once a chunk (every chunk_s of clock time, on a station as on
-        simulated time), not every block: it is soaked within its tolerance while a step is
-        logged and its air changes over minutes, so the column interpolated between these
-        polls is as good, and its alarm is still seen within a chunk (the limit controller
-        cuts the heaters by itself). At every block it made ~16,000 of an overnight dry
-        run's ~35,000 Modbus exchanges."""
-        context_t.append(t_s)
-        context_chamber.append(self.poll_chamber())
+    def _block_context(self, result: StepResult, demand_now: Callable[[], float],
+                       chunk_due: bool) -> float | None:
+        """The table readback after a block and, at a chunk's end, the chamber poll (returned).
+
+        At the block's end time: on a real clock after the block is read (the readback
+        follows the data it vouches for); on simulated time before it is read, once the
+        clock stands at the block's end, so the next block's time can pass while this one
+        is read (:meth:`_elapse_next`): the same calls at the same clock times either way,
+        so the same readbacks, polls and frames. The chamber is polled once a chunk (every
+        chunk_s of clock time, on a station as on simulated time), not every block: it is
+        soaked within its tolerance while a step is logged and its air changes over
+        minutes, so the column interpolated between these polls is as good, and its alarm
+        is still seen within a chunk (the limit controller cuts the heaters by itself). At
+        every block it made ~16,000 of an overnight dry run's ~35,000 Modbus exchanges.
+        """
+        reading = self.inst.table.read_rate_dps()
+        self._check_table_rate(result, demand_now(), reading)
+        self.progress.update(table_dps=reading, elapsed_s=self.elapsed_s())
+        return self.poll_chamber() if chunk_due else None
 
     def _plausibility(self, step: PlanStep, fs: float,
                       at_rate_since_wall_s: float | None) -> StreamPlausibility | None:
