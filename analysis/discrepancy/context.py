@@ -69,7 +69,7 @@ class Context:
         self.probe_bins = self.probe_inputs(binned=True)
         self.space = SearchSpace(float(log.t_s[-1] - log.t_s[0]), self.bins.width_s,
                                  rate_levels(log.table_rate_dps, self.fs_hz),
-                                 passed_rates(log.table_rate_dps))
+                                 passed_rates(log.table_rate_dps), 1.0 / self.fs_hz)
         self.rng = np.random.default_rng(seed)
         self.n_null = n_null
         self.whitener: Whitener | None = None

@@ -226,6 +226,8 @@ class SearchSpace:
     #: every distinct |ω_t| the table passed through (slews included), ascending: where a
     #: dead-zone threshold between two held levels can still be told apart
     passed_rates_dps: tuple[float, ...] = ()
+    #: the log's sample period: the shortest thermal lag the model's per-sample filter resolves
+    sample_period_s: float = 0.0
 
 
 def rate_levels(table_rate_dps: np.ndarray, fs_hz: float, min_hold_s: float = 5.0) -> tuple[float, ...]:
@@ -283,6 +285,35 @@ def dead_zone_neighbourhood(threshold_dps: float, tried: list[float], space: Sea
     return _midpoints_between(lo, hi, space.passed_rates_dps, most)
 
 
+#: The shortest thermal lag searched (s): the sensor's thermal time constant; below a second
+#: the shift τ·dT/dt is under 0.1 °C even on a 5 °C/min ramp.
+SHORTEST_LAG_S = 1.0
+#: Spacing of the short lags (factor in τ): where the lag is only an amplitude (see below).
+SHORT_LAG_STEP = 2.0
+
+
+def short_lags(lo_tau: float, space: SearchSpace) -> list[float]:
+    """Thermal lags below the bin-scaled grid, down to a second (or two samples), a factor 2 apart.
+
+    The design evaluates the model per sample and bins the result, so a lag
+    shorter than a bin is not averaged away: while τ is short against the
+    ramps, T_s ≈ T_c − τ·dT/dt and every temperature term moves by τ times a
+    fixed shape (the tempco through dT/dt on the bias, the SF tempco times ω
+    wherever the table turns during a ramp). On a long log at 1–2 Hz the bins
+    are tens of seconds wide and a clear lag can be far below the grid's
+    3-bin start; the shortest lag tried then overshoots, its Δχ² is negative,
+    and a probe takes the structure instead. On that
+    amplitude-like stretch Δχ² ∝ 2k − k² in k = τ/τ_true, so a factor-2 grid
+    keeps at least 0.83 of the peak for the bounded refinement to finish.
+    """
+    floor = max(SHORTEST_LAG_S, 2.0 * space.sample_period_s)
+    out, tau = [], lo_tau / SHORT_LAG_STEP
+    while tau >= floor:
+        out.append(tau)
+        tau /= SHORT_LAG_STEP
+    return sorted(out)
+
+
 def shape_grid(name: str, space: SearchSpace) -> list[dict[str, float]]:
     """Shape-parameter values to try for effect ``name`` (one empty dict if it has none).
 
@@ -293,7 +324,8 @@ def shape_grid(name: str, space: SearchSpace) -> list[dict[str, float]]:
     """
     lo_tau = max(3.0 * space.bin_width_s, 10.0)
     if name == "thermal_lag":
-        return [{"tau_s": float(t)} for t in np.geomspace(lo_tau, max(0.5 * space.duration_s, 2 * lo_tau), 14)]
+        grid = np.geomspace(lo_tau, max(0.5 * space.duration_s, 2 * lo_tau), 14)
+        return [{"tau_s": float(t)} for t in (*short_lags(lo_tau, space), *grid)]
     if name == "warmup_transient":
         # a transient that does not decay within the record is a drift: up to a third of the
         # record, beyond it bias_ramp is the simpler claim (a 10σ ramp was taken for a
