@@ -246,9 +246,8 @@ class EffectKind(ABC):
 
 class CatalogueKind(EffectKind):
     def propose(self, ctx: Context, state: SearchState, fit: Fit) -> list[Candidate]:
+        # a log with sensor_temp_c has no thermal_lag to score (signatures.searched_effects)
         scores = score_library(ctx.builder, fit, ctx.whitener, ctx.y_bins, ctx.space)
-        if ctx.log.sensor_temp_c is not None:
-            scores.pop("thermal_lag", None)
         return [CatalogueCandidate(s) for s in scores.values()]
 
     def own_gap(self, ctx: Context, name: str, g: GapInputs) -> EffectGap | None:

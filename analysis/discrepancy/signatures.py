@@ -343,9 +343,14 @@ def shape_grid(name: str, space: SearchSpace) -> list[dict[str, float]]:
 
 def _has_its_input(name: str, inputs: ModelInputs | None) -> bool:
     """An effect that reads an optional input column (``magnetic_sensitivity``: ``field_t``)
-    is searched only when the log carries it: without it its signature is zero."""
+    is searched only when the log carries it, and ``thermal_lag`` only when the log has no
+    measured sensor temperature: otherwise its signature is zero."""
     if name == "magnetic_sensitivity":
         return inputs is not None and inputs.field_t is not None
+    if name == "thermal_lag":
+        # a measured sensor temperature replaces the lagged chamber in the equation
+        # (indicated.py): the lag's signature is zero and each τ tried a wasted refit
+        return inputs is None or inputs.sensor_temp_c is None
     return True
 
 

@@ -16,7 +16,8 @@ import discrepancy_scenarios as scenarios
 import numpy as np
 import pytest
 
-from gyrocal.analysis.discrepancy.signatures import SearchSpace, shape_grid
+from gyrocal.analysis.discrepancy.signatures import SearchSpace, searched_effects, shape_grid
+from gyrocal.models.indicated import ModelInputs
 
 MAX_BINS = 1000
 FS_HZ = 2.0
@@ -67,3 +68,15 @@ def test_short_lag_on_a_slow_staircase_is_named(seed):
     assert first.name == "thermal_lag", (first.name, result.where)
     assert abs(math.log(first.parameters["tau_s"] / truth["tau_s"])) < math.log(2.0)
     assert not result.unexplained, result.where
+
+
+def test_thermal_lag_not_scored_when_the_sensor_temperature_is_measured():
+    """With sensor_temp_c the equation uses it, not the lagged chamber: no lag to search."""
+    prof = staircase()
+    model = scenarios.nominal_model()
+    assert "thermal_lag" in searched_effects(model, prof.inputs)
+    measured = ModelInputs.of(prof.t_s, prof.table_rate_dps, prof.chamber_temp_c,
+                              sensor_temp_c=prof.chamber_temp_c - 0.5)
+    names = searched_effects(model, measured)
+    assert "thermal_lag" not in names
+    assert "temp_rate_bias" in names
