@@ -32,6 +32,7 @@ from gyrocal.cli import main
 from gyrocal.record.crash import CRASH_AT_ENV
 from gyrocal.record.run_folder import RunFolder
 from gyrocal.record.samples import read_chunks
+from tests.support.dry_run_compare import without
 from tests.support.fork_server import ForkServer
 
 #: results.json keys that name the run, a wall time, a loopback address, or count the
@@ -53,14 +54,6 @@ def counted_samples(run: Path) -> dict[str, tuple[int, dict[str, np.ndarray]]]:
         if event.get("event") == "step_completed" and event.get("chunks"):
             out[event["step_id"]] = (event["attempt"], dict(read_chunks(folder.path, event["chunks"])))
     return out
-
-
-def without(value: Any, free: set[str]) -> Any:
-    if isinstance(value, dict):
-        return {k: without(v, free) for k, v in value.items() if k not in free}
-    if isinstance(value, list):
-        return [without(v, free) for v in value]
-    return value
 
 
 def kill_points(events: list[dict[str, Any]]) -> dict[str, str]:
