@@ -194,7 +194,7 @@ def _section(outcomes: list[tables.Outcome], args, elapsed: float) -> str:
     lines += ["", "Held out only:", ""] + tables.reliability_rows(held)
     cpu_min = sum(o.cpu_seconds for o in outcomes) / 60
     lines += ["", f"{len(outcomes)} runs, {elapsed / 60:.1f} min wall on {args.workers} worker(s) "
-              f"({cpu_min:.1f} CPU-min; the 2-core machine was shared by about 8 people).", ""]
+              f"({cpu_min:.1f} CPU-min).", ""]
     return "\n".join(lines) + "\n"
 
 
