@@ -207,11 +207,7 @@ SHIPPED_KILLS: dict[str, dict[str, Any]] = {
 }
 
 
-@pytest.mark.slow
-@pytest.mark.timeout(600)
-@pytest.mark.parametrize("name", sorted(SHIPPED_KILLS))
-def test_a_shipped_procedure_killed_and_resumed_equals_the_uninterrupted_run(
-        name, h, tmp_path, capsys) -> None:
+def killed_and_resumed_equals_uninterrupted(name: str, h, tmp_path: Path, capsys) -> None:
     """The supply, coil, tilt and IMU fixture simulators are restored as the single-axis
     station's are: the shipped procedure, killed where its simulators hold state."""
     procedure = h.REPO_ROOT / "procedures" / f"{name}.yaml"
@@ -238,6 +234,55 @@ def test_a_shipped_procedure_killed_and_resumed_equals_the_uninterrupted_run(
                                                           capsys.readouterr())
             _assert_equal_run(h, out, point_name, expected, expected_results, plan=plan,
                               cut_step=case["cut"])
+
+
+# One class per group of procedures: the suite runs under pytest-xdist's ``loadscope``,
+# which keeps a module's functions (a class's methods) on one worker; as one parametrized
+# function the seven procedures ran one after another on one worker (minutes of the
+# suite's tail); as classes they spread over the workers.
+KILL_GROUPS = {
+    "imu": ["imu-5-temps-3-mountings"],
+    "acceptance": ["acceptance-series"],
+    "supply-coil-tilt": ["magnetic-sensitivity", "tilt-linearity"],
+    "drive-off-scpi": ["table-interference", "kvg25-analog-dmm", "rlg-pulse-counter"],
+}
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+class TestImuFixture:
+    @pytest.mark.parametrize("name", KILL_GROUPS["imu"])
+    def test_killed_and_resumed(self, name, h, tmp_path, capsys) -> None:
+        killed_and_resumed_equals_uninterrupted(name, h, tmp_path, capsys)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+class TestAcceptanceSeries:
+    @pytest.mark.parametrize("name", KILL_GROUPS["acceptance"])
+    def test_killed_and_resumed(self, name, h, tmp_path, capsys) -> None:
+        killed_and_resumed_equals_uninterrupted(name, h, tmp_path, capsys)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+class TestSupplyCoilAndTilt:
+    @pytest.mark.parametrize("name", KILL_GROUPS["supply-coil-tilt"])
+    def test_killed_and_resumed(self, name, h, tmp_path, capsys) -> None:
+        killed_and_resumed_equals_uninterrupted(name, h, tmp_path, capsys)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+class TestDriveOffAndScpiGyros:
+    @pytest.mark.parametrize("name", KILL_GROUPS["drive-off-scpi"])
+    def test_killed_and_resumed(self, name, h, tmp_path, capsys) -> None:
+        killed_and_resumed_equals_uninterrupted(name, h, tmp_path, capsys)
+
+
+def test_every_kill_case_is_in_one_group() -> None:
+    grouped = [name for names in KILL_GROUPS.values() for name in names]
+    assert sorted(grouped) == sorted(SHIPPED_KILLS)
 
 
 def test_the_supply_unit_power_tilt_and_imu_fixture_go_back_into_their_snapshot(h) -> None:
