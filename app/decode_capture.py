@@ -28,20 +28,29 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
+from gyrocal.app.decode_specials import (
+    SpecialInCapture,
+    configuration_fields,
+    describe_special,
+    place_specials,
+    special_figures,
+)
 from gyrocal.errors import EXIT_OK, BadInput
 from gyrocal.instruments.gyro.capture import read_capture
+from gyrocal.instruments.gyro.configuration import UnitConfiguration
 from gyrocal.instruments.gyro.datagram import (
     DEFAULT_LSB,
     DecodedFrames,
     FrameDecoder,
     axis_index,
+    concat_decoded,
     flagged,
 )
 from gyrocal.instruments.gyro.datagram_types import (
     DEFAULT_ACCELEROMETER_RANGE_G,
     INTERNAL_RATE_HZ,
 )
-from gyrocal.instruments.gyro.special_datagrams import find_configuration
+from gyrocal.instruments.gyro.special_datagrams import Found, cut_specials
 from gyrocal.instruments.gyro.survey import survey_stream
 from gyrocal.record.run_folder import SAMPLE_FLAG_GYRO_FLAGGED
 
@@ -74,6 +83,7 @@ class DecodedCapture:
     garbage_bytes: int
     tail_bytes: int
     bytes_total: int
+    specials: list[SpecialInCapture]
 
     @property
     def sample_rate_hz(self) -> float:
@@ -81,11 +91,17 @@ class DecodedCapture:
 
 
 def decode_capture(data: bytes, source: str, options: DecodeOptions) -> DecodedCapture:
-    """Identify the datagram and rate from the bytes, then decode all of them."""
-    survey = survey_stream(data[:_SURVEY_BYTES])
+    """Identify the datagram and rate from the bytes, then decode all of them.
+
+    Special datagrams (start-up, or answers to ``N``/``I``/``C``) are cut out
+    first with the driver's search, so they are not garbage, and the counter gap
+    across an answer counts as replaced datagrams, not lost ones.
+    """
+    kept, found, _ = cut_specials(data)
+    survey = survey_stream(kept[:_SURVEY_BYTES])
     if survey.layout is None or survey.frames_valid < 2 or survey.counter_step is None:
         raise BadInput(f"{source}: no STIM300 normal-mode datagram (TS1524 Table 5-21) with a "
-                       f"valid CRC found in the first {min(len(data), _SURVEY_BYTES)} bytes")
+                       f"valid CRC found in the first {min(len(kept), _SURVEY_BYTES)} bytes")
     if survey.counter_step > 255:
         raise BadInput(f"{source}: the counter does not advance between datagrams; "
                        "the rate cannot be read from it")
@@ -93,10 +109,29 @@ def decode_capture(data: bytes, source: str, options: DecodeOptions) -> DecodedC
     decoder = FrameDecoder(lsb=options.rate_lsb, crlf=layout.crlf, datagram=layout.identifier,
                            counter_step=survey.counter_step,
                            accelerometer_range_g=options.accelerometer_range_g)
-    frames = decoder.feed(data)
+    frames, frames_before = _decode_between(data, found, decoder)
+    specials = place_specials(found, [data[f.start] for f in found], frames_before, frames.counter,
+                              survey.counter_step)
+    frames.lost_frames = decoder.total_lost_frames - sum(s.replaced_frames or 0 for s in specials)
     return DecodedCapture(frames, layout.kind.label(), layout.identifier, layout.crlf,
-                          survey.counter_step, frames.crc_errors, frames.garbage_bytes,
-                          decoder.pending_bytes, len(data))
+                          survey.counter_step, decoder.total_crc_errors, decoder.total_garbage_bytes,
+                          decoder.pending_bytes, len(data), specials)
+
+
+def _decode_between(data: bytes, found: list[Found],
+                    decoder: FrameDecoder) -> tuple[DecodedFrames, list[int]]:
+    """The bytes around the special datagrams decoded as one stream, and how many
+    normal-mode datagrams precede each special."""
+    view = memoryview(data)
+    parts: list[DecodedFrames] = []
+    frames_before: list[int] = []
+    at = 0
+    for hit in found:
+        parts.append(decoder.feed(view[at:hit.start]))
+        frames_before.append(decoder.total_frames)
+        at = hit.end
+    parts.append(decoder.feed(view[at:]))
+    return concat_decoded(parts, decoder.layout), frames_before
 
 
 def log_columns(capture: DecodedCapture, options: DecodeOptions) -> tuple[dict[str, np.ndarray], str]:
@@ -161,7 +196,8 @@ def summary(capture: DecodedCapture, source: str, options: DecodeOptions, temp_s
         "status_flagged_by_sensor": {k: int(np.count_nonzero(v)) for k, v in statuses.items()},
         "counter_step": capture.counter_step,
         "sample_rate_hz": capture.sample_rate_hz,
-        "duration_s": (len(frames) + frames.lost_frames) / capture.sample_rate_hz,
+        "duration_s": (len(frames) + frames.lost_frames
+                       + sum(s.replaced_frames or 0 for s in capture.specials)) / capture.sample_rate_hz,
         "means_over": "datagrams whose own sensor's status byte is 0 (all datagrams if none)",
         "gyro_mean_dps": _mean(frames.rate, frames.status),
         "accelerometer_range_g": options.accelerometer_range_g if acc is not None else None,
@@ -195,15 +231,12 @@ def _gravity_check(acc: np.ndarray, status: np.ndarray | None, range_g: int) -> 
     return out
 
 
-def _configuration_figures(config, capture: DecodedCapture) -> dict:
-    """The unit's configuration datagram (0xBC/0xBD), when the capture holds one, against the stream."""
+def _configuration_figures(specials: list[SpecialInCapture], capture: DecodedCapture) -> dict:
+    """The unit's first configuration datagram (0xBC/0xBD), when the capture holds one, against the stream."""
+    config = next((s.found.value for s in specials if isinstance(s.found.value, UnitConfiguration)), None)
     if config is None:
         return {}
-    out: dict = {"unit_configuration": {
-        "datagram_id": f"0x{config.datagram:02X}", "sample_rate_hz": config.sample_rate_hz,
-        "crlf": config.crlf, "bit_rate": config.bit_rate,
-        "accelerometer_range_g": list(config.accelerometer_range_g),
-        "firmware": config.firmware, "revision": config.revision}}
+    out: dict = {"unit_configuration": configuration_fields(config)}
     if config.datagram != capture.datagram_id or (
             config.sample_rate_hz is not None and config.sample_rate_hz != capture.sample_rate_hz):
         out["configuration_note"] = (
@@ -242,11 +275,14 @@ def cmd_decode(args: argparse.Namespace) -> int:
     capture = decode_capture(data, source, options)
     columns, temp_source = log_columns(capture, options)
     figures = summary(capture, source, options, temp_source)
-    figures.update(_configuration_figures(find_configuration(data), capture))
+    figures.update(special_figures(capture.specials))
+    figures.update(_configuration_figures(capture.specials, capture))
     if args.out:
         _writing("--out", args.out, lambda: write_log(columns, Path(args.out)))
         figures["log"] = str(args.out)
     _print(figures)
+    for special in capture.specials:
+        print(f"  special datagram at {describe_special(special)}")
     if args.json:
         _writing("--json", args.json, lambda: Path(args.json).write_text(
             json.dumps(figures, indent=2) + "\n", encoding="utf-8"))
@@ -266,7 +302,7 @@ def _print(figures: dict) -> None:
           f"{' with CR LF' if figures['crlf'] else ''}, {figures['sample_rate_hz']:g} Hz "
           f"(counter step {figures['counter_step']}, TS1524 §7.5.2.2.18)")
     for key in ("frames_valid", "crc_errors", "garbage_bytes", "incomplete_tail_bytes", "lost_frames",
-                "status_flagged", "duration_s", "gyro_mean_dps", "accelerometer_range_g",
+                "replaced_frames", "part_number", "part_number_revision", "serial_number", "status_flagged", "duration_s", "gyro_mean_dps", "accelerometer_range_g",
                 "accelerometer_mean_g", "accelerometer_magnitude_median_g", "inclinometer_mean_g",
                 "gyro_temperature_mean_c", "accelerometer_note", "unit_configuration",
                 "configuration_note", "chamber_temp_c_source", "log"):

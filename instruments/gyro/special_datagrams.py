@@ -206,6 +206,17 @@ def locate_special(data: bytes | bytearray, kinds: tuple[SpecialKind, ...] = STA
     return None
 
 
+def replaced_frames(counter_before: int, counter_after: int, counter_step: int) -> int:
+    """Normal-mode datagrams an answer took the place of: the counter gap across it, less one.
+
+    The counter counts internal samples (§7.5.2.2.18, p. 55), so the gap says how many
+    datagrams' time the answer took; an unchanged counter is a whole wrap (256 / step), as
+    the frame decoder reads it, so the two agree on every gap.
+    """
+    gap = (int(counter_after) - int(counter_before)) % 256 or 256
+    return gap // counter_step - 1
+
+
 def find_configuration(data: bytes) -> UnitConfiguration | None:
     """The first configuration datagram in a stream whose CRC checks, if any."""
     found = locate_special(data, (CONFIGURATION,))

@@ -65,6 +65,7 @@ from gyrocal.instruments.gyro.special_datagrams import (
     SpecialKind,
     cut_specials,
     locate_special,
+    replaced_frames,
 )
 from gyrocal.instruments.gyro.survey import StreamSurvey, survey_stream
 from gyrocal.instruments.interfaces import GyroBlock, Identity
@@ -368,7 +369,7 @@ class Stim300Gyro:
         step = self._decoder.counter_step
         if not (before.size and after.size and step):
             return None
-        return (int(after[0]) - int(before[-1])) % 256 // step - 1
+        return replaced_frames(int(before[-1]), int(after[0]), step)
 
     def _counters(self, data: bytes | bytearray) -> np.ndarray:
         """The counters of the declared type's CRC-valid datagrams in ``data``."""

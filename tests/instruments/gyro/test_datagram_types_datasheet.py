@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from crc_reference import bitwise_crc32_mpeg2 as bitwise_crc
+from stim300_bytes import hand_configuration
 
 from gyrocal.instruments.gyro.channels import SensorChannels
 from gyrocal.instruments.gyro.configuration import decode_configuration
@@ -181,21 +182,6 @@ def test_a_counter_gap_at_125_hz_is_counted_in_datagrams():
     data = encode_frame_array(np.zeros((10, 3)), (frames * 16) & 0xFF, datagram=0x90).tobytes()
     decoded = FrameDecoder(datagram=0x90, counter_step=16).feed(data)
     assert decoded.lost_frames == 2 and decoded.index.tolist() == frames.tolist()
-
-
-def hand_configuration(crlf: bool) -> bytes:
-    """Table 5-16 field by field: rev 'B', firmware 7, 250 samples/s, acc + incl, 921600 bit/s,
-    accelerometers 30 g on x, y, z."""
-    body = bytes([0xBD if crlf else 0xBC, ord("B"), 7,
-                  0b001_0_0_1_1_0 | (1 if crlf else 0),     # byte 3: 250 Hz, no PPS/temp, incl, acc
-                  0b0010_0_00_0,                             # byte 4: 921600, 1 stop, no parity
-                  0x70, 0x00, 0x00, 0x70, 0x00, 0x00, 0x70, 0x00, 0x00, 0x08,   # bytes 5–14
-                  0x00, 0x00,                                # bytes 15–16: gyro ranges
-                  0x44, 0x40,                                # bytes 17–18: acc 30 g x, y / z
-                  0x00, 0x00, 0x00])                         # bytes 19–21
-    assert len(body) == 22
-    crc = bitwise_crc(body + bytes(2))                       # Table 5-22: 2 dummy bytes
-    return body + crc.to_bytes(4, "big") + (b"\r\n" if crlf else b"")
 
 
 @pytest.mark.parametrize("crlf", [False, True])

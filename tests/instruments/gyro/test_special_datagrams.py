@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import pytest
 from crc_reference import bitwise_crc32_mpeg2 as bitwise_crc
+from stim300_bytes import PART_BODY, SERIAL_BODY
 
 from gyrocal.instruments.gyro.special_datagrams import (
     BiasTrimOffset,
@@ -27,17 +28,6 @@ from gyrocal.instruments.sim.stim_identity import part_number_datagram, serial_n
 
 def framed(body: bytes, crlf: bool = False) -> bytes:
     return body + bitwise_crc(body).to_bytes(4, "big") + (b"\r\n" if crlf else b"")
-
-
-# Table 5-15: 0xB5, 'N', then the 14 digits two to a byte, high nibble first; 7 spare bytes
-SERIAL_BODY = bytes([0xB5, 0x4E, 0x25, 0x58, 0x24, 0x05, 0x00, 0x20, 0x02]) + bytes(7)
-# Table 5-13, 84167-4400003-321 rev K: byte 1 low nibble digit 1 (8); bytes 2-3 digits 2-5;
-# byte 4 '-'; bytes 5-7 digits 6-11 (4 4 0 0 0 0); byte 8 '-'; byte 9 high: digit 13's
-# least significant nibble (3), low: digit 14 (2); byte 10 high: digit 15's least (1), low:
-# its most significant (0); byte 11 high: digit 13's most significant (0), low: digit 12 (3);
-# bytes 12-14 spare; byte 15 the revision 'K'
-PART_BODY = bytes([0xB1, 0x08, 0x41, 0x67, 0x2D, 0x44, 0x00, 0x00, 0x2D, 0x32, 0x10, 0x03,
-                   0, 0, 0, ord("K")])
 
 
 def test_the_serial_number_datagram_of_the_example_unit():
