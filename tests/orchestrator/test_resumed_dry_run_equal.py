@@ -240,48 +240,39 @@ def killed_and_resumed_equals_uninterrupted(name: str, h, tmp_path: Path, capsys
 # which keeps a module's functions (a class's methods) on one worker; as one parametrized
 # function the seven procedures ran one after another on one worker (minutes of the
 # suite's tail); as classes they spread over the workers.
-KILL_GROUPS = {
-    "imu": ["imu-5-temps-3-mountings"],
-    "acceptance": ["acceptance-series"],
-    "supply-coil-tilt": ["magnetic-sensitivity", "tilt-linearity"],
-    "drive-off-scpi": ["table-interference", "kvg25-analog-dmm", "rlg-pulse-counter"],
-}
+class _KillGroup:
+    """Some of ``SHIPPED_KILLS``, each killed and resumed (``names``, parametrized below)."""
 
+    pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
+    names: tuple[str, ...] = ()
 
-@pytest.mark.slow
-@pytest.mark.timeout(600)
-class TestImuFixture:
-    @pytest.mark.parametrize("name", KILL_GROUPS["imu"])
     def test_killed_and_resumed(self, name, h, tmp_path, capsys) -> None:
         killed_and_resumed_equals_uninterrupted(name, h, tmp_path, capsys)
 
 
-@pytest.mark.slow
-@pytest.mark.timeout(600)
-class TestAcceptanceSeries:
-    @pytest.mark.parametrize("name", KILL_GROUPS["acceptance"])
-    def test_killed_and_resumed(self, name, h, tmp_path, capsys) -> None:
-        killed_and_resumed_equals_uninterrupted(name, h, tmp_path, capsys)
+def pytest_generate_tests(metafunc) -> None:
+    if metafunc.cls is not None and issubclass(metafunc.cls, _KillGroup):
+        metafunc.parametrize("name", metafunc.cls.names)
 
 
-@pytest.mark.slow
-@pytest.mark.timeout(600)
-class TestSupplyCoilAndTilt:
-    @pytest.mark.parametrize("name", KILL_GROUPS["supply-coil-tilt"])
-    def test_killed_and_resumed(self, name, h, tmp_path, capsys) -> None:
-        killed_and_resumed_equals_uninterrupted(name, h, tmp_path, capsys)
+class TestImuFixture(_KillGroup):
+    names = ("imu-5-temps-3-mountings",)
 
 
-@pytest.mark.slow
-@pytest.mark.timeout(600)
-class TestDriveOffAndScpiGyros:
-    @pytest.mark.parametrize("name", KILL_GROUPS["drive-off-scpi"])
-    def test_killed_and_resumed(self, name, h, tmp_path, capsys) -> None:
-        killed_and_resumed_equals_uninterrupted(name, h, tmp_path, capsys)
+class TestAcceptanceSeries(_KillGroup):
+    names = ("acceptance-series",)
+
+
+class TestSupplyCoilAndTilt(_KillGroup):
+    names = ("magnetic-sensitivity", "tilt-linearity")
+
+
+class TestDriveOffAndScpiGyros(_KillGroup):
+    names = ("table-interference", "kvg25-analog-dmm", "rlg-pulse-counter")
 
 
 def test_every_kill_case_is_in_one_group() -> None:
-    grouped = [name for names in KILL_GROUPS.values() for name in names]
+    grouped = [name for group in _KillGroup.__subclasses__() for name in group.names]
     assert sorted(grouped) == sorted(SHIPPED_KILLS)
 
 
