@@ -29,6 +29,7 @@ from gyrocal.errors import EXIT_OK, BadInput, RunFaultError
 from gyrocal.instruments.gyro.capture import read_capture
 from gyrocal.instruments.sim.replay_pty import ReplayGyroPort
 from gyrocal.instruments.sim.station_sim import SimAddresses, SimulatedStation
+from gyrocal.instruments.sim.stim_identity import carries_serial
 from gyrocal.models.clock import RealClock
 from gyrocal.orchestrator.station import load_station
 
@@ -59,6 +60,16 @@ def resolved_station_text(station_path: Path, addresses: SimAddresses,
     return header + yaml.safe_dump(data, sort_keys=False)
 
 
+def _unit_serial(args: argparse.Namespace) -> str | None:
+    """The serial the simulated unit reports (``--unit-serial``): a STIM300's form, letter N and
+    fourteen digits (TS1524 Table 5-15), so rehearsing against one unit, or a swap, is possible."""
+    serial = getattr(args, "unit_serial", None)
+    if serial is not None and not carries_serial(serial):
+        raise BadInput(f"--unit-serial {serial!r}: a STIM300 serial is the letter N and fourteen "
+                       "digits (TS1524 Table 5-15), e.g. N25580000000123")
+    return serial
+
+
 def cmd_sim_serve(args: argparse.Namespace) -> int:
     quiet_library_logs(getattr(args, "debug", False))
     station_path = Path(args.station) if args.station else DEFAULT_STATION
@@ -75,7 +86,8 @@ def cmd_sim_serve(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise BadInput(f"--replay-gyro {exc}") from None
     try:
-        simulated = SimulatedStation(station, clock, seed=args.seed, gyro_port=replay)
+        simulated = SimulatedStation(station, clock, seed=args.seed, gyro_port=replay,
+                                     unit_serial=_unit_serial(args))
     except ValueError as exc:
         if replay is not None:
             replay.stop()

@@ -293,6 +293,8 @@ def _add_instrument_commands(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--replay-gyro", default=None, metavar="CAPTURE",
                    help="serve this recorded capture (binary or decimal text) as the gyro, byte "
                    "for byte at its own rate, looped")
+    s.add_argument("--unit-serial", default=None, metavar="SERIAL",
+                   help="the serial the simulated STIM300 reports (N and 14 digits; default none)")
     s.set_defaults(func=_lazy("gyrocal.app.sim_serve", "cmd_sim_serve"))
 
     p = sub.add_parser("demo", help="the dry run against simulated instruments")

@@ -23,6 +23,7 @@ from typing import Any, Protocol
 from gyrocal.errors import NO_ROOM_ERRNOS
 from gyrocal.instruments.errors import InstrumentError
 from gyrocal.instruments.factory import Instruments
+from gyrocal.instruments.identity import serial_change
 from gyrocal.instruments.interfaces import ConfigurableGyro, IdentifyingGyro, Identity
 from gyrocal.models.imu_model import Mounting
 from gyrocal.models.sim_state import SimStateError
@@ -45,7 +46,7 @@ from gyrocal.orchestrator.unit_power import UnitPowerPolicy, power_on
 from gyrocal.orchestrator.unit_power import check as check_power
 from gyrocal.record.journal import JournalEvent
 from gyrocal.record.logged_steps import attempts_started, bad_attempts, counted_attempts
-from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.run_folder import RunFolder, serials_begun_with
 from gyrocal.record.step_kind import StepKind
 
 #: An operator creates this file in the run folder to pause before the next step.
@@ -307,9 +308,10 @@ class RunEngine:
     def _connect_and_preflight(self) -> None:
         self.machine.connect()
         identities: dict[str, dict[str, str]] = {}
+        recorded = serials_begun_with(self.folder.journal_events())   # earlier sessions'
         supply = [self.inst.supply] if self.inst.supply is not None else []
         for inst in (self.inst.chamber, self.inst.table, *supply):
-            self._identified(inst.identify(), identities)
+            self._same_unit(identities, recorded, self._identified(inst.identify(), identities))
         if self.inst.supply is not None and self.policy.unit_power is not None:
             powered_s = self.clock.now_s()
             self._commanded = True
@@ -322,7 +324,8 @@ class RunEngine:
             self._confirm_gyro_configuration()
             self._ask_gyro_identity()
         finally:       # the gyro last: its identity carries what it said of its configuration
-            self._identified(self.inst.gyro.identify(), identities)
+            gyro_role = self._identified(self.inst.gyro.identify(), identities)
+        self._same_unit(identities, recorded, gyro_role)
         self.machine.identified()
         status = self.inst.chamber.read_status()
         if status.alarm:
@@ -350,13 +353,28 @@ class RunEngine:
                             gyro_samples=len(block), table_rate_dps=self.conditions.table_dps)
         self.machine.preflight_ok()
 
-    def _identified(self, ident: Identity, identities: dict[str, dict[str, str]]) -> None:
-        """Journal an instrument's identity and keep the manifest's copy in step."""
+    def _identified(self, ident: Identity, identities: dict[str, dict[str, str]]) -> str:
+        """Journal an instrument's identity and keep the manifest's copy in step (its role)."""
         identities[ident.role] = {"driver": ident.driver, "address": ident.address,
                                   "description": ident.description}
         self.journal.append(JournalEvent.INSTRUMENT_IDENTIFIED, role=ident.role, driver=ident.driver,
                             address=ident.address, description=ident.description)
         self.folder.update_manifest(instruments=identities)
+        return ident.role
+
+    def _same_unit(self, identities: dict[str, dict[str, str]], recorded: dict[str, str],
+                   role: str) -> None:
+        """A resumed run goes on with the units it began with: an instrument (the unit under
+        test above all) reporting another serial than the one this run began with is a fault
+        before its first step (exit 3): another unit's samples under this run's certificate,
+        or a step measured with an instrument its traceability does not list."""
+        before = recorded.get(role)
+        now = serial_change(before, identities[role]["description"])
+        if now is not None:
+            raise RunFaultError(
+                f"{role}: preflight: reports serial {now}, but this run began with serial "
+                f"{before} (journal instrument_identified): another unit; reconnect serial "
+                f"{before} and resume again, or start a new run for serial {now}")
 
     def _ask_gyro_identity(self) -> None:
         """Ask the gyro who it is (a STIM300's ``N<CR>``, ``I<CR>``, TS1524 §8.1–8.2): its

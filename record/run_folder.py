@@ -26,6 +26,7 @@ import pyarrow.parquet as pq
 from gyrocal import __version__
 from gyrocal.errors import BadInput
 from gyrocal.instruments.gyro.channels import CHANNEL_COLUMNS, CHANNEL_STATUS_COLUMNS
+from gyrocal.instruments.identity import reported_serial
 from gyrocal.record.atomic import write_atomic, write_bytes_atomic
 from gyrocal.record.journal import Journal, JournalEvent, read_journal, sha256_file
 
@@ -81,6 +82,22 @@ def identified_instruments(events: list[dict[str, Any]]) -> dict[str, dict[str, 
         if event.get("event") == JournalEvent.INSTRUMENT_IDENTIFIED and event.get("role"):
             found[str(event["role"])] = {key: event.get(key)
                                          for key in ("driver", "address", "description")}
+    return found
+
+
+def serials_begun_with(events: list[dict[str, Any]]) -> dict[str, str]:
+    """role → the first serial this run's journal recorded for it (``instrument_identified``).
+
+    The unit a run began with, not the latest: a session refused for another unit
+    journaled that unit's identity before the refusal, and must not make it the
+    run's. An instrument that reported no serial in a session is skipped there.
+    """
+    found: dict[str, str] = {}
+    for event in events:
+        if event.get("event") == JournalEvent.INSTRUMENT_IDENTIFIED and event.get("role"):
+            serial = reported_serial(event.get("description"))
+            if serial:
+                found.setdefault(str(event["role"]), serial)
     return found
 
 
