@@ -29,45 +29,22 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from functools import cache
 
 import discrepancy_scenarios as scenarios
 import numpy as np
-from discrepancy_cases import Case
+from discrepancy_heldout import (  # noqa: F401 (re-exported: the set's runner and tests read them here)
+    LAG_COLUMN_TAU_S,
+    MAX_BINS,
+    SIZED,
+    FreshProfile,
+    HeldOutSet,
+    SnrSpace,
+    Unknown,
+    noise_scale,
+    residual_snr,
+    white_sigma_dph,
+)
 from scipy.signal import lfilter
-
-from gyrocal.analysis.discrepancy.noise_model import NoiseModel
-from gyrocal.analysis.discrepancy.scoring import gls_fit
-from gyrocal.analysis.discrepancy.signatures import placeholder_spec
-from gyrocal.models.gyro_model import EffectSpec
-
-MAX_BINS = 1000       # the analysis' bins in the validation runs (sizes are SNRs of these bin means)
-
-#: every sized catalogue effect; a profile drops those it gives nothing to act on
-SIZED = ("thermal_lag", "temp_rate_bias", "temp_hysteresis", "bias_temp_quadratic",
-         "sf_temp_quadratic", "sf_nonlinearity_quadratic", "sf_nonlinearity_cubic",
-         "sf_asymmetry", "warmup_transient", "bias_ramp", "table_angle_harmonic",
-         "periodic_interference")
-
-
-@dataclass(frozen=True)
-class FreshProfile:
-    """A procedure of the fresh set and the catalogue effects' parameters on it."""
-
-    title: str
-    build: Callable[[], scenarios.Profile]
-    shapes: dict[str, dict[str, float]]      # shape parameters of the sized effects
-    dead_zone_dps: float                      # swallows the profile's lowest dwell rate
-    markov_taus_s: tuple[float, float]
-    pulse_arcsec: float
-    unobservable: tuple[str, ...] = field(default=())   # sized effects the profile cannot show
-    #: unknowns the profile turns into catalogue effects (not run there; the reason is in PROFILES)
-    catalogue_alike: tuple[str, ...] = field(default=())
-
-    @property
-    def sized(self) -> tuple[str, ...]:
-        return tuple(n for n in SIZED if n not in self.unobservable)
 
 
 def scheduled_profile(duration_s: float, fs_hz: float, temp_c: Callable[[np.ndarray], np.ndarray],
@@ -167,11 +144,6 @@ PROFILES: dict[str, FreshProfile] = {
 }
 
 
-@cache
-def profile(name: str) -> scenarios.Profile:
-    return PROFILES[name].build()
-
-
 # --- structure outside the catalogue -------------------------------------------------------------
 
 def _last_rotation_sign(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
@@ -252,22 +224,6 @@ def _rate_noise_shape(p: scenarios.Profile, rng: np.random.Generator) -> np.ndar
     return np.abs(p.table_rate_dps) / np.abs(p.table_rate_dps).max()
 
 
-@dataclass(frozen=True)
-class Unknown:
-    """An out-of-catalogue shape (deg/h per sample before sizing) and how it is sized.
-
-    ``sizing``: "bins" (known-shape SNR of its binned shape), "white" (norm
-    against the per-sample white noise, for shapes that live above the bins'
-    band), "noise" (``shape`` is a relative variance increase; sized by its
-    expected likelihood ratio). ``with_effect``: a catalogue effect hidden
-    beside it at the same SNR.
-    """
-
-    shape: Callable[[scenarios.Profile, np.random.Generator], np.ndarray]
-    sizing: str = "bins"
-    with_effect: str = ""
-
-
 UNKNOWN: dict[str, Unknown] = {
     "bias held at the sign of the last rotation": Unknown(_last_rotation_sign),
     "bias ∝ table angular acceleration": Unknown(_acceleration),
@@ -286,171 +242,24 @@ UNKNOWN: dict[str, Unknown] = {
 }
 
 
-def white_sigma_dph(p: scenarios.Profile) -> float:
-    return NoiseModel.of_model(scenarios.nominal_model()).white_sigma_dph(p.fs_hz)
+#: R1–R3 as a set: its runs are seeded 9000 + …, its unknowns' shapes draw from [seed, 29]
+SET = HeldOutSet("R", PROFILES, UNKNOWN, seed_base=9000, shape_stream=29)
 
-
-def noise_scale(relative_var: np.ndarray, snr: float) -> float:
-    """c for which Σ (c·r − ln(1 + c·r)) = snr²: the expected likelihood ratio of the variance change.
-
-    2·KL between N(0, σ²(1 + c·r)) and N(0, σ²), summed over the samples.
-    """
-    def lr(c: float) -> float:
-        cr = c * relative_var
-        return float(np.sum(cr - np.log1p(cr)))
-    lo, hi = math.log(1e-9), math.log(1e6)
-    for _ in range(80):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if lr(math.exp(mid)) < snr * snr else (lo, mid)
-    return math.exp(0.5 * (lo + hi))
-
-
-def shape_rng(seed: int) -> np.random.Generator:
-    """The random stream of a case's out-of-catalogue shape: apart from the simulator's noise of ``seed``."""
-    return np.random.default_rng([seed, 29])
-
-
-def extra_dph(name: str, p: scenarios.Profile, snr: float, seed: int) -> np.ndarray:
-    """The out-of-catalogue structure ``name`` (deg/h per sample) at known-shape SNR ``snr``.
-
-    Random shapes draw from ``seed`` on a stream apart from the simulator's noise.
-    """
-    unknown = UNKNOWN[name]
-    rng = shape_rng(seed)
-    shape = unknown.shape(p, rng)
-    if unknown.sizing == "bins":
-        return scenarios.sized_extra(shape, snr, p, max_bins=MAX_BINS)
-    sigma = white_sigma_dph(p)
-    if unknown.sizing == "white":
-        return shape * (snr * sigma / float(np.linalg.norm(shape)))
-    return sigma * np.sqrt(noise_scale(shape, snr) * shape) * rng.standard_normal(shape.size)
-
-
-def catalogue_spec(name: str, pname: str, snr: float) -> EffectSpec:
-    prof = PROFILES[pname]
-    return scenarios.sized_effect(name, snr, profile(pname), shape=prof.shapes.get(name),
-                                  max_bins=MAX_BINS)
-
-
-def effect_cases(pname: str, seeds: int, snr: float = 10.0) -> list[Case]:
-    """Every catalogue effect the profile can show, alone, at ``snr``; seeds 9000 + k."""
-    prof, cases = PROFILES[pname], []
-    if seeds == 0:
-        return cases
-    for name in prof.sized:
-        spec = catalogue_spec(name, pname, snr)
-        cases += [Case("effect", f"{name} ({snr:g}σ)", pname, (spec,), 9000 + s, snr=snr) for s in range(seeds)]
-    for tau in prof.markov_taus_s:
-        spec = scenarios.sized_markov(snr, tau, profile(pname))
-        cases += [Case("effect", f"markov_bias τ {tau:g} s ({snr:g}σ)", pname, (spec,), 9100 + s, snr=snr)
-                  for s in range(seeds)]
-    if snr == 10.0:
-        spec = EffectSpec("dead_zone", {"threshold_dps": prof.dead_zone_dps})
-        cases += [Case("effect", f"dead_zone {prof.dead_zone_dps:g} deg/s", pname, (spec,), 9200 + s)
-                  for s in range(seeds)]
-        spec = EffectSpec("quantization", {"pulse_arcsec": prof.pulse_arcsec})
-        cases += [Case("effect", f"quantization {prof.pulse_arcsec:g}″", pname, (spec,), 9300 + s)
-                  for s in range(seeds)]
-    return cases
+# the set's machinery under the names its runner and tests have always used
+profile = SET.profile
+shape_rng = SET.shape_rng
+extra_dph = SET.extra_dph
+catalogue_spec = SET.catalogue_spec
+effect_cases = SET.effect_cases
+case_extra_dph = SET.case_extra_dph
+snr_space = SET.snr_space
+catalogue_columns = SET.catalogue_columns
+effect_signature = SET.effect_signature
+closest_catalogue = SET.closest_catalogue
 
 
 def fresh_cases(seeds: int, controls: int, unknown_seeds: int, profiles=tuple(PROFILES),
-                near_seeds: int = 0, near_snr: float = 5.0) -> list[Case]:
+                near_seeds: int = 0, near_snr: float = 5.0) -> list:
     """The whole set: per profile the catalogue at 10σ (``near_seeds`` also at ``near_snr``),
     ``controls`` effect-free runs and every unknown ``unknown_seeds`` times."""
-    cases: list[Case] = []
-    for pname in profiles:
-        cases += effect_cases(pname, seeds)
-        if near_seeds:
-            cases += effect_cases(pname, near_seeds, near_snr)
-        cases += [Case("control", "control", pname, (), 9400 + s) for s in range(controls)]
-        for name, unknown in UNKNOWN.items():
-            if name in PROFILES[pname].catalogue_alike or unknown_seeds == 0:
-                continue
-            hidden = (catalogue_spec(unknown.with_effect, pname, 10.0),) if unknown.with_effect else ()
-            cases += [Case("unknown", name, pname, hidden, 9500 + s, name) for s in range(unknown_seeds)]
-    return cases
-
-
-def case_extra_dph(case: Case) -> np.ndarray | None:
-    """The case's structure outside the catalogue (None for effects and controls)."""
-    return extra_dph(case.unknown, profile(case.profile), case.snr, case.seed) if case.unknown else None
-
-
-# --- what the profiles can tell apart (a property of the set, not of the workflow) ---------------
-
-@dataclass(frozen=True)
-class SnrSpace:
-    """The space the sizes are SNRs in, on one profile: binned, whitened, ⊥ the refitted base."""
-
-    bins: object
-    builder: object
-    base: object
-    base_bins: np.ndarray
-    project_binned: Callable[[np.ndarray], np.ndarray]
-
-    def project(self, shape_dph: np.ndarray) -> np.ndarray:
-        """A per-sample shape (deg/h) → its whitened, base-projected bin means."""
-        return self.project_binned(self.bins.mean(shape_dph))
-
-
-@cache
-def snr_space(pname: str) -> SnrSpace:
-    nominal, prof = scenarios.nominal_model(), profile(pname)
-    bins, builder, whitener = scenarios._snr_tools(nominal, prof, NoiseModel.of_model(nominal), MAX_BINS)
-    base = scenarios.true_base(nominal)
-    base_bins = bins.mean(builder.rate_dph(base))
-    basis = gls_fit(builder, whitener, base_bins, base).basis
-
-    def perp(binned: np.ndarray) -> np.ndarray:
-        wc = whitener.white(binned)
-        return wc - basis @ (basis.T @ wc)
-    return SnrSpace(bins, builder, base, base_bins, perp)
-
-
-#: thermal_lag's column in ``catalogue_columns``: its signature at this τ (the lag family's shape)
-LAG_COLUMN_TAU_S = 300.0
-
-
-@cache
-def catalogue_columns(pname: str) -> dict[str, np.ndarray]:
-    """Each deterministic sized catalogue effect's fitted columns in ``snr_space`` (orthonormal).
-
-    periodic_interference is left out: it lives above the bins' band (its sizing
-    is spectral), so its binned columns are nothing to compare.
-    """
-    space, columns = snr_space(pname), {}
-    for name in PROFILES[pname].sized:
-        if name == "periodic_interference":
-            continue
-        if name == "thermal_lag":
-            lagged = space.base.with_effect(EffectSpec(name, {"tau_s": LAG_COLUMN_TAU_S}))
-            cols = space.project_binned(space.bins.mean(space.builder.rate_dph(lagged)) - space.base_bins)[:, None]
-        else:
-            spec = placeholder_spec(name, PROFILES[pname].shapes.get(name, {}))
-            cols = space.project_binned(space.builder.extra_columns(space.base, spec)[1])
-        q, r = np.linalg.qr(cols)
-        columns[name] = q[:, np.abs(np.diag(r)) > 1e-9 * np.abs(r).max()]
-    return columns
-
-
-def effect_signature(pname: str, name: str) -> np.ndarray:
-    """The sized catalogue effect's 10σ signature in ``snr_space`` (norm ≈ 10)."""
-    space = snr_space(pname)
-    truth = space.base.with_effect(catalogue_spec(name, pname, 10.0))
-    return space.project_binned(space.bins.mean(space.builder.rate_dph(truth)) - space.base_bins)
-
-
-def residual_snr(signal: np.ndarray, columns: np.ndarray) -> float:
-    """Norm of what is left of ``signal`` once ``columns`` (orthonormal) are fitted to it."""
-    return float(np.linalg.norm(signal - columns @ (columns.T @ signal)))
-
-
-def closest_catalogue(pname: str, signal: np.ndarray, leave_out: str = "") -> tuple[str, float]:
-    """The single catalogue effect that explains most of ``signal`` and the SNR left after it.
-
-    The SNR left is given at ``signal``'s own size: pass it sized (norm 10) or scale it.
-    """
-    left = {n: residual_snr(signal, c) for n, c in catalogue_columns(pname).items() if n != leave_out}
-    name = min(left, key=left.get)
-    return name, left[name]
+    return SET.cases(seeds, controls, unknown_seeds, tuple(profiles), near_seeds, near_snr)
