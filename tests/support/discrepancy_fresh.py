@@ -28,7 +28,6 @@ change by its expected likelihood ratio snr² (what ``sized_markov`` does).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import discrepancy_scenarios as scenarios
 import numpy as np
@@ -42,28 +41,10 @@ from discrepancy_heldout import (  # noqa: F401 (re-exported: the set's runner a
     Unknown,
     noise_scale,
     residual_snr,
+    scheduled_profile,
     white_sigma_dph,
 )
 from scipy.signal import lfilter
-
-
-def scheduled_profile(duration_s: float, fs_hz: float, temp_c: Callable[[np.ndarray], np.ndarray],
-                      rate_cycle: tuple[tuple[float, float], ...], cycle_starts_s,
-                      accel_dps2: float) -> scenarios.Profile:
-    """A temperature path ``temp_c(t)`` and a cycle of (rate deg/s, seconds) table blocks at given starts.
-
-    Unlike ``procedure_profile`` the table tests need not sit in soaks: they run
-    wherever ``cycle_starts_s`` puts them (through a ramp, on a cycle); the table
-    is held still elsewhere and slews at ``accel_dps2`` between blocks.
-    """
-    t = np.arange(int(round(duration_s * fs_hz))) / fs_hz
-    rate = np.zeros_like(t)
-    for start in cycle_starts_s:
-        at = float(start)
-        for rate_dps, length_s in rate_cycle:
-            rate[(t >= at) & (t < at + length_s)] = rate_dps
-            at += length_s
-    return scenarios.Profile(t, scenarios._slewed(rate, fs_hz, accel_dps2), temp_c(t))
 
 
 def staircase_c(setpoints_c: tuple[float, ...], ramps_c_per_min: tuple[float, ...],
