@@ -8,7 +8,7 @@ and is meant to be run against the workflow, not tuned on:
 * three procedures unlike P1–P3, Q1–Q3 and R1–R3 (``PROFILES``): S1, 13 min at
   1000 Hz, two-point cold/hot soaks (−15 and 55 °C) joined by 20 °C/min
   ramps, a fine rate ladder ±0.1…300 deg/s climbed in the cold soak and
-  descended in the hot one; S2, 90 min at 50 Hz, one slow linear ramp
+  descended in the hot one; S2, 100 min at 25 Hz, one slow linear ramp
   0 → 50 °C across the record, the table only in continuous rate sweeps
   ±250 deg/s (no dwells); S3, 20 h at 2.5 Hz, a temperature cycle with plateaus
   at 25, 65 and −25 °C and ramps of 1, 1.5 and 0.5 °C/min, rates only in the
@@ -66,18 +66,18 @@ def _s1() -> scenarios.Profile:
     return scenarios.Profile(cold.t_s, cold.table_rate_dps + hot.table_rate_dps, cold.chamber_temp_c)
 
 
-S2_KNOTS = ((0.0, 0.0), (300.0, 0.0), (5100.0, 50.0), (5400.0, 50.0))
+S2_KNOTS = ((0.0, 0.0), (300.0, 0.0), (5700.0, 50.0), (6000.0, 50.0))
 S2_SWEEP_DPS, S2_SWEEP_DPS2 = 250.0, 2.0
-S2_SWEEP_STARTS_S = (150.0, 1050.0, 1950.0, 2850.0, 3750.0, 4650.0)
+S2_SWEEP_STARTS_S = (150.0, 1140.0, 2130.0, 3120.0, 4110.0, 5100.0)
 
 
 def _s2() -> scenarios.Profile:
-    """90 min at 50 Hz: 5 min at 0 °C, one 0.625 °C/min ramp to 50 °C, 5 min at 50 °C.
+    """100 min at 25 Hz: 5 min at 0 °C, one 0.556 °C/min ramp to 50 °C, 5 min at 50 °C.
 
-    The table only sweeps: every 15 minutes 0 → +250 → −250 → 0 deg/s at a
+    The table only sweeps: every 16.5 minutes 0 → +250 → −250 → 0 deg/s at a
     constant 2 deg/s² (500 s), still in between; no rate is ever held.
     """
-    t = np.arange(int(round(5400.0 * 50.0))) / 50.0
+    t = np.arange(int(round(6000.0 * 25.0))) / 25.0
     leg_s = S2_SWEEP_DPS / S2_SWEEP_DPS2
     rate = np.zeros_like(t)
     for i, start in enumerate(S2_SWEEP_STARTS_S):
@@ -253,10 +253,10 @@ PROFILES: dict[str, FreshProfile] = {
                              "periodic_interference": {"freq_hz": 187.3}},
                        0.15, (5.0, 60.0), 0.1, catalogue_alike=(SLOW_SINE, f"bias_ramp + {SLOW_SINE}")),
     # heating only: h = +1 throughout, temp_hysteresis is the bias itself
-    "S2": FreshProfile("S2 (90 min, 50 Hz, one linear ramp 0 → 50 °C at 0.625 °C/min between 5-minute soaks, "
-                       "continuous sweeps 0 → ±250 → ∓250 → 0 deg/s at 2 deg/s² every 15 min, no dwells)",
+    "S2": FreshProfile("S2 (100 min, 25 Hz, one linear ramp 0 → 50 °C at 0.556 °C/min between 5-minute soaks, "
+                       "continuous sweeps 0 → ±250 → ∓250 → 0 deg/s at 2 deg/s² every 16.5 min, no dwells)",
                        _s2, {"warmup_transient": {"tau_s": 600.0}, "table_angle_harmonic": {"phase_deg": 75.0},
-                             "periodic_interference": {"freq_hz": 17.3}},
+                             "periodic_interference": {"freq_hz": 7.9}},
                        3.0, (15.0, 400.0), 0.5, unobservable=("temp_hysteresis",), not_applicable=NO_DWELLS),
     "S3": FreshProfile("S3 (20 h, 2.5 Hz, cycle 25 → 65 → −25 → 25 °C with 1–2 h plateaus, ramps 1, 1.5 and "
                        "0.5 °C/min, ladder ±0.5…250 deg/s up and back down in each plateau only, 50 deg/s²)",
