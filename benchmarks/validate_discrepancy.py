@@ -169,7 +169,7 @@ def main() -> None:
         for outcome in pool.map(run_case, cases, chunksize=4):
             by_label.setdefault(outcome.case.label, []).append(outcome)
     elapsed = time.perf_counter() - start
-    # the marked sections (validate_discrepancy_outside.py's, validate_discrepancy_fresh.py's) are
+    # the marked sections (validate_discrepancy_outside.py's, validate_discrepancy_fresh.py's for each set) are
     # their scripts' own: kept as they are
     old = Path(args.out).read_text(encoding="utf-8") if Path(args.out).exists() else ""
     kept = marked_sections(old)
