@@ -21,7 +21,8 @@ Writes its section into docs/discrepancy-validation.md between its set's markers
 (``validate_discrepancy.py`` keeps the sections when it regenerates the rest).
 Set R: one run costs about 4 CPU-s on R1 (960 k samples) and about 1 CPU-s on
 R2 and R3 (43 k samples); the defaults (430 runs) take about 14 CPU-min, about
-8 min wall on 2 idle cores. Set S: see ``SETS`` (the smoke figures are there).
+8 min wall on 2 idle cores. Set S: 300 runs, about 10 CPU-min, 4–6 min wall on 2
+cores (the smoke's figures are at ``SETS``).
 
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --workers 2
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --set S --workers 2
@@ -74,7 +75,10 @@ SETS = {
                 "P1–P3 and Q1–Q3", "4", "3", "R1:16,R2:42,R3:42", "2", "R2",
                 "this set was made apart from the work on the workflow; its first two runs were read while "
                 "the workflow was being changed (issue 29), so it no longer holds everything out."),
-    # 227 runs; smoke (17:5x, 1 seed, workers 1): median CPU s per run S1 ≈ 3.3, S2 ≈ 0.9, S3 ≈ 1.1
+    # 300 runs. Smoke 2026-11-24 17:56 (--smoke: 1 effect + 1 unknown per profile, workers 1, load ≈ 17 on
+    # 2 cores): CPU s per run S1 4.3, S2 1.5, S3 2.4; controls (same load) S1 2.3, S2 0.7, S3 2.0. Full run:
+    # ≈ 10.4 CPU-min at those figures + 23 CPU-s sizing the cases first: ≈ 5.7 min wall on 2 workers at
+    # the loaded figures, ≈ 4–4.5 min on 2 idle cores (runs cost ≈ 1.4–1.7× less idle than at load 17)
     "S": SetRun(fresh_s.SET, "<!-- fresh-held-out-s:begin -->", "<!-- fresh-held-out-s:end -->",
                 "Second held-out set: profiles S1–S3, new families outside the catalogue (issue 29)",
                 "P1–P3, Q1–Q3 and R1–R3", "S1:2,S2:3,S3:2", "S1:1,S2:2,S3:2", "S1:10,S2:52,S3:40", "1",
