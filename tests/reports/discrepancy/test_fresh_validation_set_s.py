@@ -169,3 +169,18 @@ def test_controls_hold_nothing_and_the_seeds_are_apart_from_the_first_set():
     assert len(run_on_s1) == len(S.unknown) - 2          # the slow sine is nearly bias_ramp in 13 minutes
     run_on_s2 = [n for n in S.unknown if S.profiles["S2"].runs_unknown(n)]
     assert len(run_on_s2) == len(S.unknown) - 3          # no held rate: the rate-history shapes
+
+
+def test_no_unknown_run_on_s2_is_a_catalogue_effect_there():
+    """Every binned unknown run on S2 leaves ≥ 3σ of its 10σ beside its closest catalogue effect."""
+    space, prof = S.snr_space("S2"), S.profile("S2")
+    checked = 0
+    for name, unknown in S.unknown.items():
+        if unknown.sizing != "bins" or unknown.with_effect or not S.profiles["S2"].runs_unknown(name):
+            continue
+        signal = space.project(unknown.shape(prof, S.shape_rng(19500)))   # unsized: the ratio is what counts
+        signal *= 10.0 / np.linalg.norm(signal)
+        closest, left = S.closest_catalogue("S2", signal)
+        assert left >= 3.0, (name, closest, left)
+        checked += 1
+    assert checked == 6
