@@ -30,6 +30,7 @@ from gyrocal.analysis.discrepancy.probes import (
     gain_given,
     significant_by_strength,
 )
+from gyrocal.analysis.discrepancy.process_shape import gauss_markov_shape
 from gyrocal.analysis.discrepancy.result import ALPHA
 from gyrocal.analysis.discrepancy.scoring import (
     CandidateScore,
@@ -361,13 +362,33 @@ def unless_nonstationary(ctx: Context, fit: Fit, markov: StochasticCandidate, te
         f"{markov.params['tau_s']:.0f} s) would fit, but not stationary: its power in the record's "
         f"halves is {parts} × the whole record's (test statistic {test.statistic:.1f}, limit "
         f"{test.limit:.1f} at α = {ALPHA:g})")
+    return next_best_or_none(ctx, fit, ranked, scores), nonstationary
+
+
+def unless_not_gauss_markov(ctx: Context, fit: Fit, markov: StochasticCandidate, ranked: dict[str, float],
+                            scores: dict[str, EffectScores]) -> tuple[str | None, str | None]:
+    """(MARKOV, None) if the process is Gauss–Markov in its levels and its spectrum; else as above.
+
+    A stationary process can still be no Gauss–Markov bias: a two-level switching bias
+    has a Lorentzian spectrum, a flicker excess a power law (process_shape.py).
+    """
+    bins = fine_bins(ctx.log.t_s, ctx.fs_hz)
+    verdict = gauss_markov_shape(ctx.noise, bins, ctx.fs_hz, bins.mean(ctx.resid_full(fit)), markov)
+    if verdict.why is None:
+        return MARKOV, None
+    return next_best_or_none(ctx, fit, ranked, scores), verdict.why
+
+
+def next_best_or_none(ctx: Context, fit: Fit, ranked: dict[str, float], scores: dict[str, EffectScores]
+                      ) -> str | None:
+    """The next best catalogue effect once the Markov bias is refused, if it accounts for the structure."""
     rest = {name: score for name, score in ranked.items() if name in scores}
     if not rest:
-        return None, nonstationary
+        return None
     best = max(rest, key=rest.get)
     # the next best (bin-level) effect is named only if it accounts for the slow structure: once
     # it is fitted no Markov bias is left (a linear ramp under a bias accelerating with time
     # leaves one); a spectral line cannot account for slow structure
     if markov_survives(ctx, fit, scores[best].best.spec(fit.model)):
-        return None, nonstationary
-    return best, nonstationary
+        return None
+    return best

@@ -107,6 +107,31 @@ def periodogram(x: np.ndarray) -> np.ndarray:
     return (spectrum.real**2 + spectrum.imag**2) / n
 
 
+def noise_bin_spectra(noise: NoiseModel, bins: Bins, fs_hz: float, omega: np.ndarray
+                      ) -> tuple[float, np.ndarray, np.ndarray]:
+    """The noise model's spectrum of bin means at ``omega``: (white level, flicker part, the rest).
+
+    Kept apart so that a test can evaluate the same spectrum at every ordinate of a
+    record (process_shape.py simulates the fitted process from it), not only at the
+    Whittle test's band means.
+    """
+    width_s = bins.width_s
+    white_var = 3600.0 * noise.arw_deg_per_rth**2 * fs_hz / bins.samples_per_bin
+    flicker = np.zeros_like(omega)
+    if noise.bias_instability_dph > 0:
+        taus, sigmas = flicker_bank(noise.bias_instability_dph)
+        for sigma, tau in zip(sigmas.tolist(), taus.tolist(), strict=True):
+            flicker = flicker + gm_bin_spectrum(sigma, tau, width_s, omega)
+    rest = np.zeros_like(omega)
+    if noise.has_markov:
+        rest = rest + gm_bin_spectrum(noise.markov_sigma_dph, noise.markov_tau_s, width_s, omega)
+    if noise.quantization_arcsec > 0:
+        rest = rest + (noise.quantization_arcsec / width_s) ** 2 * (2.0 - 2.0 * np.cos(omega))
+    if noise.rrw_deg_per_h_rth > 0:
+        rest = rest + rrw_bin_spectrum(noise.rrw_deg_per_h_rth, width_s, omega)
+    return white_var, flicker, rest
+
+
 @dataclass(frozen=True)
 class StochasticCandidate:
     """One stochastic alternative: its fitted parameters, LR on the data and on each null."""
@@ -163,19 +188,7 @@ class WhittleTest:
         k = np.arange(1, (n - 1) // 2 + 1)
         omega_k = 2.0 * math.pi * k / n
         self.omega = np.add.reduceat(omega_k, self.edges[:-1]) / self.counts
-        white_var = 3600.0 * noise.arw_deg_per_rth**2 * fs_hz / bins.samples_per_bin
-        flicker = np.zeros_like(self.omega)
-        if noise.bias_instability_dph > 0:
-            taus, sigmas = flicker_bank(noise.bias_instability_dph)
-            for sigma, tau in zip(sigmas.tolist(), taus.tolist(), strict=True):
-                flicker = flicker + gm_bin_spectrum(sigma, tau, self.width_s, self.omega)
-        rest = np.zeros_like(self.omega)
-        if noise.has_markov:
-            rest = rest + gm_bin_spectrum(noise.markov_sigma_dph, noise.markov_tau_s, self.width_s, self.omega)
-        if noise.quantization_arcsec > 0:
-            rest = rest + (noise.quantization_arcsec / self.width_s) ** 2 * (2.0 - 2.0 * np.cos(self.omega))
-        if noise.rrw_deg_per_h_rth > 0:
-            rest = rest + rrw_bin_spectrum(noise.rrw_deg_per_h_rth, self.width_s, self.omega)
+        white_var, flicker, rest = noise_bin_spectra(noise, bins, fs_hz, self.omega)
         self.white_var, self.flicker, self.rest = white_var, flicker, rest
         self.flicker_scales = FLICKER_SCALES if noise.bias_instability_dph > 0 else np.ones(1)
         self.tau_bounds_s = (max(0.5 * self.width_s, 1.0), max(RRW_LIMIT * self.duration_s, 2.0 * self.width_s))
@@ -202,6 +215,12 @@ class WhittleTest:
         self._weighted_inverse = self.counts / spectra
         self._log_sum = np.log(spectra) @ self.counts
         self._alternative = np.array([label[0] for label in self.labels])
+
+    def best_alternative(self, band_values: np.ndarray) -> np.ndarray:
+        """The grid maximum of the Markov alternative's log-likelihood for each column of band means."""
+        alternative = self._alternative
+        grid = -self._log_sum[alternative][:, None] - self._weighted_inverse[alternative] @ band_values
+        return grid.max(axis=0)
 
     def band_means(self, x: np.ndarray) -> np.ndarray:
         """The periodogram of ``x`` (bin means) averaged over the test's bands."""

@@ -52,6 +52,7 @@ from gyrocal.analysis.discrepancy.arbitration import (
     preempting_probe,
     structure_behind_markov,
     unless_nonstationary,
+    unless_not_gauss_markov,
 )
 from gyrocal.analysis.discrepancy.candidates import (
     KINDS,
@@ -277,6 +278,8 @@ def _choose(ctx: Context, state: SearchState, fit: Fit, by_name: dict[str, Candi
     if preempting is not None:
         return Choice(best, preempting)
     best, nonstationary = unless_nonstationary(ctx, fit, test, stationary, ranked, scores)
+    if best == MARKOV:   # stationary; but a switching bias or a flicker excess is not Gauss–Markov
+        best, nonstationary = unless_not_gauss_markov(ctx, fit, test, ranked, scores)
     if best is None or best == MARKOV or ranked[best] <= threshold:
         return Choice(best, None, nonstationary)
     return Choice(best, preempting_probe(ctx, fit, probes, by_name[best].probes_compete, best, scores,
@@ -416,7 +419,7 @@ def _remainder(ctx: Context, search: SearchOutcome, after: Fit, geometry: Segmen
                                line)
     if probe_info is not None and step_info is None:
         where = f"{probe_info.describe()} (Δχ² {probe_info.delta_chi2:.1f}); {where}"
-    if search.nonstationary is not None and probe_info is None:
+    if search.nonstationary is not None:   # what the refused Markov process looked like comes first
         where = f"{search.nonstationary}; {where}"
     if preempted is not None:
         notes.append(f"{preempted.describe()} explains the data better than any catalogue "
