@@ -259,9 +259,10 @@ def _choose(ctx: Context, state: SearchState, fit: Fit, by_name: dict[str, Candi
             probes: list[Probe]) -> Choice:
     """The best candidate once a Markov bias and deterministic structure have been weighed.
 
-    A Markov bias must be stationary over the record and leave no probe the sharper
-    reading (arbitration.py); any other best candidate yields to a probe that explains
-    the data better.
+    A Markov bias must be stationary over the record, leave no probe the sharper
+    reading (arbitration.py), and be Gauss–Markov in its levels and its spectrum, not a
+    switching bias or a flicker excess (process_shape.py); any other best candidate
+    yields to a probe that explains the data better.
     """
     ranked = {name: c.score for name, c in by_name.items()}
     scores = {name: c.scores for name, c in by_name.items() if isinstance(c, CatalogueCandidate)}
