@@ -24,7 +24,9 @@
    probes once more on the final residual, their best score against the
    family-wise threshold on effect-free draws; structure left behind makes
    the result unexplained and takes the probability of a named effect it
-   replaces below 0.5.
+   replaces below 0.5. The bin means cannot show a white-noise level that
+   changes with |rate|, temperature or time: noise_level.py tests the
+   full-rate residual's within-window scatter for it, with the same result.
 
 The code reads as that pipeline: ``_noise_pass`` → ``_search_pass`` (rounds of
 ``_search_round``) → ``_gap_pass`` (with ``_adequacy_pass``), each returning what the next needs. The
@@ -78,6 +80,7 @@ from gyrocal.analysis.discrepancy.gap import (
     g1,
     segment_rms,
 )
+from gyrocal.analysis.discrepancy.noise_level import judged_by_level, noise_level_test
 from gyrocal.analysis.discrepancy.noise_model import NoiseEstimate, NoiseModel, estimate_noise
 from gyrocal.analysis.discrepancy.own_gap import EffectGap
 from gyrocal.analysis.discrepancy.periodic import REFINEMENT_FACTOR, PeriodicScan, sine_dph
@@ -340,17 +343,26 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     heads = [gap.headline for gap in gaps if gap.headline in metrics]
     primary = heads[0] if heads else choose_primary(metrics, bool(found))
     found, test, last_probe = _adequacy_pass(ctx, after, found)
-    unexplained = (search.preempted is not None or search.nonstationary is not None or test.inadequate
-                   or metrics["g1_segment_mean"].after > order_statistic_quantile(null_g1, UNEXPLAINED_LEVEL))
+    level = noise_level_test(ctx, after)
+    found = judged_by_level(ctx, after, found, level)
+    structure_left = (search.preempted is not None or search.nonstationary is not None or test.inadequate
+                      or metrics["g1_segment_mean"].after > order_statistic_quantile(null_g1, UNEXPLAINED_LEVEL))
+    unexplained = structure_left or level.fires
     signals = _signals(ctx, after.model)
     where, notes = "", list(state.notes)
     if test.inadequate and test.probe is not None:
         notes.append(f"the named effects leave {test.probe.describe()} behind (score {test.statistic:.1f}, "
                      f"family-wise threshold {test.threshold:.1f} over {ctx.n_null} effect-free draws): "
                      "they are not the whole account")
-    if unexplained:
+    if structure_left:
         where, remainder_notes = _remainder(ctx, search, after, geometry, signals, scan_after, last_probe)
         notes += remainder_notes
+    if level.fires:
+        where = f"{level.description}; {where}" if where else level.description
+        notes.append(f"{level.description}: log-variance slope t² {level.statistic:.1f} over "
+                     f"{level.windows} steady windows (threshold {level.threshold:.1f}, noise_level.py)")
+    elif level.not_judged:
+        notes.append(f"noise level against |rate|, temperature and time not judged: {level.not_judged}")
     return DiscrepancyResult(
         found, unexplained, where, metrics, primary, model, after.model, noise.estimate,
         list(search.iterations), ctx.bins, ctx.segments, np.unique(seg_of_bin), geometry,
