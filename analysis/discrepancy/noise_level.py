@@ -13,7 +13,8 @@ samples (the workflow's bins when they are that long); in each window a mean
 and a slope are removed, so anything slow (a missing catalogue effect, the
 Markov bias, flicker, a thermal drift) leaves the within-window scatter
 alone, and samples beyond ``CLIP_SIGMA`` robust standard deviations of their
-window are clipped so a single spike cannot pose as a noise level. Windows
+window are clipped (about the window's line, refitted after each clip) so a
+single spike cannot pose as a noise level. Windows
 where the table rate is not constant are left out (a slew puts the
 rate-dependent terms' curvature into the scatter); their neighbours are kept
 (leaving them out too lost most of the top-rate dwells: on Q2 the expected
@@ -205,19 +206,25 @@ def _window_log_variances(resid_dph: np.ndarray, windows: Windows, rate_dps: np.
     rate = windows.shape(rate_dps)
     moving = np.ptp(rate, axis=1) > RATE_CHANGE_DPS + 1e-6 * np.max(np.abs(rate), axis=1)
     steady = ~moving
-    r = r[steady]
     m = windows.per_window
-    k = np.arange(m) - 0.5 * (m - 1)
-    r = r - r.mean(axis=1, keepdims=True)
-    r = r - np.outer(r @ k / (k @ k), k)
-    scale = 1.4826 * np.median(np.abs(r), axis=1, keepdims=True)
-    r = np.clip(r, -CLIP_SIGMA * scale, CLIP_SIGMA * scale)
+    r = _detrended(r[steady])
+    # a spike pulls its window's line too, so clip about the line and fit it again, twice
+    for _ in range(2):
+        scale = 1.4826 * np.median(np.abs(r), axis=1, keepdims=True)
+        r = _detrended(np.clip(r, -CLIP_SIGMA * scale, CLIP_SIGMA * scale))
     nu = np.full(r.shape[0], float(m - 2))
     ss = np.einsum("ij,ij->i", r, r)
     good = ss > 0
     used = np.flatnonzero(steady)[good]
     # ln(s²) has mean ln σ² + ψ(ν/2) − ln(ν/2): a constant when ν is, so the slopes need no correction
     return np.log(ss[good] / nu[good]), nu[good], used
+
+
+def _detrended(r: np.ndarray) -> np.ndarray:
+    """Each row less its own least-squares line."""
+    k = np.arange(r.shape[1]) - 0.5 * (r.shape[1] - 1)
+    r = r - r.mean(axis=1, keepdims=True)
+    return r - np.outer(r @ k / (k @ k), k)
 
 
 def _covariates(ctx: Context, windows: Windows, used: np.ndarray) -> list[Covariate]:
