@@ -8,8 +8,8 @@ on the held-out set such a record was called unexplained in 0 of 9 runs and
 nothing at all was said about it.
 
 The test reads the scatter at the sample level. The refitted model's
-full-rate residual is cut into windows of at least ``MIN_WINDOW_SAMPLES``
-samples (the workflow's bins when they are that long); in each window a mean
+full-rate residual is cut into short windows (at least ``MIN_WINDOW_SAMPLES``
+samples, at most ``MAX_WINDOWS`` of them); in each window a mean
 and a slope are removed, so anything slow (a missing catalogue effect, the
 Markov bias, flicker, a thermal drift) leaves the within-window scatter
 alone, and samples beyond ``CLIP_SIGMA`` robust standard deviations of their
@@ -27,8 +27,8 @@ non-Gaussian noise that is the same everywhere does not inflate it.
 
 The statistic is the largest t² over the covariates; its threshold is the
 (1 − ``ALPHA_NOISE_LEVEL``) point of the same maximum on simulated
-effect-free window variances (the draws share the covariates, so their
-correlation is accounted for). ``ALPHA_NOISE_LEVEL`` = 0.5 %: this test may
+effect-free draws (``_family_threshold``: the draws share the covariates, so
+their correlation is accounted for). ``ALPHA_NOISE_LEVEL`` = 0.5 %: this test may
 add no more than that to the family-wise false alarms.
 
 Not judged when the model counts pulses (``quantization``) whose rate noise is
@@ -60,10 +60,13 @@ from gyrocal.analysis.discrepancy.signatures import effect_columns
 
 #: Family-wise false-alarm rate this test may add.
 ALPHA_NOISE_LEVEL = 0.005
-#: Effect-free draws for the threshold (cheap: window log-variances only).
-N_NULL_DRAWS = 4000
-#: A window has at least this many samples (ν = m − 2 after its mean and slope).
+#: Effect-free draws of the covariates' slopes for the threshold (cheap: one normal vector each).
+N_NULL_DRAWS = 100000
+#: A window has at least this many samples (ν = m − 2 after its mean and slope) ...
 MIN_WINDOW_SAMPLES = 10
+#: ... and a record has at most this many windows. Short windows keep more of each short dwell
+#: between slews and leave anything slower than a fraction of a second out of the scatter.
+MAX_WINDOWS = 20000
 #: Samples beyond this many robust standard deviations of their window are clipped.
 CLIP_SIGMA = 5.0
 #: Pulse-counter rate-noise variance, as a fraction of the white noise's, above which the test
@@ -124,9 +127,7 @@ def noise_level_test(ctx: Context, after: Fit) -> NoiseLevel:
     x = np.column_stack([c.values for c in covariates])
     t2, slopes = _slope_t2(x, log_var[:, None], weight)
     best = int(np.argmax(t2[:, 0]))
-    null = ctx.rng.standard_normal((len(log_var), N_NULL_DRAWS)) / np.sqrt(weight)[:, None]
-    null_max = np.max(_slope_t2(x, null, weight)[0], axis=0)
-    threshold = order_statistic_quantile(null_max, 1.0 - ALPHA_NOISE_LEVEL)
+    threshold = _family_threshold(x, weight, ctx.rng)
     cov = covariates[best]
     ratio, description = _describe(cov, float(slopes[best, 0]))
     return NoiseLevel(float(t2[best, 0]), threshold, cov.key, ratio, description, len(log_var),
@@ -172,6 +173,23 @@ def _bin_covariate(ctx: Context, key: str) -> np.ndarray:
     return bins.centre_s / 3600.0
 
 
+def _family_threshold(x: np.ndarray, weight: np.ndarray, rng: np.random.Generator) -> float:
+    """(1 − α) point of the largest t² over the covariates on effect-free draws.
+
+    On effect-free data the covariates' slopes are jointly normal with the
+    correlation of the weighted, centred covariates (each t² is F(1, n − 2),
+    n in the thousands), so a draw of the family is a draw of that normal
+    vector: as exact as drawing every window's log-variance and refitting, and
+    its cost does not grow with the record.
+    """
+    xc = x - (weight @ x) / weight.sum()
+    gram = (xc * weight[:, None]).T @ xc
+    d = np.sqrt(np.diag(gram))
+    corr = gram / np.outer(d, d)
+    z = rng.multivariate_normal(np.zeros(len(d)), corr, size=N_NULL_DRAWS, method="eigh")
+    return order_statistic_quantile(np.max(z * z, axis=1), 1.0 - ALPHA_NOISE_LEVEL)
+
+
 def _not_judged(ctx: Context, after: Fit) -> str:
     spec = after.model.effect("quantization")
     if spec is None or ctx.noise is None:
@@ -195,8 +213,9 @@ class Windows:
 
 
 def _windows(ctx: Context) -> Windows:
-    per = max(ctx.bins.samples_per_bin, MIN_WINDOW_SAMPLES)
-    return Windows(per, len(ctx.log.t_s) // per)
+    n = len(ctx.log.t_s)
+    per = max(MIN_WINDOW_SAMPLES, math.ceil(n / MAX_WINDOWS))
+    return Windows(per, n // per)
 
 
 def _window_log_variances(resid_dph: np.ndarray, windows: Windows, rate_dps: np.ndarray
