@@ -22,8 +22,9 @@ import numpy as np
 import pytest
 
 from gyrocal.analysis.discrepancy.context import Context
-from gyrocal.analysis.discrepancy.noise_level import noise_level_test
+from gyrocal.analysis.discrepancy.noise_level import judged_by_level, noise_level_test
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
+from gyrocal.analysis.discrepancy.result import FoundEffect
 from gyrocal.models.gyro_model import EffectSpec
 
 MAX_BINS = 1000
@@ -114,3 +115,31 @@ def test_a_spike_is_not_a_noise_level():
     extra = np.zeros(prof.t_s.size)
     extra[int(np.argmax(np.abs(prof.table_rate_dps) >= 299.0)) + 300] = 200.0 * sigma0
     assert not level_alone(44, extra).fires
+
+
+@pytest.mark.parametrize("cubic_in_the_data", [True, False])
+def test_a_named_effect_the_noise_level_replaces_drops_below_half(cubic_in_the_data):
+    """Refitted under the fitted variance law, a real effect keeps its claim and one that isn't there drops.
+
+    The claim here is put in by hand (the workflow named nothing on these records,
+    up to 80σ of growth): what is judged is the rule, not the search.
+    """
+    prof = profile()
+    cubic = scenarios.sized_effect("sf_nonlinearity_cubic", 10.0, prof, max_bins=MAX_BINS)
+    seed = 70
+    extra = cases.noise_growth_dph(cases.sized_noise_growth(20.0, prof), prof, seed)
+    hidden = [cubic] if cubic_in_the_data else []
+    log = scenarios.as_measured_log(scenarios.simulate_log(prof, hidden, seed, extra_dph=extra))
+    model = scenarios.nominal_model().with_effect(cubic)
+    ctx = Context(model, log, seed, 300, MAX_BINS)
+    ctx.use_noise(NoiseModel.of_model(model))
+    after = ctx.fit(model)
+    level = noise_level_test(ctx, after)
+    assert level.fires and level.whole_account < 0.01
+    claim = FoundEffect("sf_nonlinearity_cubic", dict(after.model.effect(cubic.name).params), 0.99, [], "",
+                        10.0, 100.0, 3.0)
+    judged = judged_by_level(ctx, after, [claim], level)[0]
+    if cubic_in_the_data:
+        assert judged.probability == 0.99
+    else:
+        assert judged.probability < 0.5
