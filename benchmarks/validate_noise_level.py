@@ -6,7 +6,7 @@ final refit leaves when nothing is named) and runs the test. Cases:
 
 * ``control``: nothing hidden (the false-alarm rate; ≤ 0.5 % is the budget);
 * ``effect``: white noise σ0·(1 + k|ω|) at expected likelihood ratio 10²
-  (``tests/support/noise_level_cases.py``), the detection rate;
+  (``tests/support/noise_level_cases.py``; ``--snr`` for another size), the detection rate;
 * a catalogue effect at 10σ (or dead_zone 2 deg/s, quantization 1″), *not*
   in the refitted model, so the test sees it raw: it must not fire.
 
@@ -69,10 +69,10 @@ def hidden_of(case: str, prof: scenarios.Profile) -> list[EffectSpec]:
     return [scenarios.sized_effect(case, 10.0, prof, max_bins=1000)]
 
 
-def run(pname: str, case: str, draws: int, seed0: int) -> tuple[int, float]:
+def run(pname: str, case: str, draws: int, seed0: int, snr: float = 10.0) -> tuple[int, float]:
     """Fires out of ``draws``, and the test's mean CPU seconds."""
     prof = profile(pname)
-    k = cases.sized_noise_growth(10.0, prof) if case == "effect" else 0.0
+    k = cases.sized_noise_growth(snr, prof) if case == "effect" else 0.0
     hidden = hidden_of(case, prof)
     fires, cpu = 0, 0.0
     for seed in range(seed0, seed0 + draws):
@@ -114,6 +114,7 @@ def main() -> None:
     parser.add_argument("--cases", default="control,effect")
     parser.add_argument("--draws", type=int, default=100)
     parser.add_argument("--seed", type=int, default=8000)
+    parser.add_argument("--snr", type=float, default=10.0, help="size of the growth (expected LR snr²)")
     parser.add_argument("--timing", type=int, default=0, help="time the test on a record of N samples")
     args = parser.parse_args()
     with threadpool_limits(limits=1, user_api="blas"):
@@ -123,7 +124,7 @@ def main() -> None:
         print("| profile | case | draws | fired | CPU per test (s) |\n|---|---|---|---|---|")
         for pname in args.profiles.split(","):
             for case in args.cases.split(","):
-                fires, cpu = run(pname, case, args.draws, args.seed)
+                fires, cpu = run(pname, case, args.draws, args.seed, args.snr)
                 print(f"| {pname} | {case} | {args.draws} | {fires} | {cpu:.3f} |", flush=True)
 
 
