@@ -121,6 +121,15 @@ class NoiseLevel:
         return not self.not_judged and self.statistic > self.threshold
 
     @property
+    def note(self) -> str:
+        """What the test found, for the result's notes."""
+        if self.not_judged:
+            return f"noise level against |rate|, temperature and time not judged: {self.not_judged}"
+        verdict = self.description if self.fires else "the white-noise level is steady"
+        return (f"{verdict}: largest log-variance slope t² {self.statistic:.1f} ({self.covariate}) over "
+                f"{self.windows} steady windows, threshold {self.threshold:.1f} (noise_level.py)")
+
+    @property
     def whole_account(self) -> float:
         """Probability that the noise level is constant: the claim odds rule on −log10 p scores."""
         if not self.fires:

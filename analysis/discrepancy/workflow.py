@@ -359,10 +359,7 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
         notes += remainder_notes
     if level.fires:
         where = f"{level.description}; {where}" if where else level.description
-        notes.append(f"{level.description}: log-variance slope t² {level.statistic:.1f} over "
-                     f"{level.windows} steady windows (threshold {level.threshold:.1f}, noise_level.py)")
-    elif level.not_judged:
-        notes.append(f"noise level against |rate|, temperature and time not judged: {level.not_judged}")
+    notes.append(level.note)
     return DiscrepancyResult(
         found, unexplained, where, metrics, primary, model, after.model, noise.estimate,
         list(search.iterations), ctx.bins, ctx.segments, np.unique(seg_of_bin), geometry,
