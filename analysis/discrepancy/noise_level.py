@@ -251,9 +251,11 @@ def _window_log_variances(resid_dph: np.ndarray, windows: Windows, rate_dps: np.
     steady = ~moving
     m = windows.per_window
     r = _detrended(r[steady])
+    # the window's robust σ: its median absolute residual (one partition; the median proper
+    # averages two middle values, a second partition on 10 M samples for nothing)
+    scale = 1.4826 * np.partition(np.abs(r), m // 2, axis=1)[:, m // 2: m // 2 + 1]
     # a spike pulls its window's line too, so clip about the line and fit it again, twice
     for _ in range(2):
-        scale = 1.4826 * np.median(np.abs(r), axis=1, keepdims=True)
         r = _detrended(np.clip(r, -CLIP_SIGMA * scale, CLIP_SIGMA * scale))
     nu = np.full(r.shape[0], float(m - 2))
     ss = np.einsum("ij,ij->i", r, r)
