@@ -167,8 +167,7 @@ def judged_by_level(ctx: Context, after: Fit, found: list[FoundEffect], level: N
     variance law; one that no longer adds significantly (its own threshold) has its
     probability multiplied by ``level.whole_account``, as adequacy.py does for a probe.
     """
-    judged_here = [f for f in found if f.name not in NOT_JUDGED]
-    if not level.fires or not judged_here:
+    if not level.fires or all(f.name in NOT_JUDGED for f in found):
         return found
     factor = np.exp(level.slope * _bin_covariate(ctx, level.covariate))
     scale = np.sqrt(factor / factor.mean())
@@ -176,7 +175,7 @@ def judged_by_level(ctx: Context, after: Fit, found: list[FoundEffect], level: N
     with_all = gls_fit(ctx.builder, whitener, ctx.y_bins, after.model).chi2
     out = []
     for f in found:
-        if f in judged_here:
+        if f.name not in NOT_JUDGED:
             without = gls_fit(ctx.builder, whitener, ctx.y_bins, after.model.without_effect(f.name)).chi2
             dof = max(len(effect_columns(f.name)), 1)
             if score_from_delta(without - with_all, dof) <= f.threshold:
