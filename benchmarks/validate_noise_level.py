@@ -10,7 +10,7 @@ final refit leaves when nothing is named) and runs the test. Cases:
 * a catalogue effect at 10σ (or dead_zone 2 deg/s, quantization 1″), *not*
   in the refitted model, so the test sees it raw: it must not fire.
 
-Profiles: P1 (validate_discrepancy.py), Q1–Q3 (validate_discrepancy_outside.py),
+Profiles: P1–P3 (validate_discrepancy.py; on the static P3 only time is a covariate), Q1–Q3 (validate_discrepancy_outside.py),
 and two low-rate ones of this benchmark's own (L1: 4 h at 1 Hz, L2: 2 h at 2 Hz,
 dwells of 30–40 s between 20–30 deg/s² slews). Prints one row per profile and case
 with the CPU time of the test itself. ``--timing N`` instead times the test on a
@@ -54,6 +54,8 @@ def profile(name: str) -> scenarios.Profile:
         return scenarios.procedure_profile(3600.0, 5.0, accel_dps2=10.0)
     if name == "P2":
         return scenarios.five_temperature_profile()
+    if name == "P3":
+        return scenarios.static_profile(7200.0, 200.0)
     return scenarios.procedure_profile(**(OWN_PROFILES.get(name) or PROFILES[name][1]))
 
 
