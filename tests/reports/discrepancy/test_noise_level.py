@@ -8,8 +8,8 @@ Q2-like profile (45 min, 50 Hz, ±0.2…300 deg/s, 50 deg/s² slews).
 
 Measured with ``benchmarks/validate_noise_level.py`` (the test on the base refit,
 100 draws per profile): effect-free controls fired 0 of 100 on this profile (Q2),
-1 of 600 over P1, Q1–Q3 and two 1–2 Hz profiles (0.17 %; the budget is 0.5 %);
-the 10σ growth with |ω| was found in 100 of 100 here (see noise_level.py for the rest).
+0 of 600 over P1, Q1–Q3 and two 1–2 Hz profiles (the budget is 0.5 %); the 10σ
+growth with |ω| was found in 100 of 100 here (see noise_level.py for the rest).
 """
 
 from __future__ import annotations
