@@ -44,7 +44,7 @@ expected LR lie in steady windows. 10σ dead_zone, markov_bias (τ 30 s,
 table_angle_harmonic, temp_rate_bias, thermal_lag left *unmodelled* leave
 the statistic exactly as the noise draw gives it (Q2, P1, 20 seeds each: the
 one firing seed fired for all of them alike). CPU: 0.01 s on P1, 0.015 s on
-Q2, 0.06 s on P2 (930 000 samples), 0.6 s on 10 M samples at 250 Hz (the
+Q2, 0.06 s on P2 (930 000 samples), 0.6–0.8 s on 10 M samples at 250 Hz (the
 overnight folder's size).
 
 Not judged when the model counts pulses (``quantization``) whose rate noise is
