@@ -34,8 +34,11 @@ from gyrocal.analysis.discrepancy.lookalikes import (
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.analysis.discrepancy.own_gap import (
     EffectGap,
+    NullRefit,
     Pattern,
     Residuals,
+    dwell_metrics,
+    markov_metrics,
     pattern_metrics,
     quantization_metrics,
 )
@@ -56,6 +59,7 @@ from gyrocal.models.gyro_model import EffectSpec, GyroModel
 
 PERIODIC = "periodic_interference"
 QUANTIZATION = "quantization"
+DEAD_ZONE = "dead_zone"
 
 
 @dataclass(frozen=True)
@@ -232,6 +236,7 @@ class GapInputs:
     null_resid: np.ndarray    # effect-free residuals through the final refit (columns, deg/h per bin)
     geometry: SegmentGeometry
     metrics: dict[str, Metric]
+    noise_before: NoiseModel  # the noise model before any Markov bias (the whole-record Allan mismatch's)
 
 
 class EffectKind(ABC):
@@ -252,16 +257,43 @@ class CatalogueKind(EffectKind):
 
     def own_gap(self, ctx: Context, name: str, g: GapInputs) -> EffectGap | None:
         """Its pattern in the segments where it stands out (own_gap.pattern_metrics)."""
-        whitener, builder = ctx.whitener, ctx.builder
-        full = builder.binned_rate_dph(g.after.model)
-        contribution = full - builder.binned_rate_dph(g.after.model.without_effect(name))
-        white = whitener.white(contribution)
-        white = white - g.before.basis @ (g.before.basis.T @ white)
-        names = [ctx.segments.names[k] for k in np.unique(ctx.segments.bin_index(ctx.bins))]
-        return pattern_metrics(name, Pattern(whitener.colour(white), white),
-                               Residuals(g.before.resid_bins, g.before.white_resid),
-                               Residuals(g.after.resid_bins, g.after.white_resid), g.null_resid, g.geometry,
-                               names)
+        return pattern_metrics(name, _pattern(ctx, name, g), Residuals(g.before.resid_bins, g.before.white_resid),
+                               Residuals(g.after.resid_bins, g.after.white_resid), _null_refit(ctx, g), g.geometry,
+                               _segment_names(ctx))
+
+
+def _pattern(ctx: Context, name: str, g: GapInputs) -> Pattern:
+    """The named effect's contribution to the final refit, with what the base refit absorbs projected out."""
+    whitener, builder = ctx.whitener, ctx.builder
+    full = builder.binned_rate_dph(g.after.model)
+    contribution = full - builder.binned_rate_dph(g.after.model.without_effect(name))
+    white = whitener.white(contribution)
+    white = white - g.before.basis @ (g.before.basis.T @ white)
+    return Pattern(whitener.colour(white), white)
+
+
+def _null_refit(ctx: Context, g: GapInputs) -> NullRefit:
+    return NullRefit(ctx.whitener.chol, g.after.basis)
+
+
+def _segment_names(ctx: Context) -> list[str]:
+    return [ctx.segments.names[k] for k in np.unique(ctx.segments.bin_index(ctx.bins))]
+
+
+class DeadZoneKind(CatalogueKind):
+    #: Dwells up to this many times the fitted threshold count as near the zone (own_gap.dwell_metrics).
+    NEAR = 2.0
+
+    def own_gap(self, ctx: Context, name: str, g: GapInputs) -> EffectGap | None:
+        """Its pattern metrics, headed by G1 over every dwell inside or near the zone (own_gap.dwell_metrics)."""
+        gap = super().own_gap(ctx, name, g)
+        if gap is None or not gap.metrics:
+            return gap
+        near_dps = self.NEAR * g.after.model.effect(name)["threshold_dps"]
+        return dwell_metrics(gap, near_dps, g.geometry.means(ctx.rate_bins_dps),
+                             Residuals(g.before.resid_bins, g.before.white_resid),
+                             Residuals(g.after.resid_bins, g.after.white_resid), _null_refit(ctx, g), g.geometry,
+                             _pattern(ctx, name, g))
 
 
 class MarkovKind(EffectKind):
@@ -269,7 +301,9 @@ class MarkovKind(EffectKind):
         return [] if state.current.has_effect(MARKOV) else [MarkovCandidate(markov_test(ctx, fit))]
 
     def own_gap(self, ctx: Context, name: str, g: GapInputs) -> EffectGap | None:
-        return EffectGap(name, {}, "allan_mismatch") if "allan_mismatch" in g.metrics else None
+        """The Allan mismatch over the τ the process owns (own_gap.markov_metrics)."""
+        return markov_metrics(name, g.after.model.effect(name)["tau_s"], g.before.resid_bins, g.after.resid_bins,
+                              g.null_resid, ctx.bins, g.noise_before, ctx.noise)
 
 
 class PeriodicKind(EffectKind):
@@ -296,7 +330,8 @@ class QuantizationKind(EffectKind):
 #: The kinds a search round proposes from, in the order their candidates are ranked (the first of
 #: equal scores wins) and their random draws are taken.
 KINDS: tuple[EffectKind, ...] = (CatalogueKind(), MarkovKind(), PeriodicKind())
-_BY_NAME: dict[str, EffectKind] = {MARKOV: KINDS[1], PERIODIC: KINDS[2], QUANTIZATION: QuantizationKind()}
+_BY_NAME: dict[str, EffectKind] = {MARKOV: KINDS[1], PERIODIC: KINDS[2], QUANTIZATION: QuantizationKind(),
+                                   DEAD_ZONE: DeadZoneKind()}
 
 
 def kind_of(name: str) -> EffectKind:

@@ -71,6 +71,7 @@ from gyrocal.analysis.discrepancy.candidates import (
 )
 from gyrocal.analysis.discrepancy.context import Context
 from gyrocal.analysis.discrepancy.gap import (
+    FLOOR_PROBABILITY,
     Metric,
     SegmentGeometry,
     allan_mismatch,
@@ -78,6 +79,7 @@ from gyrocal.analysis.discrepancy.gap import (
     describe_remainder,
     expected_max_exponential,
     g1,
+    max_exponential_quantile,
     segment_rms,
 )
 from gyrocal.analysis.discrepancy.noise_level import judged_by_level, noise_level_test
@@ -332,10 +334,12 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     if scan_before is not None and scan_after is not None:
         m = int(scan_after.n_freqs / REFINEMENT_FACTOR)
         metrics["spectrum_peak"] = Metric(scan_before.peak_ratio, scan_after.peak_ratio,
-                                          expected_max_exponential(m), math.pi / math.sqrt(6.0),
-                                          "1 (periodogram / noise PSD)",
-                                          "largest line of the full-rate residual over the noise PSD")
-    gaps = _effect_gaps(ctx, found, GapInputs(model, before, after, null_resid, geometry, metrics))
+                                          max_exponential_quantile(m, FLOOR_PROBABILITY),
+                                          math.pi / math.sqrt(6.0), "1 (periodogram / noise PSD)",
+                                          "largest line of the full-rate residual over the noise PSD",
+                                          expected_max_exponential(m))
+    gaps = _effect_gaps(ctx, found, GapInputs(model, before, after, null_resid, geometry, metrics,
+                                                  noise.before))
     for gap in gaps:
         metrics.update(gap.metrics)
     # the headline is the first named effect's own metric (issue 29: a whole-record metric may
@@ -388,22 +392,17 @@ def _whole_record_metrics(ctx: Context, before: Fit, after: Fit, geometry: Segme
     """G1, the segment-mean RMS and the Allan mismatch, before and after; and G1's null draws."""
     metrics: dict[str, Metric] = {}
     null_g1 = g1(geometry, null_resid)
-    metrics["g1_segment_mean"] = Metric(float(g1(geometry, before.resid_bins)),
-                                        float(g1(geometry, after.resid_bins)),
-                                        float(np.mean(null_g1)), float(np.std(null_g1)), "1 (mean of z²)",
-                                        "G1 over every segment: (segment mean / its standard error)², averaged")
-    null_rms = segment_rms(geometry, null_resid)
-    metrics["segment_mean_rms_dph"] = Metric(float(segment_rms(geometry, before.resid_bins)),
-                                             float(segment_rms(geometry, after.resid_bins)),
-                                             float(np.mean(null_rms)), float(np.std(null_rms)), "deg/h",
-                                             "RMS of the residual's segment means")
-    null_allan = np.array([allan_mismatch(null_resid[:, k], ctx.bins, noise) for k in range(20)])
-    metrics["allan_mismatch"] = Metric(allan_mismatch(before.resid_bins, ctx.bins, noise_before),
-                                       allan_mismatch(after.resid_bins, ctx.bins, noise),
-                                       float(np.mean(null_allan)), float(np.std(null_allan)),
-                                       "1 (RMS of ln ratio)",
-                                       "Allan deviation of the residual's bin means against the noise model, "
-                                       "RMS over τ of ln(measured / model)")
+    metrics["g1_segment_mean"] = Metric.of_null(
+        g1(geometry, before.resid_bins), g1(geometry, after.resid_bins), null_g1, "1 (mean of z²)",
+        "G1 over every segment: (segment mean / its standard error)², averaged")
+    metrics["segment_mean_rms_dph"] = Metric.of_null(
+        segment_rms(geometry, before.resid_bins), segment_rms(geometry, after.resid_bins),
+        segment_rms(geometry, null_resid), "deg/h", "RMS of the residual's segment means")
+    null_allan = [allan_mismatch(null_resid[:, k], ctx.bins, noise) for k in range(null_resid.shape[1])]
+    metrics["allan_mismatch"] = Metric.of_null(
+        allan_mismatch(before.resid_bins, ctx.bins, noise_before), allan_mismatch(after.resid_bins, ctx.bins, noise),
+        np.array(null_allan), "1 (RMS of ln ratio)",
+        "Allan deviation of the residual's bin means against the noise model, RMS over τ of ln(measured / model)")
     return metrics, null_g1
 
 
