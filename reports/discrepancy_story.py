@@ -24,7 +24,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 
 from gyrocal.analysis.allan.deviation import overlapping_adev
-from gyrocal.analysis.discrepancy.gap import Metric, allan_taus_m
+from gyrocal.analysis.discrepancy.gap import FLOOR_PROBABILITY, Metric, allan_taus_m
 from gyrocal.analysis.discrepancy.workflow import ALPHA, DiscrepancyResult
 from gyrocal.models.effects import EFFECTS
 
@@ -89,14 +89,16 @@ effect-free data simulated from the refitted model and the noise model.</p>
 {% if effect_gaps %}
 <p>Each named effect's gap in the metric where that effect lives (its own segments, the short-τ
 Allan deviation for quantization, the spectrum for interference, the Allan curve for a Markov
-bias): before (input model, refitted), after (updated model), and the noise floor.</p>
+bias): before (input model, refitted), after (updated model), and the noise floor: the level
+that metric stays at or below under noise alone (effect-free residuals through the same refit)
+{{ "%.0f"|format(100 * floor_probability) }} % of the time.</p>
 <div class="effect-gaps">{% for g in effect_gaps %}
 <figure class="effect-gap" data-effect="{{ g.effect }}" title="{{ g.label }}">
 <img src="data:image/png;base64,{{ g.png }}" alt="{{ g.effect }}: its gap before and after">
 <figcaption><b>{{ g.effect }}</b>, its own gap in {{ g.unit }}: before {{ "%.3g"|format(g.metric.before) }},
-after {{ "%.3g"|format(g.metric.after) }}, noise floor {{ "%.3g"|format(g.metric.noise_floor) }}</figcaption></figure>{% endfor %}</div>
+after {{ "%.3g"|format(g.metric.after) }}, noise floor ({{ "%.0f"|format(100 * g.metric.floor_probability) }} % point of noise alone) {{ "%.3g"|format(g.metric.noise_floor) }}</figcaption></figure>{% endfor %}</div>
 {% endif %}
-<table id="gap-metrics"><tr><th>metric</th><th>unit</th><th>before</th><th>after</th><th>noise floor</th></tr>
+<table id="gap-metrics"><tr><th>metric</th><th>unit</th><th>before</th><th>after</th><th>noise floor ({{ "%.0f"|format(100 * floor_probability) }} % point of noise alone)</th></tr>
 {% for name, m in metrics %}{% set label, unit = metric_label(name, m) %}
 <tr><td>{{ label }} <code>{{ name }}</code>{% if name == primary %} (primary){% endif %}{% if m.description and m.description != label %}<br><small>{{ m.description }}</small>{% endif %}</td><td>{{ unit }}</td>
 <td class="num">{{ "%.4g"|format(m.before) }}</td><td class="num">{{ "%.4g"|format(m.after) }}</td>
@@ -243,7 +245,7 @@ def _effect_gap_panels(result: DiscrepancyResult) -> list[EffectGapPanel]:
         fig = Figure(figsize=(4.0, 3.2))
         ax = fig.subplots()
         ax.bar(["before", "after"], [m.before, m.after], color=["C3", "C0"])
-        ax.axhline(m.noise_floor, color="k", ls="--", lw=1, label="noise floor")
+        ax.axhline(m.noise_floor, color="k", ls="--", lw=1, label=f"noise floor ({100 * m.floor_probability:.0f} % point)")
         ax.axhline(2.0 * m.noise_floor, color="k", ls=":", lw=0.8, label="2 × floor")
         ax.set_title(effect, fontsize=10)
         ax.set_ylabel(f"its own gap ({unit})", fontsize=8)
@@ -266,7 +268,8 @@ def verdict(result: DiscrepancyResult) -> str:
     label, unit = metric_label(result.primary, gap)
     unit = METRIC_UNITS.get(result.primary, f" {unit}")
     parts.append(f"Gap ({label}): {gap.before:.3g}{unit} before, {gap.after:.3g}{unit} after, "
-                 f"noise floor {gap.noise_floor:.3g}{unit}.")
+                 f"noise floor {gap.noise_floor:.3g}{unit} (noise alone stays below it "
+                 f"{100 * gap.floor_probability:.0f} % of the time).")
     return " ".join(parts)
 
 
@@ -281,7 +284,7 @@ def write_html(result: DiscrepancyResult, source: str, path: str | Path) -> Path
         model_name=result.input_model.name or "(unnamed model)", source=source,
         verdict=verdict(result), found=result.found, iterations=iterations, alpha=ALPHA,
         unexplained=result.unexplained, where=result.where, primary=result.primary,
-        metrics=list(result.metrics.items()), notes=result.notes, metric_label=metric_label,
+        metrics=list(result.metrics.items()), floor_probability=FLOOR_PROBABILITY, notes=result.notes, metric_label=metric_label,
         param_unit=_param_unit,
         fig_time=_fig_time(result), fig_inputs=_fig_inputs(result), fig_gap=_fig_gap(result),
         effect_gaps=_effect_gap_panels(result),

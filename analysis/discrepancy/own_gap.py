@@ -3,16 +3,32 @@
 A whole-record metric (G1 over every segment, the spectrum peak) can sit at
 its floor while a named effect is real: a quantization pulse changes nothing
 in segment means, a thermal lag lives in three ramp segments out of forty. So
-every named effect gets its own metrics, in its own domain:
+every named effect gets its own metrics, in its own domain.
+
+**The floor** of every metric (gap.FLOOR_DEFINITION) is the level the metric
+stays at or below under noise alone, effect-free residuals through the same
+refit, with probability ``FLOOR_PROBABILITY`` (0.9); its mean under noise
+alone is ``noise_mean``. It was that mean before: a metric whose after-gap is
+one |N(0, 1)|-sized number then passed 1.5× its floor by chance in 23 % of
+runs (dead_zone: 3 of 12 held-out runs on R1–R3), so "after ≤ 1.5× floor"
+could not tell a closed gap from noise. Against the 90 % point, noise alone
+passes 1.5× the floor in 1.4 % of runs at one degree of freedom and in less
+with more; a claim named at its threshold (Δχ² ≳ 15, 3.9 sd) still starts at
+≥ 2× a one-dof floor (2 × 1.645 sd). Per effect:
 
 * **quantization**: the Allan deviation of the full-rate residual at the
-  shortest τ (1, 2, 4, 8 samples), held against the gyro model's noise (before:
-  the model as given; after: the pulse counter run on the model's predicted
-  rate plus its white noise, simulated — a 0/1-pulse readout is not white angle
-  noise of q/√12); RMS over τ of ln(measured / model). Floor: the same
-  statistic of each simulated draw against the others.
-* **periodic_interference**: the spectrum peak (periodic.py), **markov_bias**:
-  the Allan mismatch of the bin means (gap.py); both already in ``metrics``.
+  shortest τ (1, 2, 4, 8 samples) over the record in ``SHORT_TAU_CHUNKS``
+  parts, held against the gyro model's noise (before: the model as given;
+  after: the pulse counter run on the model's predicted rate plus its white
+  noise, simulated — a 0/1-pulse readout is not white angle noise of q/√12);
+  RMS over parts and τ of ln(measured / model). Floor: the 90 % point of the
+  same statistic of each simulated draw against the others (with 12 draws,
+  their largest: P(new ≤ it) = 12/13).
+* **periodic_interference**: the spectrum peak (periodic.py); floor the 90 %
+  point of the max of M exponentials (gap.max_exponential_quantile).
+* **markov_bias**: the Allan mismatch over the τ it owns (``markov_metrics``),
+  each τ in units of its noise-alone spread; floor the 90 % point over the
+  effect-free draws through the final refit.
 * every other (deterministic) effect: the segments where its fitted signature
   stands out (segment means of its contribution over their standard errors,
   the largest ones that hold ``SHARE`` of its Σz²: ramp segments for a
@@ -22,10 +38,17 @@ every named effect gets its own metrics, in its own domain:
     base-projected pattern in the residual (how much of the named effect the
     residual still holds, 1 = all of it), times the RMS of the pattern's segment
     means over its segments. Before ≈ the effect's size, after ≈ 0 once it is
-    fitted; the floor is E|amplitude| of noise alone (0.80σ, σ exact from the
-    whitening);
-  - **G1 of its segments**: G1 (gap.py) over those segments only; the floor
-    is its mean on effect-free residuals through the same refit.
+    fitted; noise alone makes it |N(0, σ²)|, σ exact from the whitening: floor
+    1.645σ (mean 0.80σ);
+  - **G1 of its segments**: G1 (gap.py) over those segments only; noise alone
+    through the final refit makes it a quadratic form in white noise, floor
+    its 90 % point from the form's eigenvalues (gap.g1_null_floor).
+
+  **dead_zone** has no fitted amplitude (only its threshold), so its pattern
+  amplitude after the fit is one noise draw, not ≈ 0: it is headed instead by
+  G1 over every dwell inside or near the zone and the segments holding its
+  signature (``dwell_metrics``), as many degrees of freedom as segments, and
+  anything else left in those dwells shows there too.
 """
 
 from __future__ import annotations
@@ -165,7 +188,8 @@ def dwell_metrics(gap: EffectGap, near_rate_dps: float, segment_rate_dps: np.nda
 
     Its pattern amplitude is one number with no fitted amplitude behind it (only the
     threshold is fitted), so its after-gap is one |N(0, 1)|-sized draw: against a floor
-    at its mean it passed 1.5× by chance in 2 of 8 held-out runs. G1 over the segments
+    at its mean it passed 1.5× by chance in 3 of 12 held-out runs (R1–R3) and 3 of 12 on
+    P1 (benchmarks/validate_own_gap_floor.py). G1 over the segments
     holding its signature and every table dwell with 0 < |rate| ≤ ``near_rate_dps`` (2× the
     threshold: a threshold fitted wrong shows there) has as many degrees of freedom as
     dwells, and whatever else is left in those dwells shows in it too.
