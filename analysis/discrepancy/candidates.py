@@ -24,7 +24,7 @@ import numpy as np
 
 from gyrocal.analysis.discrepancy.arbitration import outside_odds
 from gyrocal.analysis.discrepancy.context import Context, markov_test, refine_found
-from gyrocal.analysis.discrepancy.gap import Metric, SegmentGeometry
+from gyrocal.analysis.discrepancy.gap import AllanRatios, Metric, SegmentGeometry
 from gyrocal.analysis.discrepancy.lookalikes import (
     LookAlike,
     lookalike_group,
@@ -236,7 +236,7 @@ class GapInputs:
     null_resid: np.ndarray    # effect-free residuals through the final refit (columns, deg/h per bin)
     geometry: SegmentGeometry
     metrics: dict[str, Metric]
-    noise_before: NoiseModel  # the noise model before any Markov bias (the whole-record Allan mismatch's)
+    allan: AllanRatios        # the whole-record Allan mismatch's ratios, before, after, effect-free
 
 
 class EffectKind(ABC):
@@ -302,8 +302,7 @@ class MarkovKind(EffectKind):
 
     def own_gap(self, ctx: Context, name: str, g: GapInputs) -> EffectGap | None:
         """The Allan mismatch over the τ the process owns (own_gap.markov_metrics)."""
-        return markov_metrics(name, g.after.model.effect(name)["tau_s"], g.before.resid_bins, g.after.resid_bins,
-                              g.null_resid, ctx.bins, g.noise_before, ctx.noise)
+        return markov_metrics(name, g.after.model.effect(name)["tau_s"], g.allan)
 
 
 class PeriodicKind(EffectKind):

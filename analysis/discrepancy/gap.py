@@ -82,10 +82,9 @@ def allan_taus_m(n_bins: int) -> np.ndarray:
     return np.unique(np.round(np.geomspace(1, top, 12)).astype(int))
 
 
-def allan_log_ratio(resid_bins: np.ndarray, bins: Bins, noise: NoiseModel, m: np.ndarray | None = None
-                    ) -> np.ndarray:
-    """ln(residual ADEV / noise-model ADEV) at each τ: one bin to 1/20 of the record, or ``m`` bins."""
-    m = allan_taus_m(len(resid_bins)) if m is None else m
+def allan_log_ratio(resid_bins: np.ndarray, bins: Bins, noise: NoiseModel) -> np.ndarray:
+    """ln(residual ADEV / noise-model ADEV) at each τ from one bin to 1/20 of the record."""
+    m = allan_taus_m(len(resid_bins))
     result = overlapping_adev(resid_bins, 1.0 / bins.width_s, m=m, confidence=None)
     return np.log(result.adev / noise.allan_deviation_dph(result.tau_s))
 
@@ -93,6 +92,38 @@ def allan_log_ratio(resid_bins: np.ndarray, bins: Bins, noise: NoiseModel, m: np
 def allan_mismatch(resid_bins: np.ndarray, bins: Bins, noise: NoiseModel) -> float:
     """RMS over τ of ln(residual ADEV / noise-model ADEV), τ from one bin to 1/20 of the record."""
     return float(np.sqrt(np.mean(allan_log_ratio(resid_bins, bins, noise) ** 2)))
+
+
+@dataclass(frozen=True)
+class AllanRatios:
+    """ln(residual ADEV / noise-model ADEV) at τ = ``m`` bins: before, after, and per effect-free draw (rows).
+
+    Computed once for the whole-record Allan mismatch; a Markov bias's own metric
+    takes the τ it owns from the same numbers (own_gap.markov_metrics).
+    """
+
+    m: np.ndarray
+    width_s: float
+    before: np.ndarray
+    after: np.ndarray
+    null: np.ndarray
+
+    @classmethod
+    def of(cls, before: np.ndarray, after: np.ndarray, null_resid: np.ndarray, bins: Bins,
+           noise_before: NoiseModel, noise: NoiseModel) -> AllanRatios:
+        """``null_resid``: effect-free residuals (columns) through the final refit, against ``noise``."""
+        return cls(allan_taus_m(len(before)), bins.width_s, allan_log_ratio(before, bins, noise_before),
+                   allan_log_ratio(after, bins, noise),
+                   np.array([allan_log_ratio(null_resid[:, k], bins, noise) for k in range(null_resid.shape[1])]))
+
+    def mismatch(self) -> Metric:
+        """The whole-record Allan mismatch: RMS over τ of the ratios."""
+        def rms(ratios: np.ndarray) -> np.ndarray:
+            return np.sqrt(np.mean(ratios**2, axis=-1))
+
+        return Metric.of_null(float(rms(self.before)), float(rms(self.after)), rms(self.null),
+                              "1 (RMS of ln ratio)", "Allan deviation of the residual's bin means against the "
+                              "noise model, RMS over τ of ln(measured / model)")
 
 
 def expected_max_exponential(n: int) -> float:

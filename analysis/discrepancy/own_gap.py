@@ -61,14 +61,12 @@ from scipy import stats
 
 from gyrocal.analysis.discrepancy.gap import (
     FLOOR_PROBABILITY,
+    AllanRatios,
     Metric,
     SegmentGeometry,
-    allan_log_ratio,
-    allan_taus_m,
     g1_null_floor,
 )
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
-from gyrocal.analysis.discrepancy.segments import Bins
 from gyrocal.models.pulse_counting import PulseCounter
 
 #: The averaging times a Markov bias owns, in its correlation time, and the fewest taken.
@@ -204,9 +202,7 @@ def dwell_metrics(gap: EffectGap, near_rate_dps: float, segment_rate_dps: np.nda
     return EffectGap(gap.effect, {key: metric, **gap.metrics}, key)
 
 
-def markov_metrics(effect: str, tau_c_s: float, before_dph: np.ndarray, after_dph: np.ndarray,
-                   null_after: np.ndarray, bins: Bins, noise_before: NoiseModel, noise_after: NoiseModel
-                   ) -> EffectGap:
+def markov_metrics(effect: str, tau_c_s: float, allan: AllanRatios) -> EffectGap:
     """A Markov bias's gap: the Allan mismatch over the τ it owns, each τ in its own noise spread.
 
     The whole-record Allan mismatch averages τ where the process adds nothing, and weighs
@@ -215,26 +211,25 @@ def markov_metrics(effect: str, tau_c_s: float, before_dph: np.ndarray, after_dp
     hump at 1.9 τ) each ln(residual ADEV / model ADEV) is taken in units of its spread
     over the effect-free draws through the final refit (less their mean), and the metric
     is the RMS of those. Before: against the noise model without the process; after:
-    with it. Floor: the ``FLOOR_PROBABILITY`` point of the same statistic over the draws.
+    with it (the whole-record mismatch's own ratios, ``gap.AllanRatios``). Floor: the
+    ``FLOOR_PROBABILITY`` point of the same statistic over the draws.
     """
-    m_all = allan_taus_m(bins.n_bins)
-    tau_s = m_all * bins.width_s
-    owned = (tau_s >= MARKOV_SPAN[0] * tau_c_s) & (tau_s <= MARKOV_SPAN[1] * tau_c_s)
-    m = m_all[owned] if owned.sum() >= MARKOV_MIN_TAUS else np.sort(
-        m_all[np.argsort(np.abs(np.log(tau_s / (1.9 * tau_c_s))))[:MARKOV_MIN_TAUS]])
-    null = np.array([allan_log_ratio(null_after[:, k], bins, noise_after, m) for k in range(null_after.shape[1])])
+    tau_s = allan.m * allan.width_s
+    owned = np.flatnonzero((tau_s >= MARKOV_SPAN[0] * tau_c_s) & (tau_s <= MARKOV_SPAN[1] * tau_c_s))
+    if len(owned) < MARKOV_MIN_TAUS:
+        owned = np.sort(np.argsort(np.abs(np.log(tau_s / (1.9 * tau_c_s))))[:MARKOV_MIN_TAUS])
+    null = allan.null[:, owned]
     centre, spread = null.mean(axis=0), np.maximum(null.std(axis=0), 1e-12)
 
     def mismatch(log_ratio: np.ndarray) -> np.ndarray:
         return np.sqrt(np.mean(((log_ratio - centre) / spread) ** 2, axis=-1))
 
     key = f"{effect}_allan_mismatch"
-    metric = Metric.of_null(float(mismatch(allan_log_ratio(before_dph, bins, noise_before, m))),
-                            float(mismatch(allan_log_ratio(after_dph, bins, noise_after, m))), mismatch(null),
-                            "1 (RMS of z)",
+    metric = Metric.of_null(float(mismatch(allan.before[owned])), float(mismatch(allan.after[owned])),
+                            mismatch(null), "1 (RMS of z)",
                             f"{effect}: Allan deviation of the residual's bin means against the noise model "
-                            f"without (before) and with (after) it over τ = {m[0] * bins.width_s:.3g}–"
-                            f"{m[-1] * bins.width_s:.3g} s (around its τ {tau_c_s:.3g} s): RMS of "
+                            f"without (before) and with (after) it over τ = {tau_s[owned[0]]:.3g}–"
+                            f"{tau_s[owned[-1]]:.3g} s (around its τ {tau_c_s:.3g} s): RMS of "
                             "ln(measured / model) in units of its noise-alone spread at each τ")
     return EffectGap(effect, {key: metric}, key)
 

@@ -72,9 +72,9 @@ from gyrocal.analysis.discrepancy.candidates import (
 from gyrocal.analysis.discrepancy.context import Context
 from gyrocal.analysis.discrepancy.gap import (
     FLOOR_PROBABILITY,
+    AllanRatios,
     Metric,
     SegmentGeometry,
-    allan_mismatch,
     choose_primary,
     describe_remainder,
     expected_max_exponential,
@@ -99,6 +99,9 @@ __all__ = ["ALPHA", "DiscrepancyResult", "FoundEffect", "Iteration", "analyse"]
 
 #: G1 after the refit above this quantile of its effect-free distribution is "unexplained".
 UNEXPLAINED_LEVEL = 0.99
+#: Effect-free draws the Allan mismatches' floors come from (each Allan curve costs ~1 ms idle, ~0.1 s
+#: on a loaded machine); the 19th of 20 is their 90 % point (P(new ≤ it) = 19/21).
+ALLAN_NULL_DRAWS = 20
 
 
 def analyse(model: GyroModel, log: MeasuredLog, seed: int = 0, n_null: int = 500,
@@ -329,7 +332,7 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     geometry = SegmentGeometry.of(seg_of_bin, ctx.whitener.covariance)
     z = ctx.rng.standard_normal((ctx.bins.n_bins, 60))
     null_resid = ctx.whitener.colour(z - after.basis @ (after.basis.T @ z))
-    metrics, null_g1 = _whole_record_metrics(ctx, before, after, geometry, null_resid, noise.before, state.noise)
+    metrics, null_g1, allan = _whole_record_metrics(ctx, before, after, geometry, null_resid, noise.before, state.noise)
     scan_before, scan_after = ctx.scan(before), ctx.scan(after)
     if scan_before is not None and scan_after is not None:
         m = int(scan_after.n_freqs / REFINEMENT_FACTOR)
@@ -338,8 +341,7 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
                                           math.pi / math.sqrt(6.0), "1 (periodogram / noise PSD)",
                                           "largest line of the full-rate residual over the noise PSD",
                                           expected_max_exponential(m))
-    gaps = _effect_gaps(ctx, found, GapInputs(model, before, after, null_resid, geometry, metrics,
-                                                  noise.before))
+    gaps = _effect_gaps(ctx, found, GapInputs(model, before, after, null_resid, geometry, metrics, allan))
     for gap in gaps:
         metrics.update(gap.metrics)
     # the headline is the first named effect's own metric (issue 29: a whole-record metric may
@@ -388,8 +390,8 @@ def _adequacy_pass(ctx: Context, after: Fit, found: list[FoundEffect]
 
 def _whole_record_metrics(ctx: Context, before: Fit, after: Fit, geometry: SegmentGeometry,
                           null_resid: np.ndarray, noise_before: NoiseModel, noise: NoiseModel
-                          ) -> tuple[dict[str, Metric], np.ndarray]:
-    """G1, the segment-mean RMS and the Allan mismatch, before and after; and G1's null draws."""
+                          ) -> tuple[dict[str, Metric], np.ndarray, AllanRatios]:
+    """G1, the segment-mean RMS and the Allan mismatch, before and after; G1's null draws; the Allan ratios."""
     metrics: dict[str, Metric] = {}
     null_g1 = g1(geometry, null_resid)
     metrics["g1_segment_mean"] = Metric.of_null(
@@ -398,12 +400,10 @@ def _whole_record_metrics(ctx: Context, before: Fit, after: Fit, geometry: Segme
     metrics["segment_mean_rms_dph"] = Metric.of_null(
         segment_rms(geometry, before.resid_bins), segment_rms(geometry, after.resid_bins),
         segment_rms(geometry, null_resid), "deg/h", "RMS of the residual's segment means")
-    null_allan = [allan_mismatch(null_resid[:, k], ctx.bins, noise) for k in range(null_resid.shape[1])]
-    metrics["allan_mismatch"] = Metric.of_null(
-        allan_mismatch(before.resid_bins, ctx.bins, noise_before), allan_mismatch(after.resid_bins, ctx.bins, noise),
-        np.array(null_allan), "1 (RMS of ln ratio)",
-        "Allan deviation of the residual's bin means against the noise model, RMS over τ of ln(measured / model)")
-    return metrics, null_g1
+    allan = AllanRatios.of(before.resid_bins, after.resid_bins, null_resid[:, :ALLAN_NULL_DRAWS], ctx.bins,
+                           noise_before, noise)
+    metrics["allan_mismatch"] = allan.mismatch()
+    return metrics, null_g1, allan
 
 
 def _effect_gaps(ctx: Context, found: list[FoundEffect], inputs: GapInputs) -> list[EffectGap]:

@@ -148,12 +148,17 @@ def test_cli_end_to_end_writes_the_three_files(files):
     assert done.returncode == 0, done.stderr
     document = json.loads((out / "discrepancy.json").read_text())
     assert set(document) >= {"found", "unexplained", "where", "gap", "metrics"}
-    # the contract's keys, plus (issue 29) the unit and what the metric is
-    assert set(document["gap"]) == {"metric", "before", "after", "noise_floor", "unit", "description"}
+    # the contract's keys, plus (issue 29) the unit, what the metric is, and what its floor is:
+    # the level noise alone stays at or below with the stated probability, beside its mean
+    floor_keys = {"noise_mean", "noise_floor_probability", "noise_floor_definition"}
+    assert set(document["gap"]) == {"metric", "before", "after", "noise_floor", "unit", "description", *floor_keys}
     assert document["gap"]["metric"] in document["metrics"]
     for metric in document["metrics"].values():
-        assert set(metric) == {"before", "after", "noise_floor", "unit", "description"}
+        assert set(metric) == {"before", "after", "noise_floor", "unit", "description", *floor_keys}
         assert metric["unit"]
+        assert metric["noise_floor_probability"] == 0.9
+        assert "probability 0.9" in metric["noise_floor_definition"]
+        assert metric["noise_mean"] <= metric["noise_floor"]
     [found] = document["found"]
     assert set(found) >= {"name", "parameters", "probability", "look_alikes", "separating_experiment"}
     assert found["name"] == "temp_hysteresis"
