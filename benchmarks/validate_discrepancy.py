@@ -320,8 +320,16 @@ _METHOD = """
   those segments beside it), for quantization the short-τ Allan deviation of the full-rate
   residual against the model's noise (before) and against the pulse counter run on the
   model's predicted rate plus its white noise (after; a 0/1-pulse readout at 20–50 Hz is
-  not q/√12 white angle noise), for interference the spectrum peak, for a Markov bias the
-  Allan mismatch. Every metric carries its unit. The effects sit behind one interface
+  not q/√12 white angle noise; over the record in 4 parts), for interference the spectrum
+  peak, for a Markov bias the Allan mismatch over the τ it owns (¼–8 × its τ, each τ in its
+  noise-alone spread); a dead zone, which has no fitted amplitude, is headed by G1 over every
+  dwell inside or near it (|rate| ≤ 2× its threshold) and the segments of its signature.
+  Every metric carries its unit and its noise floor: the level the metric stays at or below
+  under noise alone (effect-free residuals through the same refit) with probability 0.9 —
+  exact for the spectrum peak (max of exponentials), the pattern amplitude (1.645 σ) and
+  the segment G1s (quadratic form in the whitened noise), the order statistic of the
+  effect-free draws otherwise — with its mean beside it (`noise_mean`); tables made before
+  this change (2026-11-24, branch gap-floor) compare with that mean. The effects sit behind one interface
   (`candidates.py`: each kind proposes candidates, scores its null, is admitted, measures
   its own gap); the rules between them are in `arbitration.py`.
 """

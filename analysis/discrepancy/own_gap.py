@@ -13,8 +13,10 @@ one |N(0, 1)|-sized number then passed 1.5× its floor by chance in 23 % of
 runs (dead_zone: 3 of 12 held-out runs on R1–R3), so "after ≤ 1.5× floor"
 could not tell a closed gap from noise. Against the 90 % point, noise alone
 passes 1.5× the floor in 1.4 % of runs at one degree of freedom and in less
-with more; a claim named at its threshold (Δχ² ≳ 15, 3.9 sd) still starts at
-≥ 2× a one-dof floor (2 × 1.645 sd). Per effect:
+with more, while a claim named near its threshold still starts at ≥ 2× a
+one-dof floor (2 × 1.645 sd = 3.29 sd; the lowest pattern amplitude of 108
+named runs on P1/Q1–Q3 at 5σ and 10σ was 3.6 sd; at the 95 % point, 3.92 sd,
+it would not). Per effect:
 
 * **quantization**: the Allan deviation of the full-rate residual at the
   shortest τ (1, 2, 4, 8 samples) over the record in ``SHORT_TAU_CHUNKS``
