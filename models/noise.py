@@ -23,7 +23,6 @@ import math
 from typing import Protocol
 
 import numpy as np
-from scipy.signal import lfilter
 
 from gyrocal.models.allan_theory import (  # noqa: F401 - re-exported for the simulator's users
     FLICKER_FLOOR_PER_B,
@@ -31,6 +30,7 @@ from gyrocal.models.allan_theory import (  # noqa: F401 - re-exported for the si
     markov_avar,
 )
 from gyrocal.models.gyro_model import NoiseParams
+from gyrocal.models.recursion import first_order
 
 #: Correlation-time band of the Gauss-Markov bank that makes the flicker noise.
 #: 0.1 s .. 1e6 s keeps the Allan floor flat from ~1 s to ~1e4 s (overnight
@@ -162,8 +162,7 @@ class GaussMarkov:
     def generate(self, n: int) -> np.ndarray:
         if n == 0:
             return np.zeros(0)
-        drive = self._rng.standard_normal(n)
-        out, zf = lfilter([self._gain], [1.0, -self._a], drive, zi=[self._a * self._x])
+        out = first_order(self._gain, self._a, self._rng.standard_normal(n), self._x)
         self._x = float(out[-1])
         return out
 

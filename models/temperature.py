@@ -10,7 +10,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.signal import lfilter
+
+from gyrocal.models.recursion import first_order
 
 #: Band (degC) by which the chamber must move away from its last extreme
 #: before the hysteresis branch flips: "rose" means T_c climbed more than
@@ -79,8 +80,7 @@ def thermal_lag_c(
     b1 = one_minus_a - b0
     u = b0 * tc + b1 * tc_before
     if uniform:
-        out, _ = lfilter([1.0], [1.0, -float(a[0])], u, zi=[float(a[0]) * sensor_prev_c])
-        return out
+        return first_order(1.0, float(a[0]), u, sensor_prev_c)
     return _first_order_recursion(a, u, sensor_prev_c)
 
 
