@@ -54,7 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gyrocal.instruments.gyro.channels import SensorChannels, concat_channels
-from gyrocal.instruments.gyro.crc32_mpeg2 import crc32_mpeg2_rows
+from gyrocal.instruments.gyro.crc32_mpeg2 import crc32_mpeg2_prefix_rows
 from gyrocal.instruments.gyro.datagram_types import (  # noqa: F401 - re-exported for the driver, sim and tests
     ACCELEROMETER_LSB_G,
     DEFAULT_ACCELEROMETER_RANGE_G,
@@ -116,10 +116,7 @@ def flagged(status: np.ndarray, axis: int) -> np.ndarray:
 
 def frame_crc(rows: np.ndarray, layout: FrameLayout) -> np.ndarray:
     """CRC of each datagram row under the dummy-byte rule (uint32 per row)."""
-    n = rows.shape[0]
-    padded = np.zeros((n, layout.crc_offset + layout.crc_dummy_bytes), dtype=np.uint8)
-    padded[:, : layout.crc_offset] = rows[:, : layout.crc_offset]
-    return crc32_mpeg2_rows(padded)
+    return crc32_mpeg2_prefix_rows(rows, layout.crc_offset, layout.crc_dummy_bytes)
 
 
 # --------------------------------------------------------------------------- encode
@@ -255,10 +252,12 @@ def _put_triplet(frames: np.ndarray, offset: int, status_offset: int, scaled: np
 def _put_int(frames: np.ndarray, offset: int, values: np.ndarray, width: int) -> None:
     """Write the columns of ``values`` as consecutive big-endian ``width``-byte fields."""
     mask = (1 << (8 * width)) - 1
-    raw = values.astype(np.int64) & mask
-    for col in range(raw.shape[1]):
-        for byte in range(width):
-            frames[:, offset + col * width + byte] = (raw[:, col] >> (8 * (width - 1 - byte))) & 0xFF
+    # big-endian 32-bit words whose low ``width`` bytes are the fields: one strided copy per
+    # byte position for all columns (a shift and mask per byte and column cost ~3x more)
+    words = (values.astype(np.int64) & mask).astype(">u4").view(np.uint8).reshape(values.shape[0], -1, 4)
+    stop = offset + words.shape[1] * width
+    for byte in range(width):
+        frames[:, offset + byte : stop : width] = words[:, :, 4 - width + byte]
 
 
 def _overload_bits(saturated: np.ndarray) -> np.ndarray:
@@ -572,10 +571,11 @@ def _cluster(rows: np.ndarray, offset: int | None, status_offset: int | None, wi
 
 def _get_int(rows: np.ndarray, offset: int, count: int, width: int, signed: bool = True) -> np.ndarray:
     """``count`` consecutive big-endian ``width``-byte fields from ``offset`` as int64 columns."""
-    out = np.zeros((rows.shape[0], count), dtype=np.int64)
-    for col in range(count):
-        for byte in range(width):
-            out[:, col] = (out[:, col] << 8) | rows[:, offset + col * width + byte]
+    words = np.zeros((rows.shape[0], count, 4), dtype=np.uint8)   # big-endian 32-bit words
+    stop = offset + count * width
+    for byte in range(width):
+        words[:, :, 4 - width + byte] = rows[:, offset + byte : stop : width]
+    out = words.view(">u4")[:, :, 0].astype(np.int64)
     if signed:
         sign = np.int64(1) << np.int64(8 * width - 1)
         out = (out ^ sign) - sign

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 from gyrocal.instruments.gyro.crc32_mpeg2 import (
     CHECK_VALUE,
     crc32_mpeg2,
+    crc32_mpeg2_prefix_rows,
     crc32_mpeg2_rows,
     crc32_mpeg2_words,
 )
@@ -41,6 +42,19 @@ def test_vectorised_rows_match_the_bitwise_reference(length):
     got = crc32_mpeg2_rows(messages)
     assert got.dtype == np.uint32
     assert [int(v) for v in got] == [bitwise_crc32_mpeg2(m.tobytes()) for m in messages]
+
+
+@pytest.mark.parametrize(("n_bytes", "zeros"), [(1, 0), (7, 1), (8, 0), (55, 1), (28, 2), (60, 0)])
+def test_prefix_rows_of_a_frame_block_match_the_bitwise_reference(n_bytes, zeros):
+    """The compiled per-position form, on a strided block (the first bytes of wider rows)
+    followed by dummy zero bytes (the datagram's rule), as the encoder and decoder call it."""
+    rng = np.random.default_rng(n_bytes)
+    block = rng.integers(0, 256, (257, n_bytes + 5), dtype=np.uint8)
+    got = crc32_mpeg2_prefix_rows(block, n_bytes, zeros)
+    assert got.dtype == np.uint32
+    assert [int(v) for v in got] == [
+        bitwise_crc32_mpeg2(row[:n_bytes].tobytes() + bytes(zeros)) for row in block]
+    assert crc32_mpeg2_prefix_rows(block[:0], n_bytes, zeros).shape == (0,)
 
 
 def test_word_form_takes_big_endian_words():
