@@ -254,7 +254,8 @@ def _put_int(frames: np.ndarray, offset: int, values: np.ndarray, width: int) ->
     mask = (1 << (8 * width)) - 1
     # big-endian 32-bit words whose low ``width`` bytes are the fields: one strided copy per
     # byte position for all columns (a shift and mask per byte and column cost ~3x more)
-    words = (values.astype(np.int64) & mask).astype(">u4").view(np.uint8).reshape(values.shape[0], -1, 4)
+    words = np.ascontiguousarray(values.astype(np.int64) & mask, dtype=">u4").view(np.uint8).reshape(
+        values.shape[0], -1, 4)
     stop = offset + words.shape[1] * width
     for byte in range(width):
         frames[:, offset + byte : stop : width] = words[:, :, 4 - width + byte]

@@ -161,6 +161,18 @@ def test_custom_lsb_scales_the_raw_value():
     assert FrameDecoder(lsb=lsb).feed(frame).rate[0, 0] == pytest.approx(-2.5, abs=1e-12)
 
 
+def test_fields_written_big_endian_whatever_the_memory_order_of_the_input():
+    """A simulator may hand a transposed (Fortran-order) block: the bytes are the rows'
+    values big-endian (TS1524 Table 5-4: rate fields 24-bit two's complement, MSB first)."""
+    values = [[-3e-3, 1.0, 4e-4], [7.0, -1.0, 0.0]]
+    fortran = np.asfortranarray(np.array(values))
+    frames = encode_frames(fortran, np.array([0, 1]), temp_c=np.full((3, 2), 21.0).T, lsb=1e-3)
+    assert frames == encode_frames(np.array(values), np.array([0, 1]), temp_c=np.full((2, 3), 21.0),
+                                   lsb=1e-3)
+    first = frames[:LEN_94]
+    assert first[1:10] == b"".join((r & 0xFFFFFF).to_bytes(3, "big") for r in (-3, 1000, 0))
+
+
 # --------------------------------------------------------------------------- round trips
 
 
