@@ -111,3 +111,42 @@ def test_a_snapshot_is_data_it_names_only_gyrocal_dataclasses_and_fits_one_class
     del state["attrs"]["_index"]
     with pytest.raises(SimStateError, match="expected"):
         restore(simulator, state)
+
+
+def _nested_generator_form(value):
+    """A snapshot as the first version wrote it: every generator's state as nested objects,
+    its 128-bit words as ``{"hex": ...}`` (journals of runs made before the text form)."""
+    if isinstance(value, dict):
+        if set(value) == {"pcg64"}:
+            state, inc, has_uint32, uinteger = value["pcg64"].split("/")
+            return {"rng": {"bit_generator": "PCG64", "has_uint32": int(has_uint32),
+                            "state": {"inc": {"hex": hex(int(inc, 16))},
+                                      "state": {"hex": hex(int(state, 16))}},
+                            "uinteger": int(uinteger)}}
+        return {key: _nested_generator_form(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [_nested_generator_form(item) for item in value]
+    return value
+
+
+def test_generators_are_one_text_each_and_old_nested_snapshots_still_restore() -> None:
+    model = every_state_model()
+    original = GyroSimulator(model, FS_HZ, seed=5)
+    original.generate(*inputs(4000, 0))
+    snapshot = through_json(capture(original))
+    expected = original.generate(*inputs(2500, 4000)).gyro
+    text = json.dumps(snapshot)
+    assert '"pcg64"' in text and '"rng"' not in text and '"hex"' not in text
+    old = _nested_generator_form(snapshot)
+    assert '"pcg64"' not in json.dumps(old)
+    for state in (snapshot, old):
+        other = GyroSimulator(model, FS_HZ, seed=42)
+        other.generate(*inputs(777, 0))
+        restore(other, through_json(state))
+        assert other.generate(*inputs(2500, 4000)).gyro.tobytes() == expected.tobytes()
+
+
+def test_a_generator_state_that_is_not_pcg64_text_is_refused_by_name() -> None:
+    for text in ("1f/2b/0", "zz/1/0/0", 17):
+        with pytest.raises(SimStateError, match="not a PCG64 state"):
+            decode({"pcg64": text}, np.random.default_rng(1))
