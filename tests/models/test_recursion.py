@@ -7,8 +7,8 @@ import pytest
 from scipy.signal import lfilter
 
 from gyrocal.models import recursion
-from gyrocal.models.noise import GaussMarkov
-from gyrocal.models.recursion import first_order
+from gyrocal.models.noise import FlickerNoise, GaussMarkov
+from gyrocal.models.recursion import first_order, first_order_sum
 from gyrocal.models.temperature import thermal_lag_c
 
 
@@ -61,3 +61,49 @@ def test_thermal_lag_uniform_grid_is_the_recursion():
     b0 = 1.0 - tau_s * one_minus_a / dt_s
     u = b0 * tc + (one_minus_a - b0) * np.concatenate(([25.0], tc[:-1]))
     assert got.tobytes() == _lfilter(1.0, float(a[0]), u, 25.5).tobytes()
+
+
+def test_a_bank_summed_in_one_call_equals_the_sum_of_its_filters():
+    """The flicker noise's processes side by side: the sum from 0 in row order, bit for bit,
+    and each process's last value carried out."""
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 37, 2300):
+        rows = int(rng.integers(1, 9))
+        gains = rng.uniform(0.01, 2.0, rows)
+        poles = np.exp(-1.0 / (250.0 * 10 ** rng.uniform(-1, 6, rows)))
+        lasts = rng.standard_normal(rows)
+        drives = rng.standard_normal((rows, n))
+        filtered = [_lfilter(g, a, d, y) for g, a, d, y in zip(gains, poles, drives, lasts, strict=True)]
+        want = sum(filtered)
+        carried = lasts.copy()
+        assert first_order_sum(gains, poles, carried, drives).tobytes() == want.tobytes()
+        assert carried.tolist() == [float(f[-1]) for f in filtered]
+
+
+def test_the_flicker_bank_draws_and_sums_as_its_processes_one_by_one():
+    """FlickerNoise through the one-call bank gives what its processes give one by one."""
+    noise = FlickerNoise(0.05, 250.0, seed=np.random.SeedSequence(4))
+    twin = FlickerNoise(0.05, 250.0, seed=np.random.SeedSequence(4))
+    for n in (1, 100, 2500, 70000):
+        got = noise.generate(n)
+        want = np.zeros(n)
+        for group in twin.groups:      # the knot arithmetic as written, each process alone
+            want += _one_by_one(group, n)
+        assert got.tobytes() == want.tobytes()
+
+
+def _one_by_one(group, n):
+    d = group.decimation
+    sample = group._index + np.arange(n)
+    needed = (group._index + n - 1) // d + 1
+    have = group._first_knot + len(group._knots) - 1
+    if needed > have:
+        group._knots = np.concatenate((group._knots, sum(p.generate(needed - have)
+                                                         for p in group.processes)))
+    knot_sample = (group._first_knot + np.arange(len(group._knots))) * float(d)
+    out = np.interp(sample.astype(float), knot_sample, group._knots)
+    group._index += n
+    keep_from = group._index // d - group._first_knot
+    group._knots = group._knots[keep_from:]
+    group._first_knot += keep_from
+    return out
