@@ -5,8 +5,8 @@ sensor's thermal lag (``temperature.py``) is this recursion, evaluated block by
 block. ``scipy.signal.lfilter([g], [1, -a], x, zi=[a·y_prev])`` computes it in C,
 but its Python wrapper costs ~13 µs a call: an IMU dry run makes ~146,000 calls
 (22 flicker processes per axis, three axes, a call per process per read block),
-~1.9 s of the simulated gyro's CPU for ~0.3 s of arithmetic. Importing
-``scipy.signal`` also cost every process that loads the models ~0.5 s.
+~1.9 s of the simulated gyro's CPU for ~0.3 s of arithmetic. (The models no
+longer import ``scipy.signal``; allantools, which the analysis imports, still does.)
 
 The compiled loop does the operations of lfilter's transposed direct form II
 in its order, each rounded as there (no fused multiply-add: numba contracts
