@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyrocal.models import recursion
 from gyrocal.models.gyro_model import GyroModel
 from gyrocal.models.indicated import ModelInputs, ModelState, indicated_rate
 from gyrocal.models.noise import NoiseGenerator
@@ -90,6 +91,7 @@ class GyroSimulator:
 
     def __init__(self, model: GyroModel, fs_hz: float, seed: int | None = None, t0_s: float = 0.0) -> None:
         _check_sample_rate(model, fs_hz)
+        recursion.warm_up()     # the noise and thermal-lag loops, before any timed exchange
         self.model = model
         self.fs_hz = float(fs_hz)
         self.t0_s = float(t0_s)

@@ -153,3 +153,15 @@ def crc32_mpeg2_prefix_rows(rows: np.ndarray, n_bytes: int, trailing_zero_bytes:
     out = np.empty(rows.shape[0], dtype=np.uint32)
     _position_crc(rows, n_bytes, position_tables(message_bytes), np.uint32(init_term(message_bytes)), out)
     return out
+
+
+@cache
+def warm_up() -> None:
+    """Load the compiled CRC now, once per process, for blocks as the encoder makes them
+    and as the decoder reads them (read-only views of the received bytes): its first call
+    costs ~0.1 s of CPU, more wall time on a loaded machine, which must not fall inside a
+    wall-time-bounded exchange (see ``models/recursion.warm_up``)."""
+    block = np.zeros((1, 4), dtype=np.uint8)
+    received = np.frombuffer(bytes(4), dtype=np.uint8).reshape(1, 4)
+    for rows in (block, received, block[:, :3], received[:, :3]):
+        crc32_mpeg2_prefix_rows(rows, 2, 1)

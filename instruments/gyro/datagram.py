@@ -53,6 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gyrocal.instruments.gyro import crc32_mpeg2
 from gyrocal.instruments.gyro.channels import SensorChannels, concat_channels
 from gyrocal.instruments.gyro.crc32_mpeg2 import crc32_mpeg2_prefix_rows
 from gyrocal.instruments.gyro.datagram_types import (  # noqa: F401 - re-exported for the driver, sim and tests
@@ -333,6 +334,7 @@ class FrameDecoder:
         if not 1 <= int(counter_step) <= 255:
             raise ValueError(f"counter_step must be within 1..255, got {counter_step!r}")
         self.layout = layout_for(with_temperature, crlf) if datagram is None else layout_of(datagram, crlf)
+        crc32_mpeg2.warm_up()      # the compiled CRC, before the first (timed) read
         self.lsb = float(lsb)
         self.acc_lsb_g = accelerometer_lsb_g(accelerometer_range_g)
         self.counter_step = int(counter_step)

@@ -99,6 +99,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from gyrocal.instruments.gyro import crc32_mpeg2
 from gyrocal.instruments.gyro.datagram import (
     DEFAULT_ACCELEROMETER_RANGE_G,
     DEFAULT_LSB,
@@ -177,6 +178,7 @@ class SimulatedGyroPort(PtyWriterPort):
 
     thread_name = "sim-gyro-pty"
     label = "simulated gyro"
+    _pty_full = False       # the last write into the pty took less than it was offered
 
     def __init__(
         self,
@@ -237,7 +239,6 @@ class SimulatedGyroPort(PtyWriterPort):
         self._tail: tuple[int, int] | None = None   # simulated clock: idle tail [k0, k1) not yet made
         self._making = False                  # the stream thread is making a span
         self._bytes_made = 0                  # simulated clock: bytes made (bytes_made())
-        self._pty_full = False                # the last write took less than it was offered
         self._init_commands(int(baudrate), int(gyro_output_code), unit_serial)
 
     def _init_commands(self, baudrate: int, gyro_output_code: int, unit_serial: str | None) -> None:
@@ -278,6 +279,7 @@ class SimulatedGyroPort(PtyWriterPort):
     # ------------------------------------------------------------------ lifecycle
 
     def _before_start(self) -> None:
+        crc32_mpeg2.warm_up()      # the compiled CRC, before the first (timed) exchange
         if isinstance(self.clock, SimClock):
             self.next_frame = max(self.next_frame, self._frames_before(self.clock.now_s()))
             self.clock.subscribe(self._on_advance)
