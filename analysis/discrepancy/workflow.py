@@ -82,6 +82,7 @@ from gyrocal.analysis.discrepancy.gap import (
     max_exponential_quantile,
     segment_rms,
 )
+from gyrocal.analysis.discrepancy.line_drift import drifting_line
 from gyrocal.analysis.discrepancy.noise_level import judged_by_level, noise_level_test
 from gyrocal.analysis.discrepancy.noise_model import NoiseEstimate, NoiseModel, estimate_noise
 from gyrocal.analysis.discrepancy.own_gap import EffectGap
@@ -351,9 +352,10 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     found, test, last_probe = _adequacy_pass(ctx, after, found)
     level = noise_level_test(ctx, after)
     found = judged_by_level(ctx, after, found, level)
+    found, drift = drifting_line(ctx, after, found)
     structure_left = (search.preempted is not None or search.nonstationary is not None or test.inadequate
                       or metrics["g1_segment_mean"].after > order_statistic_quantile(null_g1, UNEXPLAINED_LEVEL))
-    unexplained = structure_left or level.fires
+    unexplained = structure_left or level.fires or drift is not None
     signals = _signals(ctx, after.model)
     where, notes = "", list(state.notes)
     if test.inadequate and test.probe is not None:
@@ -366,6 +368,8 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     if level.fires:
         where = f"{level.description}; {where}" if where else level.description
     notes.append(level.note)
+    if drift is not None:   # line_drift.py: a line the fixed-line search smears over many bins
+        where = f"{drift.describe()}; {where}" if where else drift.describe()
     return DiscrepancyResult(
         found, unexplained, where, metrics, primary, model, after.model, noise.estimate,
         list(search.iterations), ctx.bins, ctx.segments, np.unique(seg_of_bin), geometry,
