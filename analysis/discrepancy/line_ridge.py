@@ -32,7 +32,7 @@ from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 
 #: Segment counts tried: fewer segments keep more of a slow drift's energy in one bin, more
 #: segments keep a fast one (within a segment a line moves slope·(dx/dt)·L² bins).
-SEGMENT_COUNTS = (8, 16, 32)
+SEGMENT_COUNTS = (16, 32)
 #: Largest shift of a track over the record in (pooled) bins at one pooling level.
 MAX_SHIFT_BINS = 96
 #: Pooling levels: 1, 2, 4, 8 bins (shifts up to MAX_SHIFT_BINS · 8 segment bins).
@@ -186,9 +186,13 @@ def _tracks(ratio: np.ndarray, f_band: np.ndarray, dx: np.ndarray, within: np.nd
         lowest = 0 if level_index == 0 else MAX_SHIFT_BINS // 2 + 2
         shifts = np.arange(lowest, MAX_SHIFT_BINS + 1, 2)
         shifts = np.concatenate([shifts, -shifts[shifts > 0]])
-        sums = np.stack([_track_sum(widened, np.rint(m * u).astype(int), _weights(m * smear, length)) for m in shifts])
-        best_shift = np.argmax(sums, axis=0)
-        best_sum = sums[best_shift, np.arange(sums.shape[1])]
+        best_sum = np.full(widened.shape[1], -np.inf)
+        best_shift = np.zeros(widened.shape[1], dtype=int)
+        for index, m in enumerate(shifts):      # a running maximum: no (shifts × bins) array
+            total = _track_sum(widened, np.rint(m * u).astype(int), _weights(m * smear, length))
+            better = total > best_sum
+            best_sum[better] = total[better]
+            best_shift[better] = index
         for j in _peaks(best_sum, MAX_SHIFT_BINS):
             out.append(RidgeTrack(covariate, float(f_band[0] + (j * pool + 0.5 * (pool - 1)) * df),
                                   float(shifts[best_shift[j]]) * pool * df / spread, (1.5 * pool + 0.5) * df,
@@ -204,8 +208,9 @@ def _weights(smear_bins: np.ndarray, length: np.ndarray) -> np.ndarray:
 
 def _standardised(x: np.ndarray) -> np.ndarray:
     """Each row less its median, over its spread (1.4826 MAD): noise bins rank alike in every segment."""
-    med = np.median(x, axis=1, keepdims=True)
-    mad = 1.4826 * np.median(np.abs(x - med), axis=1, keepdims=True)
+    sample = x[:, :: max(1, x.shape[1] // 4096)]        # a few thousand bins fix a median well
+    med = np.median(sample, axis=1, keepdims=True)
+    mad = 1.4826 * np.median(np.abs(sample - med), axis=1, keepdims=True)
     return (x - med) / np.where(mad > 0, mad, 1.0)
 
 
