@@ -27,6 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import discrepancy_scenarios as scenarios  # noqa: E402
 import numpy as np  # noqa: E402
+import validate_discrepancy as inside  # noqa: E402
 import validate_discrepancy_outside as outside  # noqa: E402
 
 from gyrocal.analysis.discrepancy import line_drift, workflow  # noqa: E402
@@ -47,13 +48,8 @@ CASES = [
 
 
 def profile(name: str) -> scenarios.Profile:
-    if name == "P1":
-        return scenarios.procedure_profile()
-    if name == "P2":
-        return scenarios.five_temperature_profile()
-    if name == "P3":
-        return scenarios.static_profile()
-    return outside.profile(name)
+    """P1–P3 as validate_discrepancy.py builds them, Q1–Q3 as validate_discrepancy_outside.py."""
+    return inside.profile(name) if name.startswith("P") else outside.profile(name)
 
 
 def drifting_shape(prof: scenarios.Profile, freq_hz: float, drift: float, covariate: str, size: float
