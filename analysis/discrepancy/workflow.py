@@ -27,9 +27,14 @@
    replaces below 0.5. The bin means cannot show a white-noise level that
    changes with |rate|, temperature or time: noise_level.py tests the
    full-rate residual's within-window scatter for it, with the same result.
+   Nor a periodic line whose frequency drifts with temperature or time
+   (line_drift.py), which the fixed-line search smears over many bins and
+   passes over: when one is there, the result is unexplained with the line
+   and its drift in ``where``, and a periodic_interference named within its
+   frequencies loses its claim.
 
 The code reads as that pipeline: ``_noise_pass`` → ``_search_pass`` (rounds of
-``_search_round``) → ``_gap_pass`` (with ``_adequacy_pass``), each returning what the next needs. The
+``_search_round``) → ``_gap_pass`` (with ``_adequacy_pass`` and ``drifting_line``), each returning what the next needs. The
 candidate effects sit behind one interface in a registry (candidates.py), the
 rules that arbitrate between them in arbitration.py, the log's shared inputs
 and whitening in context.py, the result types in result.py.
