@@ -226,6 +226,11 @@ def _follow_up(spectrum: np.ndarray, n: int, noise: NoiseModel, track: RidgeTrac
     norm = points * points * n * fs_hz * float(noise.psd_two_sided(np.array([f0]), fs_hz)[0]) * track.level
     width = track.freq_resolution_hz + c_half * f0 * spread
     power, freq, drift = _grid(base, d, f0, drifts, width, n / fs_hz)
+    coarse = float(drifts[1] - drifts[0]) if n_c > 1 else 0.0
+    if coarse > 1.5 * step:   # the grid was capped: refine around its best at the quarter-cycle step
+        fine = drift + np.linspace(-coarse, coarse, int(min(_MAX_DRIFTS, 2 * math.ceil(coarse / step) + 1)))
+        power, freq, drift = max((power, freq, drift), _grid(base, d, f0, fine, width, n / fs_hz))
+        n_c += fine.size
     fixed, _, _ = _grid(base, d, f0, np.zeros(1), fixed_span, n / fs_hz)
     return DriftLine(track.covariate, f0 + freq, drift, power / norm, fixed / norm, 0.0, n_c, math.nan)
 

@@ -10,7 +10,7 @@ within a bin for a segment puts its energy in one bin per segment, so the
 track through it collects the whole line although no bin of the
 whole-record spectrum stands out. A segment's value on a track is the largest
 of three neighbouring bins (slopes step by two bins at the extreme segment);
-drifts wider than ``MAX_SHIFT_BINS`` are searched on spectra max-pooled by 2,
+drifts wider than the reach (``MAX_SHIFT_BINS`` for 16 segments or more, more for fewer) are searched on spectra max-pooled by 2,
 4 and 8 bins.
 
 Only the location is taken from here: a 10σ line spread over 16 segments
@@ -35,7 +35,9 @@ from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 SEGMENT_COUNTS = (16, 32)
 #: Largest shift of a track over the record in (pooled) bins at one pooling level.
 MAX_SHIFT_BINS = 96
-#: Pooling levels: 1, 2, 4, 8 bins (shifts up to MAX_SHIFT_BINS · 8 segment bins).
+#: ... for this many segments or more; a segmentation of fewer, K, reaches MAX_SHIFT_BINS·16/K.
+REFERENCE_SEGMENTS = 16
+#: Pooling levels: 1, 2, 4, 8 bins (shifts up to 8 times the reach).
 POOL_LEVELS = 4
 #: Distinct tracks per covariate handed to the coherent follow-up: a 10σ line's ridge is not
 #: always the best one (about 25 against noise ridges of 30), but it is among the best few.
@@ -54,7 +56,7 @@ class RidgeTrack:
     """The best track of one covariate: its frequency at x̄, its slope and their resolutions."""
 
     covariate: str               # "temperature" or "time"
-    freq_hz: float               # at the segments' mean covariate
+    freq_hz: float               # at the record's mean covariate
     slope_hz_per_unit: float     # Hz per degC, or Hz per second
     freq_resolution_hz: float    # half-width of the track's frequency uncertainty
     slope_resolution: float      # half-width of the slope's uncertainty (Hz per unit)
@@ -86,7 +88,7 @@ def best_ridges(resid_dph: np.ndarray, fs_hz: float, noise: NoiseModel, f_lo_hz:
         for name, values in covariates.items():
             x = np.asarray(values, dtype=float)
             means = np.array([x[a:b].mean() for a, b in edges])
-            dx = means - float(np.average(means, weights=[b - a for a, b in edges]))
+            dx = means - float(np.mean(x))      # about the record's mean, as line_drift's phase is
             if float(np.max(np.abs(dx))) > MIN_SPREAD.get(name, 0.0):
                 within = np.array([np.ptp(x[a:b]) for a, b in edges])
                 found.setdefault(name, []).extend(_tracks(ratio, f_band, dx, within, name, level,
@@ -177,23 +179,27 @@ def _tracks(ratio: np.ndarray, f_band: np.ndarray, dx: np.ndarray, within: np.nd
     u, smear = dx / spread, within / spread
     df = float(f_band[1] - f_band[0])
     out: list[RidgeTrack] = []
+    # fewer segments (the plateaus) cost less per slope and reach further: a line moving 0.1 %/°C
+    # at 7 Hz crosses 220 bins of a 15-minute soak's spectrum over 35 °C, where a pooled
+    # spectrum dilutes it below the noise ridges)
+    reach = max(MAX_SHIFT_BINS, 2 * int(MAX_SHIFT_BINS * REFERENCE_SEGMENTS / (2 * k)))
     for level_index in range(POOL_LEVELS):
         pool = 2 ** level_index
         widened = _three_bin_max(_pool(ratio, pool))
-        if widened.shape[1] < 2 * MAX_SHIFT_BINS:
+        if widened.shape[1] < 2 * reach:
             break
-        widened = _standardised(widened)
-        lowest = 0 if level_index == 0 else MAX_SHIFT_BINS // 2 + 2
-        shifts = np.arange(lowest, MAX_SHIFT_BINS + 1, 2)
+        widened = _standardised(widened).astype(np.float32)   # half the memory traffic of the sums
+        lowest = 0 if level_index == 0 else reach // 2 + 2
+        shifts = np.arange(lowest, reach + 1, 2)
         shifts = np.concatenate([shifts, -shifts[shifts > 0]])
-        best_sum = np.full(widened.shape[1], -np.inf)
+        best_sum = np.full(widened.shape[1], -np.inf, dtype=np.float32)
         best_shift = np.zeros(widened.shape[1], dtype=int)
         for index, m in enumerate(shifts):      # a running maximum: no (shifts × bins) array
             total = _track_sum(widened, np.rint(m * u).astype(int), _weights(m * smear, length))
             better = total > best_sum
             best_sum[better] = total[better]
             best_shift[better] = index
-        for j in _peaks(best_sum, MAX_SHIFT_BINS):
+        for j in _peaks(best_sum, reach):
             out.append(RidgeTrack(covariate, float(f_band[0] + (j * pool + 0.5 * (pool - 1)) * df),
                                   float(shifts[best_shift[j]]) * pool * df / spread, (1.5 * pool + 0.5) * df,
                                   2.0 * pool * df / spread, float(best_sum[j]), k, level))
@@ -242,7 +248,8 @@ def _three_bin_max(x: np.ndarray) -> np.ndarray:
 def _track_sum(x: np.ndarray, shift: np.ndarray, weight: np.ndarray) -> np.ndarray:
     """Σ_k w_k·x[k, j + shift_k] for every j (beyond the band counts 0)."""
     n = x.shape[1]
-    total = np.zeros(n)
+    total = np.zeros(n, dtype=x.dtype)
+    weight = weight.astype(x.dtype)
     for k, s in enumerate(shift):
         if s >= 0:
             total[: n - s] += weight[k] * x[k, s:]
