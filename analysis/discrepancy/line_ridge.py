@@ -1,24 +1,27 @@
-"""Where a drifting spectral line might be: the best ridge through short-time spectra of the residual.
+"""Where a drifting spectral line might be: the best ridges through short-time spectra of the residual.
 
-The first stage of line_drift.py. The record is cut into K equal segments,
-each segment's periodogram is divided by the noise PSD and by its median over
-the band (as periodic.py does, so each Fourier bin of noise is Exp(1)), and
-the ratio is summed along frequency tracks f_k = f_ref + slope·(x_k − x̄),
-x_k the segment's mean temperature or its mid time ("stack-slide", the
-semi-coherent search of continuous-wave line searches). A line that stays
-within a bin for a segment puts its energy in one bin per segment, so the
-track through it collects the whole line although no bin of the
-whole-record spectrum stands out. A segment's value on a track is the largest
-of three neighbouring bins (slopes step by two bins at the extreme segment);
-drifts wider than the reach (``MAX_SHIFT_BINS`` for 16 segments or more, more for fewer) are searched on spectra max-pooled by 2,
-4 and 8 bins.
+The first stage of line_drift.py. The record is cut into segments (K equal
+pieces, and the temperature's plateaus, where a line that follows
+temperature holds still for a whole soak); each segment's periodogram is
+divided by the noise PSD and by its median over the band (as periodic.py
+does, so each Fourier bin of noise is Exp(1)) and put on one frequency grid,
+and the segments are summed along frequency tracks
+f_k = f_ref + slope·(x_k − x̄), x_k the segment's mean temperature or time
+("stack-slide", the semi-coherent search of continuous-wave line searches).
+A line that stays within a bin for a segment puts its energy in one bin per
+segment, so the track through it collects the whole line although no bin of
+the whole-record spectrum stands out. A segment's value on a track is the
+largest of three neighbouring bins (slopes step by two bins at the extreme
+segment); drifts wider than the reach (``MAX_SHIFT_BINS`` for 16 segments or
+more, further for fewer) are searched on spectra max-pooled by 2, 4 and 8 bins.
 
-Only the location is taken from here: a 10σ line spread over 16 segments
-collects about 25 Exp(1) units against a noise ridge of about 30, so the
-ridge alone cannot reach the 0.5 % level (measured: 20σ needed on the
-five-temperature profile); the coherent follow-up in line_drift.py can.
-Ridges of different segment counts and poolings are ranked by the tail of
-their sum under noise (``track_log_tail``).
+Only the location is taken from here, never a verdict: a 10σ line spread over
+16 segments collects about 25 Exp(1) units against noise ridges of about 30
+(measured on the five-temperature profile: the ridge alone needed 20σ), so the
+``CANDIDATES`` best distinct ridges per covariate go to the coherent test in
+line_drift.py, whose union bound does not depend on how they were chosen.
+Ridges are ranked by a standardised sum weighted by each segment's expected
+share of the line (its length, less what the line smears inside it).
 """
 
 from __future__ import annotations
