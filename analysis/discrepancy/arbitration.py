@@ -178,12 +178,7 @@ def probe_beats_effect(fit: Fit, probe: Probe, effect: EffectScores, threshold: 
     ω³ for a rate² on one sign) adds nothing beyond it.
     """
     best = effect.best
-    if best.structural:
-        basis, resid = best.fit.basis, best.fit.white_resid
-    else:
-        basis = np.hstack([fit.basis, best.basis])
-        resid = fit.white_resid - best.white_contribution
-    probe_given_effect = gain_given(probe, basis, resid)
+    probe_given_effect = gain_beside(fit, probe, best)
     effect_given_probe = best.delta_chi2 + probe_given_effect - probe.delta_chi2
     if score_from_delta(effect_given_probe, best.dof) > threshold:
         return False
@@ -191,6 +186,15 @@ def probe_beats_effect(fit: Fit, probe: Probe, effect: EffectScores, threshold: 
         return True
     excess = probe.penalised_against(best.dof, len(fit.white_resid)) - best.delta_chi2
     return excess > max(0.0, excess_if_effect_true(fit, probe, best))
+
+
+def gain_beside(fit: Fit, probe: Probe, best: CandidateScore) -> float:
+    """Δχ² of the probe fitted beside the effect (with a structural effect, beside its refit)."""
+    if best.structural:
+        return gain_given(probe, best.fit.basis, best.fit.white_resid)
+    if best.white_contribution is None:     # an effect with no signature here: nothing beside it
+        return gain_given(probe, fit.basis, fit.white_resid)
+    return gain_given(probe, np.hstack([fit.basis, best.basis]), fit.white_resid - best.white_contribution)
 
 
 #: Simulated datasets for ``excess_if_effect_true``, and the seed of their own generator (the
@@ -234,15 +238,31 @@ def _orthonormal(columns: np.ndarray) -> np.ndarray:
     return q[:, good]
 
 
-def outside_odds(probes: list[Probe], dof: int, delta_chi2: float, n_bins: int) -> tuple[float, Probe | None]:
-    """Σ over the probes of exp((penalised Δχ²_probe − Δχ²_effect)/2), and the largest term's probe.
+def outside_odds(probes: list[Probe], dof: int, delta_chi2: float, n_bins: int,
+                 beside: list[float] | None = None) -> tuple[float, Probe | None]:
+    """Σ over the probes of the odds of "the probe instead of the effect", and the largest term's probe.
 
     The probes join the look-alike split (a flat prior, as in lookalikes.probabilities):
     a named effect that a shape outside the catalogue explains about as well cannot be
     stated at 0.99 (a rate² on one rate sign and the catalogue's ω² were equal, Δχ² 125
-    against 125, on a profile dominated by ±300 deg/s dwells).
+    against 125, on a profile dominated by ±300 deg/s dwells). A probe's term is
+    L_probe / (L_effect + L_both), each L = exp(penalised Δχ² / 2) (BIC, the search penalty
+    2 ln M on the probe): the effect is real in the model with both too. ``beside`` holds
+    each probe's Δχ² fitted beside the effect (``gain_beside``); without it L_both is left
+    out (the probe only as an alternative). A probe that explains other structure than the
+    effect is then no rival: a 10σ bias ∝ table acceleration (probe Δχ² 126) took a real
+    10σ temp_rate_bias (Δχ² 71) to probability 10⁻¹² when its term was L_probe / L_effect.
     """
-    terms = [(math.exp(min((p.penalised_against(dof, n_bins) - delta_chi2) / 2.0, 50.0)), p) for p in probes]
+    n_bins = max(n_bins, 2)
+
+    def term(p: Probe, k: int) -> float:
+        alone = math.exp(min((p.penalised_against(dof, n_bins) - delta_chi2) / 2.0, 50.0))
+        if beside is None:
+            return alone
+        both = beside[k] - 2.0 * math.log(max(p.n_candidates, 1)) - p.dof * math.log(n_bins)
+        return alone / (1.0 + math.exp(min(both / 2.0, 50.0)))
+
+    terms = [(term(p, k), p) for k, p in enumerate(probes)]
     if not terms:
         return 0.0, None
     return sum(t for t, _ in terms), max(terms, key=lambda tp: tp[0])[1]

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from gyrocal.analysis.discrepancy.arbitration import outside_odds
+from gyrocal.analysis.discrepancy.arbitration import gain_beside, outside_odds
 from gyrocal.analysis.discrepancy.context import Context, markov_test, refine_found
 from gyrocal.analysis.discrepancy.gap import AllanRatios, Metric, SegmentGeometry
 from gyrocal.analysis.discrepancy.lookalikes import (
@@ -143,7 +143,7 @@ class CatalogueCandidate(Candidate):
         # with τ refitted to twice the record's third took a bias in √t at 0.92 against a cubic
         # in time charged for two columns more than the warm-up's one)
         odds, outside = outside_odds(weighing.probes, refined.dof + len(refined.shape), refined.delta_chi2,
-                                     ctx.bins.n_bins)
+                                     ctx.bins.n_bins, [gain_beside(fit, p, refined) for p in weighing.probes])
         real = real_probability(refined.score, threshold)
         probability = split * real / (1.0 + odds)
         rivals = [replace(r, probability=r.probability * real / (1.0 + odds)) for r in rivals]

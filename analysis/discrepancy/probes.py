@@ -45,6 +45,9 @@ with time, or a ramp in |t − t0|, drew markov_bias at 1.0). The probes:
   ω²·ΔT (deg/h per (deg/s)²·degC), ΔT about the model's reference temperature as its
   tempco laws are: a bias in |ω|·ΔT and a rate² growing with temperature were named
   markov_bias at 0.8 and above, for want of a shape in rate and temperature together.
+* a **bias by the sign of dT/dt** (deg/h, + heating, − cooling, zero in soaks) and a **bias
+  in the table's angular acceleration** dω/dt (deg/h per deg/s², non-zero in slews only):
+  shapes that live in transitions (transitions.py says what they took the place of).
 
 Each is scored like a catalogue effect (the Δχ² of its columns after the
 refitted base and the whitening); its threshold is the (1 − α) point of its
@@ -74,6 +77,7 @@ from gyrocal.analysis.discrepancy.scoring import (
     score_from_delta,
 )
 from gyrocal.analysis.discrepancy.segments import Bins
+from gyrocal.analysis.discrepancy.transitions import angular_acceleration_dps2, heating_sign
 
 #: Number of step positions a step probe tries.
 POSITIONS = 150
@@ -107,6 +111,8 @@ class ProbeKind(Enum):
     SIGNED_RATE2 = "rate squared with the rate's sign"
     ABS_RATE_X_TEMP = "term in |rate| x (T - reference)"
     RATE2_X_TEMP = "term in rate squared x (T - reference)"
+    TEMP_RATE_SIGN = "bias by the sign of dT/dt"
+    TABLE_ACCEL = "bias in table angular acceleration"
 
 
 @dataclass(frozen=True)
@@ -181,6 +187,10 @@ def _sample_shape(kind: ProbeKind, where: float, x: ProbeInputs) -> np.ndarray:
         return x.reduce(np.sign(w))[:, None]
     if kind is ProbeKind.ABS_TEMP_RATE:
         return x.reduce(np.abs(x.temp_rate_c_per_min))[:, None]
+    if kind is ProbeKind.TEMP_RATE_SIGN:
+        return x.reduce(heating_sign(x.t_s, x.temp_c))[:, None]
+    if kind is ProbeKind.TABLE_ACCEL:
+        return x.reduce(angular_acceleration_dps2(x.t_s, w))[:, None]
     if kind is ProbeKind.TEMP_CUBIC:
         dt = x.temp_c - float(np.mean(x.temp_c))
         return np.column_stack([x.reduce(dt * dt), x.reduce(dt ** 3)])
@@ -275,6 +285,13 @@ class Probe:
                     f"τ {self.tau_s:.0f} s")
         if k is ProbeKind.RATE_SIGN_BIAS:
             return f"a bias by rate sign of ±{abs(s):.3g} deg/h ({'+' if s > 0 else '−'} for positive rates)"
+        if k is ProbeKind.TEMP_RATE_SIGN:
+            return (f"a bias by the sign of dT/dt of ±{abs(s):.3g} deg/h ({'+' if s > 0 else '−'} while the "
+                    "chamber heats, zero in soaks; not proportional to dT/dt)")
+        if k is ProbeKind.TABLE_ACCEL:
+            lag = (f"; a rate-output lag of {-s / 3600.0:.3g} s would give it" if s < 0 else "")
+            return (f"a bias in the table's angular acceleration of {s:+.3g} deg/h per deg/s² "
+                    f"(in slews only{lag})")
         return _DESCRIPTIONS[k].format(s=s, where=self.where)
 
 
@@ -442,8 +459,10 @@ def all_probes(fit: Fit, whitener: Whitener, bins: Bins, x: ProbeInputs, z: np.n
     if np.ptp(x.temp_c) > 1.0:
         probes.append(_one_shape(ProbeKind.TEMP_CUBIC, x, fit, whitener, z, alpha))
     if np.ptp(x.temp_rate_c_per_min) > 0.1:
-        probes += [_one_shape(ProbeKind.ABS_TEMP_RATE, x, fit, whitener, z, alpha),
-                   _one_shape(ProbeKind.TEMP_RATE_X_TEMP, x, fit, whitener, z, alpha)]
+        probes += [_one_shape(kind, x, fit, whitener, z, alpha) for kind in
+                   (ProbeKind.ABS_TEMP_RATE, ProbeKind.TEMP_RATE_X_TEMP, ProbeKind.TEMP_RATE_SIGN)]
+    if np.ptp(x.rate_dps) > 0:
+        probes.append(_one_shape(ProbeKind.TABLE_ACCEL, x, fit, whitener, z, alpha))
     return [p for p in probes if p is not None]
 
 
