@@ -45,7 +45,10 @@ with time, or a ramp in |t − t0|, drew markov_bias at 1.0). The probes:
   ω²·ΔT (deg/h per (deg/s)²·degC), ΔT about the model's reference temperature as its
   tempco laws are: a bias in |ω|·ΔT and a rate² growing with temperature were named
   markov_bias at 0.8 and above, for want of a shape in rate and temperature together.
-* a **bias by the sign of dT/dt** (deg/h, + heating, − cooling, zero in soaks) and a **bias
+* a **bias by the sign of dT/dt** (deg/h, + heating, − cooling, zero in soaks), the same with
+  **a level of its own for heating and for cooling** (two columns: the one-column sign shares a
+  named temp_rate_bias's probability where every ramp has one |dT/dt| and the two cannot be told
+  apart, the BIC charge of a second column would not), and a **bias
   in the table's angular acceleration** dω/dt (deg/h per deg/s², non-zero in slews only):
   shapes that live in transitions (transitions.py says what they took the place of).
 
@@ -112,6 +115,7 @@ class ProbeKind(Enum):
     ABS_RATE_X_TEMP = "term in |rate| x (T - reference)"
     RATE2_X_TEMP = "term in rate squared x (T - reference)"
     TEMP_RATE_SIGN = "bias by the sign of dT/dt"
+    HEAT_COOL_LEVELS = "bias levels while heating and while cooling"
     TABLE_ACCEL = "bias in table angular acceleration"
 
 
@@ -189,6 +193,9 @@ def _sample_shape(kind: ProbeKind, where: float, x: ProbeInputs) -> np.ndarray:
         return x.reduce(np.abs(x.temp_rate_c_per_min))[:, None]
     if kind is ProbeKind.TEMP_RATE_SIGN:
         return x.reduce(heating_sign(x.t_s, x.temp_c))[:, None]
+    if kind is ProbeKind.HEAT_COOL_LEVELS:
+        sign = heating_sign(x.t_s, x.temp_c)
+        return np.column_stack([x.reduce((sign > 0).astype(float)), x.reduce((sign < 0).astype(float))])
     if kind is ProbeKind.TABLE_ACCEL:
         return x.reduce(angular_acceleration_dps2(x.t_s, w))[:, None]
     if kind is ProbeKind.TEMP_CUBIC:
@@ -252,6 +259,8 @@ class Probe:
             return math.hypot(*self.coeffs)
         if self.kind is ProbeKind.TEMP_CUBIC:
             return self.coeffs[1]
+        if self.kind is ProbeKind.HEAT_COOL_LEVELS:
+            return max(self.coeffs, key=abs)
         if self.kind is ProbeKind.TIME_CUBIC:
             u = np.linspace(-1.0, 1.0, 201)
             curve = self.coeffs[0] * u + self.coeffs[1] * u * u + self.coeffs[2] * u ** 3
@@ -288,6 +297,9 @@ class Probe:
         if k is ProbeKind.TEMP_RATE_SIGN:
             return (f"a bias by the sign of dT/dt of ±{abs(s):.3g} deg/h ({'+' if s > 0 else '−'} while the "
                     "chamber heats, zero in soaks; not proportional to dT/dt)")
+        if k is ProbeKind.HEAT_COOL_LEVELS:
+            return (f"a bias of {self.coeffs[0]:+.3g} deg/h while the chamber heats and {self.coeffs[1]:+.3g} "
+                    "deg/h while it cools, zero in soaks (two levels, not proportional to dT/dt)")
         if k is ProbeKind.TABLE_ACCEL:
             lag = (f"; a rate-output lag of {-s / 3600.0:.3g} s would give it" if s < 0 else "")
             return (f"a bias in the table's angular acceleration of {s:+.3g} deg/h per deg/s² "
@@ -460,7 +472,8 @@ def all_probes(fit: Fit, whitener: Whitener, bins: Bins, x: ProbeInputs, z: np.n
         probes.append(_one_shape(ProbeKind.TEMP_CUBIC, x, fit, whitener, z, alpha))
     if np.ptp(x.temp_rate_c_per_min) > 0.1:
         probes += [_one_shape(kind, x, fit, whitener, z, alpha) for kind in
-                   (ProbeKind.ABS_TEMP_RATE, ProbeKind.TEMP_RATE_X_TEMP, ProbeKind.TEMP_RATE_SIGN)]
+                   (ProbeKind.ABS_TEMP_RATE, ProbeKind.TEMP_RATE_X_TEMP, ProbeKind.TEMP_RATE_SIGN,
+                    ProbeKind.HEAT_COOL_LEVELS)]
     if np.ptp(x.rate_dps) > 0:
         probes.append(_one_shape(ProbeKind.TABLE_ACCEL, x, fit, whitener, z, alpha))
     return [p for p in probes if p is not None]
