@@ -7,13 +7,14 @@ from wall times, the hash chain that covers them, the run identity and the
 loopback ports the simulators happened to get) and the same results.json
 (apart from the run identity and wall times): ``tests/support/dry_run_compare.py``.
 
-Here the shipped procedures whose dry run takes seconds, one per kind of
-simulated station: the single-axis STIM300 (smoke), the supply with a coil
-and a powered unit (magnetic-sensitivity), the analog gyro through a SCPI DMM
-(kvg25-analog-dmm), the RLG through a SCPI counter (rlg-pulse-counter), the
-table's drive switched off (table-interference). Every shipped procedure,
-the long ones included, in full: ``benchmarks/check_dry_run_determinism.py``
-(its table: docs/dry-run-determinism.md).
+Two runs of each shipped procedure whose dry run takes seconds, one per kind
+of simulated station (the single-axis STIM300, the supply with a coil and a
+powered unit, the analog gyro through a SCPI DMM, the RLG through a SCPI
+counter, the table's drive switched off): test_shipped_dry_runs.py, whose
+reference run of a procedure also serves its kill-and-resume check. Every
+shipped procedure, the long ones included, in full:
+``benchmarks/check_dry_run_determinism.py`` (its table:
+docs/dry-run-determinism.md). Here: what those comparisons rely on.
 """
 
 from __future__ import annotations
@@ -27,33 +28,13 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
-import pytest
 
-from gyrocal.cli import main
 from gyrocal.models.seeding import attempt_seed
-from tests.support.dry_run_compare import columns, differences, results
-
-REPO = Path(__file__).resolve().parents[2]
-#: shipped procedures whose dry run takes seconds, one per kind of simulated station
-QUICK = ("smoke", "magnetic-sensitivity", "kvg25-analog-dmm", "rlg-pulse-counter",
-         "table-interference")
-
-
-@pytest.mark.slow
-@pytest.mark.timeout(300)
-@pytest.mark.parametrize("name", QUICK)
-def test_two_runs_of_a_shipped_procedure_with_one_seed_are_identical(name, tmp_path: Path) -> None:
-    procedure = REPO / "procedures" / f"{name}.yaml"
-    runs = [tmp_path / "first", tmp_path / "second"]
-    for out in runs:
-        assert main(["run", str(procedure), "--sim", "--seed", "7", "--out", str(out)]) in (0, 1)
-    assert len(columns(runs[0])) >= 10
-    assert results(runs[0])["run"]["run_id"] != results(runs[1])["run"]["run_id"]
-    assert differences(*runs) == []
+from tests.support.dry_run_compare import differences
 
 
 def test_the_comparison_finds_a_changed_sample_journal_field_and_result(tmp_path: Path) -> None:
-    """What the test above relies on: a difference anywhere it looks is named."""
+    """What the two-run checks rely on: a difference anywhere it looks is named."""
     runs = []
     for name, value in (("a", 1.0), ("b", 1.0 + 2**-40)):
         run = tmp_path / name

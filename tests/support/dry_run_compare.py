@@ -17,6 +17,9 @@ from typing import Any
 import numpy as np
 import pyarrow.parquet as pq
 
+from gyrocal.record.run_folder import RunFolder
+from gyrocal.record.samples import read_chunks
+
 #: journal fields that may differ between two runs of one seed
 JOURNAL_FREE = {"wall_time", "ended_at", "prev_sha256", "sha256", "run_id", "identity", "address",
                 "files"}
@@ -99,3 +102,59 @@ def _paths_differing(a: Any, b: Any, where: str) -> list[str]:
         return [p for i, (x, y) in enumerate(zip(a, b, strict=True))
                 for p in _paths_differing(x, y, f"{where}[{i}]")]
     return [] if a == b else [where or "."]
+
+
+#: results.json keys in which a resumed run may differ from the uninterrupted one: those
+#: that name the run, a wall time or a loopback address, and the journal block (its events,
+#: chunks and the hash over every chunk count the interruption too)
+RESUMED_RESULTS_FREE = {"run_id", "started_at", "steps_started_at", "steps_done_at", "ended_at",
+                        "report_built_at", "address", "journal"}
+
+
+def counted_samples(run_dir: Path) -> dict[str, tuple[int, dict[str, np.ndarray]]]:
+    """step_id → (attempt, decoded columns of its counted attempt's chunks)."""
+    folder = RunFolder(run_dir)
+    out = {}
+    for event in folder.journal_events():
+        if event.get("event") == "step_completed" and event.get("chunks"):
+            out[event["step_id"]] = (event["attempt"],
+                                     dict(read_chunks(folder.path, event["chunks"])))
+    return out
+
+
+def assert_resumed_equal(out: Path, name: str, expected: dict, expected_results: dict,
+                         plan: list[str], cut_step: str) -> None:
+    """The run in ``out``, killed at the point called ``name`` and resumed, equals the
+    uninterrupted run whose counted samples and results.json are ``expected`` and
+    ``expected_results`` (engine.Rehearsal): the same steps completed once each, each
+    counted attempt's columns byte for byte, results.json's numbers; ``cut_step`` (killed
+    mid-way when ``name`` is "mid-step") counted on its second attempt; and the resumed
+    session restored the simulated state the killed one journaled last."""
+    events = RunFolder.open(out).journal_events()
+    assert [e["step_id"] for e in events if e["event"] == "step_completed"] == plan, name
+    got = counted_samples(out)
+    assert set(got) == set(expected), name
+    for step_id, (attempt, step_columns) in expected.items():
+        got_attempt, got_columns = got[step_id]
+        assert list(got_columns) == list(step_columns), (name, step_id)
+        for column, values in step_columns.items():
+            other = got_columns[column]
+            assert values.dtype == other.dtype and values.tobytes() == other.tobytes(), (
+                name, step_id, column)
+        if name == "mid-step" and step_id == cut_step:
+            # cut mid-way: run again as a new attempt, with the cut attempt's draws
+            assert (attempt, got_attempt) == (1, 2), name
+    got_results = results(out)
+    assert got_results["run"]["run_id"] != expected_results["run"]["run_id"]
+    assert (without(got_results, RESUMED_RESULTS_FREE)
+            == without(expected_results, RESUMED_RESULTS_FREE)), name
+    kinds = [e["event"] for e in events]
+    if name == "after-run-completed":
+        assert "resumed" not in kinds and kinds[-1] == "run_closed", name
+    else:       # the resumed session went on from the state the killed one had journaled
+        restored = [e for e in events if e["event"] == "sim_state_restored"]
+        assert len(restored) == 1 and "resumed" in kinds, name
+        source = next(e for e in events if e["seq"] == restored[0]["from_seq"])
+        # a step that acts after its step_completed line journals its state after the act
+        assert source["event"] in ("step_completed", "sim_state_saved"), name
+        assert restored[0]["clock_s"] == source["sim_state"]["clock_s"], name

@@ -1,0 +1,298 @@
+"""The shipped procedures' seeded dry runs: the same twice, and the same when killed and resumed (issue 30).
+
+Two checks per shipped procedure, both against one uninterrupted reference run
+made once per procedure (a class-scoped fixture) instead of once per check:
+
+* **identical twice** — a second uninterrupted run with the seed writes the
+  same samples, journal and results.json (``tests/support/dry_run_compare.py``
+  says apart from what). Guards against randomness not derived from (seed,
+  step id, attempt) and simulated time moved by thread scheduling instead of the
+  controller's calls. Here the procedures whose dry run takes seconds, one per
+  kind of simulated station; every shipped procedure in full:
+  ``benchmarks/check_dry_run_determinism.py`` (docs/dry-run-determinism.md).
+* **killed and resumed** — the run killed by SIGKILL at a journal boundary
+  where its simulators hold state (``GYROCAL_CRASH_AT``), then ``gyrocal
+  resume`` (which takes the seed the run started with), counts the reference's
+  samples value for value and the same numbers in results.json
+  (``assert_resumed_equal``). Guards against a simulator whose state is not in
+  the station's snapshot or not put back by ``restore`` (the resumed run would
+  go on from a fresh simulator: other noise, another mounting, another supply
+  output). The single-axis station and every boundary of a short run:
+  test_resumed_dry_run_equal.py and test_crash_every_boundary.py.
+
+Each procedure is a class: pytest-xdist's ``loadscope`` keeps a class on one
+worker (its reference made once there) and spreads the classes over the workers.
+The in-process runs build their reports without the Matplotlib figures
+(``without_report_figures``: about half of a short run's CPU time; neither check
+reads them; the figures are drawn by every other dry run of the suite).
+The IMU procedure is run cut to its first three temperatures (``ImuMountings``).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from gyrocal.cli import main
+from gyrocal.record.crash import CRASH_AT_ENV
+from gyrocal.record.run_folder import RunFolder
+from tests.support.dry_run_compare import (
+    assert_resumed_equal,
+    columns,
+    counted_samples,
+    differences,
+    results,
+)
+from tests.support.fork_server import ForkServer
+from tests.support.short_run import without_report_figures
+
+REPO = Path(__file__).resolve().parents[2]
+SEED = "11"
+
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(600)]
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The uninterrupted run of one procedure and what the checks compare with it."""
+
+    procedure: Path
+    path: Path
+    events: list[dict[str, Any]]
+    samples: dict[str, tuple[int, dict[str, Any]]]
+    results: dict[str, Any]
+
+    @property
+    def plan(self) -> list[str]:
+        """The steps completed, in order."""
+        return [e["step_id"] for e in self.events if e["event"] == "step_completed"]
+
+
+@pytest.fixture(scope="session")
+def fork_server() -> Iterator[ForkServer]:
+    """One warm process per worker that forks the runs killed by SIGKILL."""
+    with ForkServer(REPO) as server:
+        yield server
+
+
+@pytest.fixture(scope="class")
+def no_figures() -> Iterator[None]:
+    """The in-process runs of a class build their reports without figures."""
+    with pytest.MonkeyPatch.context() as patch:
+        without_report_figures(patch)
+        yield
+
+
+class _Shipped:
+    """One shipped procedure (``name``) and its reference run."""
+
+    name: str = ""
+
+    @classmethod
+    def procedure(cls, folder: Path) -> Path:
+        """The procedure file the runs take: the shipped one unless a class cuts it."""
+        return REPO / "procedures" / f"{cls.name}.yaml"
+
+    @staticmethod
+    def run_args(procedure: Path, out: Path) -> list[str]:
+        return ["run", str(procedure), "--sim", "--seed", SEED, "--out", str(out),
+                "--allow-outside-paths"]
+
+    @pytest.fixture(scope="class")
+    @classmethod
+    def reference(cls, tmp_path_factory, no_figures) -> Reference:
+        folder = tmp_path_factory.mktemp(cls.name)
+        procedure = cls.procedure(folder)
+        path = folder / "reference"
+        assert main(cls.run_args(procedure, path)) in (0, 1)
+        return Reference(procedure, path, RunFolder.open(path).journal_events(),
+                         counted_samples(path), results(path))
+
+
+class _IdenticalTwice(_Shipped):
+    def test_two_runs_with_one_seed_are_identical(self, reference: Reference, tmp_path: Path,
+                                                  no_figures) -> None:
+        second = tmp_path / "second"
+        assert main(self.run_args(reference.procedure, second)) in (0, 1)
+        assert len(columns(reference.path)) >= 10
+        assert reference.results["run"]["run_id"] != results(second)["run"]["run_id"]
+        assert differences(reference.path, second) == []
+
+
+def _seq(events: list[dict[str, Any]], event: str, step_id: str) -> int:
+    return next(e["seq"] for e in events if e["event"] == event and e.get("step_id") == step_id)
+
+
+class _KilledAndResumed(_Shipped):
+    """``kills(events)``: where to kill (name → ``before:SEQ``/``after:SEQ``), among
+    mid-step (``cut`` is run again as a new attempt), between a step that acts after its
+    step_completed line and the next (after its act and the state journaled then), and in
+    between (the act done, its state not yet journaled)."""
+
+    cut: str = ""
+    kills: Callable[[list[dict[str, Any]]], dict[str, str]]
+
+    def test_killed_and_resumed_equals_uninterrupted(self, reference: Reference,
+                                                     tmp_path: Path, capsys, no_figures,
+                                                     fork_server: ForkServer) -> None:
+        # every step's state is journaled: on its step_completed line or after its act
+        with_state = {e["step_id"] for e in reference.events if "sim_state" in e
+                      and e["event"] in ("step_completed", "sim_state_saved")}
+        assert with_state == set(reference.plan)
+        for point_name, point in self.kills(reference.events).items():
+            out = tmp_path / point_name
+            status = fork_server.run(self.run_args(reference.procedure, out),
+                                     {CRASH_AT_ENV: point}, tmp_path / f"{point_name}.err")
+            assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, (
+                point_name, status)
+            capsys.readouterr()
+            assert main(["resume", str(out)]) in (0, 1), (point_name, capsys.readouterr())
+            assert_resumed_equal(out, point_name, reference.samples, reference.results,
+                                 reference.plan, self.cut)
+
+
+class TestSmoke(_IdenticalTwice):
+    """The single-axis STIM300 station. Its reference is the session's smoke run
+    (conftest.py, made once per worker for the report tests), so its arguments and
+    its figures are that run's."""
+
+    name = "smoke"
+
+    @staticmethod
+    def run_args(procedure: Path, out: Path) -> list[str]:
+        return ["run", str(procedure), "--sim", "--seed", "3", "--out", str(out),
+                "--operator", "qa-test"]
+
+    @pytest.fixture(scope="class")
+    @classmethod
+    def reference(cls, smoke_run: Path) -> Reference:
+        return Reference(REPO / "procedures" / "smoke.yaml", smoke_run,
+                         RunFolder.open(smoke_run).journal_events(), {}, results(smoke_run))
+
+    @pytest.fixture(scope="class")
+    @classmethod
+    def no_figures(cls) -> None:
+        """Drawn, as in the session's smoke run."""
+
+
+class TestMagneticSensitivity(_IdenticalTwice, _KilledAndResumed):
+    """The supply's coil channels, the powered unit, the Faraday effect."""
+
+    name = "magnetic-sensitivity"
+    cut = "T01.mag.zero"
+
+    @staticmethod
+    def kills(ev: list[dict[str, Any]]) -> dict[str, str]:
+        return {"mid-step": f"before:{_seq(ev, 'step_completed', 'T01.mag.zero')}",
+                "after-act": f"after:{_seq(ev, 'sim_state_saved', 'T01.mag.pos')}",
+                "before-state-saved": f"before:{_seq(ev, 'sim_state_saved', 'T01.mag.pos')}"}
+
+
+class TestTableInterference(_IdenticalTwice, _KilledAndResumed):
+    """The table's drive off (interlock open) after a powered static."""
+
+    name = "table-interference"
+    cut = "T01.interference.off"
+
+    @staticmethod
+    def kills(ev: list[dict[str, Any]]) -> dict[str, str]:
+        return {"mid-step": f"before:{_seq(ev, 'step_completed', 'T01.interference.off')}"}
+
+
+class TestKvg25AnalogDmm(_IdenticalTwice, _KilledAndResumed):
+    """The analog gyro through a SCPI DMM: its reading memory and sample timer."""
+
+    name = "kvg25-analog-dmm"
+    cut = "T01.sf.+50dps"
+
+    @staticmethod
+    def kills(ev: list[dict[str, Any]]) -> dict[str, str]:
+        return {"mid-step": f"before:{_seq(ev, 'step_completed', 'T01.sf.+50dps')}"}
+
+
+class TestRlgPulseCounter(_IdenticalTwice, _KilledAndResumed):
+    """The RLG through a SCPI counter: its gates and the pulse phase carried between them."""
+
+    name = "rlg-pulse-counter"
+    cut = "T01.sf.+50dps"
+
+    @staticmethod
+    def kills(ev: list[dict[str, Any]]) -> dict[str, str]:
+        return {"mid-step": f"before:{_seq(ev, 'step_completed', 'T01.sf.+50dps')}"}
+
+
+class TestTiltLinearity(_KilledAndResumed):
+    """The table on its side in position mode, the inclinometers' noise; the last tilt of
+    a run of them returns the table to 0 deg and rate mode after its step_completed line."""
+
+    name = "tilt-linearity"
+    cut = "T01.tilt2.-25deg"
+
+    @staticmethod
+    def kills(ev: list[dict[str, Any]]) -> dict[str, str]:
+        return {"mid-step": f"before:{_seq(ev, 'step_completed', 'T01.tilt2.-25deg')}",
+                "before-state-saved": f"before:{_seq(ev, 'sim_state_saved', 'T01.tilt1.zero')}"}
+
+
+class TestAcceptanceSeries(_KilledAndResumed):
+    """Frequency response (synthesis mode left after step_completed), a powered unit's
+    turn-on cycles (the supply, the start-up delay, each power-on's bias draw)."""
+
+    name = "acceptance-series"
+    cut = "T01.rep.c3"
+
+    @staticmethod
+    def kills(ev: list[dict[str, Any]]) -> dict[str, str]:
+        return {"before-state-saved": f"before:{_seq(ev, 'sim_state_saved', 'T01.freq.2Hz')}",
+                "mid-step": f"before:{_seq(ev, 'step_completed', 'T01.rep.c3')}"}
+
+
+#: the IMU procedure's temperatures after the first three, cut from its sequence
+IMU_LATER_TEMPERATURES = ("  - {setpoint_c: 30.0, tests: *point}\n",
+                          "  - {setpoint_c: 40.0, tests: *point}\n")
+
+
+class TestImuMountings(_KilledAndResumed):
+    """Three axes on the fixture, killed in its second mounting; the remount's state restored.
+
+    Cut to its first three temperatures (-10, 5, 20 °C): the kill lands where it does in
+    the full procedure (T01, mounting Y, after the remount from X), the resumed session
+    then remounts Z, Xdown, Ydown, Zdown and changes temperature twice, and three
+    temperatures are the fewest for which the report fits its compensation tables (its
+    every section present); the fourth and fifth add only more of the same at ~9 s of
+    CPU each per run.
+    """
+
+    name = "imu-5-temps-3-mountings"
+    cut = "T01.MY.static"
+
+    @classmethod
+    def procedure(cls, folder: Path) -> Path:
+        text = super().procedure(folder).read_text()
+        for line in (*IMU_LATER_TEMPERATURES, "station: ../stations/"):
+            assert line in text, line        # the shipped file changed: update the cut
+        text = text.replace("station: ../stations/", f"station: {REPO}/stations/")
+        for line in IMU_LATER_TEMPERATURES:
+            text = text.replace(line, "")
+        path = folder / f"{cls.name}-3-temps.yaml"
+        path.write_text(text)
+        return path
+
+    @staticmethod
+    def kills(ev: list[dict[str, Any]]) -> dict[str, str]:
+        return {"mid-step": f"before:{_seq(ev, 'step_completed', 'T01.MY.static')}"}
+
+    def test_the_cut_keeps_three_temperatures_and_every_mounting(self,
+                                                                 reference: Reference) -> None:
+        plan = reference.plan
+        assert {step.split(".")[0] for step in plan} == {"T01", "T02", "T03"}
+        assert {step.split(".")[1] for step in plan if step.endswith(".static")} == {
+            "MX", "MY", "MZ", "MXdown", "MYdown", "MZdown"}
+        tables = reference.results["compensation"]["tables"]
+        assert tables["sf"]["piecewise_linear"] is not None
