@@ -2,7 +2,7 @@
 
 Runs ``gyrocal run PROC --sim --seed N`` twice for each procedure in
 ``procedures/`` (in full, as shipped) and compares the two run folders as
-``tests/orchestrator/test_dry_run_determinism.py`` does
+``tests/orchestrator/test_shipped_dry_runs.py`` does
 (``tests/support/dry_run_compare.py``): sample chunks byte for byte and dtype
 per column, the journal apart from wall times, hash chain, run identity and
 loopback addresses, results.json apart from run identity and wall times.

@@ -12,11 +12,13 @@ from __future__ import annotations
 import json
 import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+
+from tests.support.fork_server import ForkServer
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 SIM_STATION = REPO_ROOT / "stations" / "sim.yaml"
@@ -79,6 +81,15 @@ sequence:
     path = folder / "procedure.yaml"
     path.write_text(text)
     return path
+
+
+@pytest.fixture(scope="session")
+def fork_server() -> Iterator[ForkServer]:
+    """One warm ``gyrocal`` fork server per test process (``tests/support/fork_server.py``),
+    shared by the tests that kill or signal runs: its start (the package's imports) is ~2 s
+    of CPU, paid once per worker instead of once per test."""
+    with ForkServer(REPO_ROOT) as server:
+        yield server
 
 
 @pytest.fixture

@@ -104,7 +104,7 @@ def reference_run(procedure: Path, out: Path) -> None:
 
 
 def test_kill_at_every_boundary_resumes_to_a_history_that_verifies(h, tmp_path, monkeypatch,
-                                                                     capsys):
+                                                                     capsys, fork_server):
     keys = generate_key_pair(tmp_path / "keys")
     procedure = short_procedure(h, tmp_path)
     reference = tmp_path / "ref" / "run"
@@ -118,10 +118,9 @@ def test_kill_at_every_boundary_resumes_to_a_history_that_verifies(h, tmp_path, 
     without_report_figures(monkeypatch)      # the resumes below: figures are not the point
 
     outcomes: dict[str, int] = {"killed": 0, "orphans": 0, "closed_on_resume": 0, "no_folder": 0}
-    with ForkServer(h.REPO_ROOT) as server:
-        for point in points:
-            _kill_resume_verify(server, h, procedure, tmp_path / "k" / point.replace(":", "-"),
-                                point, keys, expected, outcomes, capsys)
+    for point in points:
+        _kill_resume_verify(fork_server, h, procedure, tmp_path / "k" / point.replace(":", "-"),
+                            point, keys, expected, outcomes, capsys)
     print("kill points:", len(points), outcomes)
     # the boundaries that matter were really hit: a chunk on disk before its line, a
     # temporary file, and a run cut between run_completed and run_closed
@@ -168,7 +167,7 @@ def _kill_resume_verify(server, h, procedure, out, point, keys, expected, outcom
     outcomes["closed_on_resume"] += any(e.get("closed_by") == "resume" for e in events)
 
 
-def test_the_killed_chunk_is_named_and_never_counted(h, tmp_path, capsys):
+def test_the_killed_chunk_is_named_and_never_counted(h, tmp_path, capsys, fork_server):
     """Killed right before the first chunk_written: the chunk is on disk and unrecorded."""
     procedure = short_procedure(h, tmp_path)
     reference = tmp_path / "ref"
@@ -176,8 +175,7 @@ def test_the_killed_chunk_is_named_and_never_counted(h, tmp_path, capsys):
                  "--allow-outside-paths"]) == EXIT_OK
     first_chunk = next(e for e in h.events(reference) if e["event"] == "chunk_written")
     out = tmp_path / "killed"
-    with ForkServer(h.REPO_ROOT) as server:
-        status = killed_run(server, procedure, out, f"before:{first_chunk['seq']}")
+    status = killed_run(fork_server, procedure, out, f"before:{first_chunk['seq']}")
     assert os.WTERMSIG(status) == signal.SIGKILL
     assert (out / first_chunk["path"]).is_file()
     failed = verify_run_folder(out)
@@ -198,7 +196,8 @@ def test_the_killed_chunk_is_named_and_never_counted(h, tmp_path, capsys):
 
 @pytest.mark.parametrize("command", ["report", "certificate"])
 def test_a_killed_report_rebuild_or_certificate_resumes_to_a_verified_run(h, tmp_path, command,
-                                                                           monkeypatch, capsys):
+                                                                           monkeypatch, capsys,
+                                                                           fork_server):
     """Every boundary of ``gyrocal report`` / ``certificate`` on a closed, signed run."""
     import shutil
 
@@ -214,28 +213,27 @@ def test_a_killed_report_rebuild_or_certificate_resumes_to_a_verified_run(h, tmp
     points = [f"tmp:{n}" for n in (1, 2)] + [f"{when}:{lines + k}" for k in (1, 2)
                                               for when in ("before", "after")]
     env = {"GYROCAL_SIGNING_KEY": str(keys.private)}
-    with ForkServer(h.REPO_ROOT) as server:
-        for point in points:
-            run = tmp_path / point.replace(":", "-")
-            shutil.copytree(closed, run)
-            status = server.run([command, str(run)], {CRASH_AT_ENV: point, **env},
-                                tmp_path / f"{point}.err")
-            killed = os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL
-            assert killed or (command == "certificate" and point == "tmp:2"), (point, status)
-            capsys.readouterr()
-            assert main(["resume", str(run)]) == EXIT_OK, (point, capsys.readouterr())
-            assert "run already complete" in capsys.readouterr().out
-            audit = verify_run_folder(run, public_key=keys.public)
-            assert audit.ok, (point, audit.failure)
-            assert not [p for p in run.rglob("*.tmp") if "orphans" not in p.parts], point
+    for point in points:
+        run = tmp_path / point.replace(":", "-")
+        shutil.copytree(closed, run)
+        status = fork_server.run([command, str(run)], {CRASH_AT_ENV: point, **env},
+                            tmp_path / f"{point}.err")
+        killed = os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL
+        assert killed or (command == "certificate" and point == "tmp:2"), (point, status)
+        capsys.readouterr()
+        assert main(["resume", str(run)]) == EXIT_OK, (point, capsys.readouterr())
+        assert "run already complete" in capsys.readouterr().out
+        audit = verify_run_folder(run, public_key=keys.public)
+        assert audit.ok, (point, audit.failure)
+        assert not [p for p in run.rglob("*.tmp") if "orphans" not in p.parts], point
 
 
-def test_a_power_cut_mid_line_resumes_and_verify_expects_the_torn_tail(h, tmp_path, capsys):
+def test_a_power_cut_mid_line_resumes_and_verify_expects_the_torn_tail(h, tmp_path, capsys,
+                                                                       fork_server):
     """A torn last line (the one thing SIGKILL cannot make: a write cut by the power)."""
     procedure = short_procedure(h, tmp_path)
     out = tmp_path / "run"
-    with ForkServer(h.REPO_ROOT) as server:
-        status = killed_run(server, procedure, out, "after:12")
+    status = killed_run(fork_server, procedure, out, "after:12")
     assert os.WTERMSIG(status) == signal.SIGKILL
     with open(out / "journal.jsonl", "ab") as journal:
         journal.write(b'{"event":"step_completed","step_id":"T01.sf')     # cut mid-line

@@ -33,7 +33,6 @@ import pytest
 from gyrocal.cli import main
 from gyrocal.record.crash import CRASH_AT_ENV
 from tests.support.dry_run_compare import assert_resumed_equal, counted_samples
-from tests.support.fork_server import ForkServer
 from tests.support.short_run import without_report_figures
 
 
@@ -57,7 +56,7 @@ def kill_points(events: list[dict[str, Any]]) -> dict[str, str]:
 
 @pytest.mark.timeout(240)
 def test_a_killed_and_resumed_dry_run_equals_the_uninterrupted_one(h, tmp_path, capsys,
-                                                                   monkeypatch):
+                                                                   monkeypatch, fork_server):
     without_report_figures(monkeypatch)     # the in-process runs' reports: nothing reads them
     procedure = h.write_procedure(tmp_path)
     reference = tmp_path / "reference"
@@ -69,16 +68,15 @@ def test_a_killed_and_resumed_dry_run_equals_the_uninterrupted_one(h, tmp_path, 
     # the state a resumed run restores is journaled where each step completed
     assert all("sim_state" in e for e in h.events(reference) if e["event"] == "step_completed")
     points = kill_points(h.events(reference))
-    with ForkServer(h.REPO_ROOT) as server:
-        for name, point in points.items():
-            out = tmp_path / name
-            status = server.run(run_args(procedure, out), {CRASH_AT_ENV: point},
-                                tmp_path / f"{name}.err")
-            assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, (name, status)
-            capsys.readouterr()
-            assert main(["resume", str(out)]) in (0, 1), (name, capsys.readouterr())
-            assert_resumed_equal(out, name, expected, expected_results,
-                                 list(h.SMALL_PLAN), "T01.sf.+20dps")
+    for name, point in points.items():
+        out = tmp_path / name
+        status = fork_server.run(run_args(procedure, out), {CRASH_AT_ENV: point},
+                            tmp_path / f"{name}.err")
+        assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, (name, status)
+        capsys.readouterr()
+        assert main(["resume", str(out)]) in (0, 1), (name, capsys.readouterr())
+        assert_resumed_equal(out, name, expected, expected_results,
+                             list(h.SMALL_PLAN), "T01.sf.+20dps")
 
 
 def test_what_a_simulated_station_keeps_and_refuses(h) -> None:

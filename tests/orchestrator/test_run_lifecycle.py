@@ -40,7 +40,8 @@ def signalled_run(server: ForkServer, procedure: Path, out: Path, at: str,
 @pytest.mark.slow
 def test_a_signal_at_every_phase_exits_3_quietly_and_resumes_to_a_verified_run(h, tmp_path,
                                                                                  capsys,
-                                                                                 monkeypatch):
+                                                                                 monkeypatch,
+                                                                                 fork_server):
     procedure = short_procedure(h, tmp_path)
     reference = tmp_path / "reference"
     assert main(["run", str(procedure), "--sim", "--out", str(reference), "--seed", "5",
@@ -55,10 +56,9 @@ def test_a_signal_at_every_phase_exits_3_quietly_and_resumes_to_a_verified_run(h
                (f"after:{len(names)}", "SIGTERM" if len(names) % 2 else "SIGINT"),
                (f"before:{steps_done + 1}", "SIGINT"), (f"before:{steps_done + 1}", "SIGTERM")]
     without_report_figures(monkeypatch)      # the resumes below: figures are not the point
-    with ForkServer(h.REPO_ROOT) as server:
-        for at, name in points:
-            _signal_resume_verify(server, h, procedure, tmp_path / "s" / f"{at.replace(':', '-')}"
-                                  f"-{name}", at, name, completed, capsys)
+    for at, name in points:
+        _signal_resume_verify(fork_server, h, procedure, tmp_path / "s" / f"{at.replace(':', '-')}"
+                              f"-{name}", at, name, completed, capsys)
 
 
 def _signal_resume_verify(server, h, procedure, out, at, name, completed, capsys):

@@ -74,13 +74,6 @@ class Reference:
         return [e["step_id"] for e in self.events if e["event"] == "step_completed"]
 
 
-@pytest.fixture(scope="session")
-def fork_server() -> Iterator[ForkServer]:
-    """One warm process per worker that forks the runs killed by SIGKILL."""
-    with ForkServer(REPO) as server:
-        yield server
-
-
 @pytest.fixture(scope="class")
 def no_figures() -> Iterator[None]:
     """The in-process runs of a class build their reports without figures."""
