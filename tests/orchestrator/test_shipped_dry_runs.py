@@ -252,14 +252,17 @@ IMU_LATER_TEMPERATURES = ("  - {setpoint_c: 30.0, tests: *point}\n",
 
 
 class TestImuMountings(_KilledAndResumed):
-    """Three axes on the fixture, killed in its second mounting; the remount's state restored.
+    """Three axes on the fixture, killed in its second mounting: each axis's state (noise,
+    Markov, walk and thermal levels) and the accelerometers' stream restored. (The
+    mounting itself the simulated operator turns back to on resume, as a person would
+    confirm it: remount.SimulatedFixtureOperator.resumed.)
 
     Cut to its first three temperatures (-10, 5, 20 °C): the kill lands where it does in
     the full procedure (T01, mounting Y, after the remount from X), the resumed session
     then remounts Z, Xdown, Ydown, Zdown and changes temperature twice, and three
     temperatures are the fewest for which the report fits its compensation tables (its
-    every section present); the fourth and fifth add only more of the same at ~9 s of
-    CPU each per run.
+    every section present); the fourth and fifth add only more of the same, ~5 s of CPU
+    each per run.
     """
 
     name = "imu-5-temps-3-mountings"
