@@ -20,6 +20,12 @@ made once per procedure (a class-scoped fixture) instead of once per check:
   output). The single-axis station and every boundary of a short run:
   test_resumed_dry_run_equal.py and test_crash_every_boundary.py.
 
+The SCPI gyros' reference runs also serve their end-to-end checks: the KVG25's
+V per deg/s and the RLG's scale factor (in whole pulses) recovered within the
+reported uncertainty, the input chain named in the report and the certificate
+(formerly test_analog_gyro_dry_run.py, which made an unseeded run of each of its
+own in a subprocess).
+
 Each procedure is a class: pytest-xdist's ``loadscope`` keeps a class on one
 worker (its reference made once there) and spreads the classes over the workers.
 The in-process runs build their reports without the Matplotlib figures
@@ -31,13 +37,17 @@ The IMU procedure is run cut to its first three temperatures (``ImuMountings``).
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import pyarrow.parquet as pq
 import pytest
+from pypdf import PdfReader
 
 from gyrocal.cli import main
 from gyrocal.record.crash import CRASH_AT_ENV
@@ -116,6 +126,17 @@ class _IdenticalTwice(_Shipped):
         assert len(columns(reference.path)) >= 10
         assert reference.results["run"]["run_id"] != results(second)["run"]["run_id"]
         assert differences(reference.path, second) == []
+
+
+def certificate_text(run: Path, tmp_path: Path) -> str:
+    """The certificate `gyrocal certificate` writes for a copy of ``run`` (the reference
+    stays as the run left it), as text."""
+    copy = tmp_path / "certified"
+    shutil.copytree(run, copy)
+    assert main(["certificate", str(copy), "--customer", "ACME",
+                 "--approved-by", "A. Auditor"]) == 0
+    pages = PdfReader(copy / "report" / "certificate.pdf").pages
+    return " ".join(" ".join(page.extract_text() for page in pages).split())
 
 
 def _seq(events: list[dict[str, Any]], event: str, step_id: str) -> int:
@@ -208,6 +229,26 @@ class TestKvg25AnalogDmm(_IdenticalTwice, _KilledAndResumed):
     def kills(ev: list[dict[str, Any]]) -> dict[str, str]:
         return {"mid-step": f"before:{_seq(ev, 'step_completed', 'T01.sf.+50dps')}"}
 
+    def test_the_run_recovers_the_models_volts_per_dps_within_u(self, reference: Reference,
+                                                                tmp_path: Path) -> None:
+        """The simulated 34465A samples the gyro model's volts on its sample timer: the
+        model's SF at the LS-line temperature, 0.025 V/(deg/s) at 25 °C with 20 ppm/°C
+        (gyro-models/kvg25-analog.yaml, typed), lies inside the reported U; the report
+        and the certificate say the chain was analog."""
+        fit = reference.results["scale_factor_ls"]
+        truth = 0.025 * (1 + 20e-6 * (fit["temp_c"] - 25.0))
+        assert abs(fit["sf"] - truth) <= fit["U"], (fit["sf"], truth, fit["U"])
+        assert fit["U"] < 1e-5 * 0.025 * 100          # a meaningful bound: under 0.1 % of the SF
+        gyro = reference.results["instruments"]["gyro"]
+        assert gyro["driver"] == "keysight_34465a"
+        assert gyro["description"].startswith("analog input chain: DC volts through")
+        html = next((reference.path / "report").glob("*.html")).read_text()
+        assert "analog input chain" in html
+        reads = [e for e in reference.events if e["event"] == "supply_read"]
+        assert reads and all(r["ok"] and r["voltage_v"] == 12.0 for r in reads)
+        text = certificate_text(reference.path, tmp_path)
+        assert "Input chain keysight_34465a: analog input chain: DC volts through" in text
+
 
 class TestRlgPulseCounter(_IdenticalTwice, _KilledAndResumed):
     """The RLG through a SCPI counter: its gates and the pulse phase carried between them."""
@@ -218,6 +259,27 @@ class TestRlgPulseCounter(_IdenticalTwice, _KilledAndResumed):
     @staticmethod
     def kills(ev: list[dict[str, Any]]) -> dict[str, str]:
         return {"mid-step": f"before:{_seq(ev, 'step_completed', 'T01.sf.+50dps')}"}
+
+    def test_the_dithered_rlg_recovers_its_scale_factor_in_whole_pulses(self,
+                                                                       reference: Reference,
+                                                                       tmp_path: Path) -> None:
+        """SF = 1 + 5 ppm + 0.1 ppm/°C·(T − 25) (the model's sf_error and tempco) inside U;
+        every logged readout is a whole number of 2-arcsec pulses."""
+        fit = reference.results["scale_factor_ls"]
+        truth = 1.0 + 5e-6 + 0.1e-6 * (fit["temp_c"] - 25.0)
+        assert abs(fit["sf"] - truth) <= fit["U"], (fit["sf"], truth, fit["U"])
+        assert reference.results["instruments"]["gyro"]["description"].startswith(
+            "pulse input chain")
+        assert ("Input chain keysight_53230a: pulse input chain: timed totalize"
+                in certificate_text(reference.path, tmp_path))
+        pulses_per_dps = 1.0 / ((2.0 / 3600.0) * 200.0)        # one readout of 5 ms
+        chunks = sorted((reference.path / "samples" / "T01.static").glob("*.parquet"))
+        assert chunks
+        for chunk in chunks:
+            gyro = pq.read_table(chunk, columns=["gyro"]).column("gyro").to_numpy()
+            pulses = gyro * pulses_per_dps
+            assert np.allclose(pulses, np.round(pulses), atol=1e-6)
+            assert len(np.unique(np.round(pulses))) >= 2       # the count steps by one pulse
 
 
 class TestTiltLinearity(_KilledAndResumed):
