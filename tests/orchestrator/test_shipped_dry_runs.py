@@ -1,4 +1,4 @@
-"""The shipped procedures' seeded dry runs: the same twice, and the same when killed and resumed (issue 30).
+"""The shipped procedures' seeded dry runs: the same twice, the same killed and resumed (issue 30).
 
 Two checks per shipped procedure, both against one uninterrupted reference run
 made once per procedure (a class-scoped fixture) instead of once per check:
@@ -24,7 +24,8 @@ The SCPI gyros' reference runs also serve their end-to-end checks: the KVG25's
 V per deg/s and the RLG's scale factor (in whole pulses) recovered within the
 reported uncertainty, the input chain named in the report and the certificate
 (formerly test_analog_gyro_dry_run.py, which made an unseeded run of each of its
-own in a subprocess).
+own in a subprocess); the acceptance series' reference, each covered test's truth
+recovered within U (formerly test_acceptance_series.py, its own run).
 
 Each procedure is a class: pytest-xdist's ``loadscope`` keeps a class on one
 worker (its reference made once there) and spreads the classes over the workers.
@@ -36,6 +37,7 @@ The IMU procedure is run cut to its first three temperatures (``ImuMountings``).
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -49,7 +51,7 @@ import pyarrow.parquet as pq
 import pytest
 from pypdf import PdfReader
 
-from gyrocal.cli import main
+from gyrocal.cli import EXIT_OK, main
 from gyrocal.record.crash import CRASH_AT_ENV
 from gyrocal.record.run_folder import RunFolder
 from tests.support.dry_run_compare import (
@@ -74,6 +76,7 @@ class Reference:
 
     procedure: Path
     path: Path
+    code: int
     events: list[dict[str, Any]]
     samples: dict[str, tuple[int, dict[str, Any]]]
     results: dict[str, Any]
@@ -113,8 +116,9 @@ class _Shipped:
         folder = tmp_path_factory.mktemp(cls.name)
         procedure = cls.procedure(folder)
         path = folder / "reference"
-        assert main(cls.run_args(procedure, path)) in (0, 1)
-        return Reference(procedure, path, RunFolder.open(path).journal_events(),
+        code = main(cls.run_args(procedure, path))
+        assert code in (EXIT_OK, 1)
+        return Reference(procedure, path, code, RunFolder.open(path).journal_events(),
                          counted_samples(path), results(path))
 
 
@@ -186,7 +190,7 @@ class TestSmoke(_IdenticalTwice):
     @pytest.fixture(scope="class")
     @classmethod
     def reference(cls, smoke_run: Path) -> Reference:
-        return Reference(REPO / "procedures" / "smoke.yaml", smoke_run,
+        return Reference(REPO / "procedures" / "smoke.yaml", smoke_run, EXIT_OK,
                          RunFolder.open(smoke_run).journal_events(), {}, results(smoke_run))
 
     @pytest.fixture(scope="class")
@@ -295,6 +299,20 @@ class TestTiltLinearity(_KilledAndResumed):
                 "before-state-saved": f"before:{_seq(ev, 'sim_state_saved', 'T01.tilt1.zero')}"}
 
 
+#: the acceptance series' truths, typed from gyro-models/series-fog.yaml and
+#: stations/sim-series.yaml (not read from them) or worked by hand
+DEAD_ZONE_DPS = 0.025     # typed from gyro-models/series-fog.yaml, not read from it
+SATURATION_DPS = {"positive": 320.0, "negative": 270.0}
+BANDWIDTH_HZ = 1.0        # rate_bandwidth, typed
+PHASE_AT_HALF_HZ_DEG = -26.565051177   # −atan(0.5 / 1.0) in degrees, worked by hand
+STARTUP_S = 0.8           # stations/sim-series.yaml simulation.gyro_startup_s, typed
+WARMUP_TAU_S, WARMUP_DPH = 10.0, 20.0   # warmup_transient, typed
+TIME_TO_BAND_S = 29.957322736          # 10 s · ln(20 / 1 deg/h), worked by hand
+# simulation.turn_on_bias_dph 2.0 (1 σ per power-on), typed; each cycle's 10-s mean adds the
+# white noise 0.6 deg/h/√Hz / √10 s = 0.19 deg/h: √(2² + 0.19²) = 2.009 deg/h
+REPEATABILITY_DPH = 2.009
+
+
 class TestAcceptanceSeries(_KilledAndResumed):
     """Frequency response (synthesis mode left after step_completed), a powered unit's
     turn-on cycles (the supply, the start-up delay, each power-on's bias draw)."""
@@ -306,6 +324,70 @@ class TestAcceptanceSeries(_KilledAndResumed):
     def kills(ev: list[dict[str, Any]]) -> dict[str, str]:
         return {"before-state-saved": f"before:{_seq(ev, 'sim_state_saved', 'T01.freq.2Hz')}",
                 "mid-step": f"before:{_seq(ev, 'step_completed', 'T01.rep.c3')}"}
+
+    def test_the_series_recovers_each_truth(self, reference: Reference) -> None:
+        """Each covered test recovers the simulated gyro's hand-typed truth
+        (gyro-models/series-fog.yaml) within its reported uncertainty (formerly
+        test_acceptance_series.py, which made a run of its own)."""
+        assert reference.code == EXIT_OK
+        results = reference.results
+        zero = next(t for t in results["threshold"]["tests"] if t["base_rate_dps"] == 0)
+        assert zero["standard_test"] == "threshold (IEEE Std 952 / 1431)"
+        assert zero["below_dps"] < DEAD_ZONE_DPS <= zero["threshold_dps"]
+        assert abs(zero["estimate_dps"] - DEAD_ZONE_DPS) <= zero["U_dps"]
+        assert results["threshold"]["resolution_dps"] == 0.01
+        for walk in results["rate_limits"]["tests"]:
+            truth = SATURATION_DPS[walk["direction"]]
+            assert walk["max_dps"] <= truth < walk["next_dps"], walk
+            assert abs(walk["estimate_dps"] - truth) <= walk["U_dps"]
+            assert walk["next_dps"] - walk["max_dps"] == 50.0
+        assert (results["rate_limits"]["max_positive_dps"],
+                results["rate_limits"]["max_negative_dps"]) == (300.0, 250.0)
+        response = results["frequency_response"]
+        test = response["tests"][0]
+        assert test["standard_test"] == "frequency response (IEEE Std 952 / 1431)"
+        assert abs(response["bandwidth_hz"] - BANDWIDTH_HZ) <= test["U_bandwidth_hz"]
+        assert 0 < test["U_bandwidth_hz"] < 0.01
+        assert abs(response["phase_deg"] - PHASE_AT_HALF_HZ_DEG) <= test["U_phase_deg"]
+        one_hz = next(p for p in test["points"] if p["freq_hz"] == 1.0)
+        assert one_hz["gain_db"] == pytest.approx(-3.0103, abs=0.01)     # 1/√2 at the corner
+        assert results["uncertainty"]["frequency_response.bandwidth_hz"]["U"] == \
+            test["U_bandwidth_hz"]
+        turn_on = results["turn_on"]["tests"][0]
+        # the first frame is the first on the 250 Hz grid at or after output-on + 0.8 s: within
+        # 4 ms of 0.8 s, inside U (0.02 s poll: U = 2·0.02/√12 = 0.0115 s)
+        assert (abs(turn_on["time_to_first_data_s"] - STARTUP_S)
+                <= turn_on["U_time_to_first_data_s"])
+        assert abs(turn_on["warmup_tau_s"] - WARMUP_TAU_S) <= turn_on["U_warmup_tau_s"], turn_on
+        assert (abs(turn_on["warmup_amplitude_dph"] - WARMUP_DPH)
+                <= turn_on["U_warmup_amplitude_dph"])
+        assert abs(turn_on["time_to_band_s"] - TIME_TO_BAND_S) <= turn_on["U_time_to_band_s"]
+        assert turn_on["U_warmup_tau_s"] < 1.0
+        assert results["uncertainty"]["turn_on.warmup_tau_s"]["U"] == turn_on["U_warmup_tau_s"]
+        journal = (reference.path / "journal.jsonl").read_text().splitlines()
+        cycles = [json.loads(line) for line in journal if '"unit_power_cycle"' in line]
+        assert [c["step_id"] for c in cycles][0] == turn_on["step_id"]
+        rep = results["turn_on_repeatability"]["tests"][0]
+        assert rep["cycles"] == 8 and len(set(rep["biases_dph"])) == 8
+        assert abs(rep["std_dph"] - REPEATABILITY_DPH) <= rep["U_std_dph"], rep
+        assert rep["u_std_dph"] == pytest.approx(rep["std_dph"] / 14 ** 0.5)     # s/√(2(N−1))
+        assert 0.5 < rep["in_run_std_dph"] < 0.8      # 1-s means of 0.6 deg/h/√Hz white noise
+        assert [c["step_id"] for c in cycles][1:] == [f"T01.rep.c{n}" for n in range(1, 9)]
+        assert [a["decision"] for a in results["acceptance"]] == ["PASS"] * 10
+        html = (reference.path / "report" / "report.html").read_text()
+        assert "<h2>Threshold and resolution (IEEE Std 952 / IEEE Std 1431)</h2>" in html
+        assert "0.03 (in (0.02, 0.03])" in html
+        assert "<h2>Input rate limits (IEEE Std 952 / IEEE Std 1431)</h2>" in html
+        assert "300 (limit in [300, 350))" in html
+        assert "<h2>Frequency response (IEEE Std 952 / IEEE Std 1431)</h2>" in html
+        assert "<h2>Turn-on time and warm-up (IEEE Std 952 / IEEE Std 1431)</h2>" in html
+        assert ("<h2>Turn-on-to-turn-on bias repeatability (IEEE Std 952 / IEEE Std 1431)</h2>"
+                in html)
+        synthesis = [json.loads(line) for line in journal if '"table_synthesis"' in line]
+        assert [e["freq_hz"] for e in synthesis] == [0.25, 0.5, 0.75, 0.9, 1.0, 1.1, 1.25, 1.5,
+                                                     2.0]
+        # TM-8004 §4.3.4: the oscillator takes the peak displacement, 1 deg/s / (2π · 0.25 Hz)
+        assert synthesis[0]["displacement_deg"] == pytest.approx(0.636619772, abs=1e-9)
 
 
 #: the IMU procedure's temperatures after the first three, cut from its sequence
