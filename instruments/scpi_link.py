@@ -24,6 +24,7 @@ from gyrocal.instruments.errors import (
     InstrumentTimeout,
 )
 from gyrocal.instruments.retry import RetryPolicy, call_with_retry
+from gyrocal.instruments.visa_nodelay import no_delay
 
 #: SCPI error query (IEEE 488.2 / SCPI-99 SYSTem:ERRor[:NEXT]?); ``0,"No error"`` when empty
 ERROR_QUERY = "SYST:ERR?"
@@ -112,4 +113,5 @@ class ScpiLink:
         except Exception as exc:  # pyvisa-py raises a bare Exception when connect fails
             raise InstrumentConnectionError(self.name, line,
                                             f"cannot open {self.resource}: {exc}") from None
+        no_delay(self._session)      # a setting and its SYST:ERR? without a delayed-ACK wait
         return self._session

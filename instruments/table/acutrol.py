@@ -50,6 +50,7 @@ from gyrocal.instruments.errors import (
 from gyrocal.instruments.interfaces import Identity, TableStatus
 from gyrocal.instruments.retry import RetryPolicy, call_with_retry
 from gyrocal.instruments.table import acutrol_protocol as proto
+from gyrocal.instruments.visa_nodelay import no_delay
 
 T = TypeVar("T")
 
@@ -324,6 +325,7 @@ class Acutrol3000Table:
             raise InstrumentConnectionError(
                 self.name, line, f"cannot open {self.resource}: {exc}"
             ) from None
+        no_delay(session)      # a command line and its readback without a delayed-ACK wait
         self._session = session
         return session
 
