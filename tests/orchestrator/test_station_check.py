@@ -151,13 +151,14 @@ def test_a_0x93_unit_at_250_hz_then_a_wrong_declaration(tmp_path: Path, capsys) 
     with served_station(tmp_path / "live.yaml", station=str(station)) as live:
         code = main(["station", "check", str(live), "--only", "gyro", "--json",
                      str(tmp_path / "g.json")])
+        first = capsys.readouterr()     # whole, for the message below (a repr is cut short)
         wrong = tmp_path / "wrong.yaml"
         wrong.write_text(live.read_text().replace("datagram: 147", "datagram: 148")
                          .replace("with_temperature: false", "with_temperature: true"))
         assert "datagram: 148" in wrong.read_text()
         code_wrong = main(["station", "check", str(wrong), "--only", "gyro"])
     printed = capsys.readouterr()
-    assert code == EXIT_OK, printed
+    assert code == EXIT_OK, f"declared right, yet:\n{first.out}\n{first.err}"
     gyro = json.loads((tmp_path / "g.json").read_text())["instruments"]["gyro"]["facts"]
     assert gyro["datagram"].startswith("0x93") and gyro["counter_step"] == 8
     # N<CR>, I<CR> (TS1524 §8.1-8.2): `sim serve` is given no procedure, so no serial to say
