@@ -43,6 +43,7 @@ from functools import partial
 
 import discrepancy_fresh as fresh  # noqa: E402
 import discrepancy_fresh_s as fresh_s  # noqa: E402
+import discrepancy_fresh_t as fresh_t  # noqa: E402
 import discrepancy_validation_tables as tables  # noqa: E402
 import numpy as np
 from discrepancy_cases import Case  # noqa: E402
@@ -86,6 +87,17 @@ SETS = {
                 "this set was made apart from the work on the workflow (nobody changing the workflow read "
                 "its generator or ran it) and no run of it was read before the run below (one small smoke "
                 "run checked only that the runner works)."),
+    # 318 runs. Estimated from S's full run (median CPU s per run S1 3.4 at 780 k samples, S2 1.2 at 150 k,
+    # S3 1.4 at 180 k): T1 ≈ 2.0 (375 k samples) × 55 runs, T2 ≈ 1.2 (144 k) × 144, T3 ≈ 1.1 (130 k) × 119
+    # ≈ 7.0 CPU-min + 25 CPU-s sizing the cases: ≈ 4 min wall on 2 idle cores (S: 300 runs, 8.6 CPU-min, 5.7 min)
+    "T": SetRun(fresh_t.SET, "<!-- fresh-held-out-t:begin -->", "<!-- fresh-held-out-t:end -->",
+                "Third held-out set: profiles T1–T3, new families outside the catalogue (issue 29)",
+                "P1–P3, Q1–Q3, R1–R3 and S1–S3", "T1:2,T2:3,T3:2", "T1:1,T2:2,T3:2", "T1:10,T2:50,T3:45", "1",
+                "T2,T3",
+                "this set was made apart from the work on the workflow (its builder read neither the "
+                "workflow's internals nor any run of it on these cases; nobody changing the workflow read its "
+                "generator) and no run of it was read before the run below (a two-run smoke checked only that "
+                "the runner works)."),
 }
 
 
