@@ -6,8 +6,10 @@ validates. The held-out sets were made apart from the work on the workflow and
 are meant to be run against it, not tuned on: ``--set R``
 (``tests/support/discrepancy_fresh.py``: profiles R1–R3, 13 out-of-catalogue
 cases; run and read twice while the workflow changed, so no longer fully held
-out) and ``--set S`` (``tests/support/discrepancy_fresh_s.py``: profiles S1–S3,
-14 out-of-catalogue cases, unseen). Each set writes its own marked section.
+out), ``--set S`` (``tests/support/discrepancy_fresh_s.py``: profiles S1–S3,
+14 out-of-catalogue cases) and ``--set T`` (``tests/support/discrepancy_fresh_t.py``:
+profiles T1–T3, 16 out-of-catalogue cases, unseen: kept for the end of the work).
+Each set writes its own marked section.
 Measures, with Wilson 95 % intervals:
 
 * every catalogue effect the profile can show, at 10σ, named first (and at 5σ
@@ -22,10 +24,11 @@ Writes its section into docs/discrepancy-validation.md between its set's markers
 Set R: one run costs about 4 CPU-s on R1 (960 k samples) and about 1 CPU-s on
 R2 and R3 (43 k samples); the defaults (430 runs) take about 14 CPU-min, about
 8 min wall on 2 idle cores. Set S: 300 runs, about 10 CPU-min, 4–6 min wall on 2
-cores (the smoke's figures are at ``SETS``).
+cores (the smoke's figures are at ``SETS``). Set T: 318 runs, estimated at 7–8.5 CPU-min.
 
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --workers 2
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --set S --workers 2
+    .venv/bin/python benchmarks/validate_discrepancy_fresh.py --set T --workers 2
 """
 
 from __future__ import annotations
