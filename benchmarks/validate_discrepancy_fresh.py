@@ -24,7 +24,7 @@ Writes its section into docs/discrepancy-validation.md between its set's markers
 Set R: one run costs about 4 CPU-s on R1 (960 k samples) and about 1 CPU-s on
 R2 and R3 (43 k samples); the defaults (430 runs) take about 14 CPU-min, about
 8 min wall on 2 idle cores. Set S: 300 runs, about 10 CPU-min, 4–6 min wall on 2
-cores (the smoke's figures are at ``SETS``). Set T: 318 runs, estimated at 7–8.5 CPU-min.
+cores (the smoke's figures are at ``SETS``). Set T: 318 runs, estimated at about 8.5 CPU-min.
 
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --workers 2
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --set S --workers 2
@@ -91,8 +91,9 @@ SETS = {
                 "its generator or ran it) and no run of it was read before the run below (one small smoke "
                 "run checked only that the runner works)."),
     # 318 runs. Estimated from S's full run (median CPU s per run S1 3.4 at 780 k samples, S2 1.2 at 150 k,
-    # S3 1.4 at 180 k): T1 ≈ 2.0 (375 k samples) × 55 runs, T2 ≈ 1.2 (144 k) × 144, T3 ≈ 1.1 (130 k) × 119
-    # ≈ 7.0 CPU-min + 25 CPU-s sizing the cases: ≈ 4 min wall on 2 idle cores (S: 300 runs, 8.6 CPU-min, 5.7 min)
+    # S3 1.4 at 180 k) and a 2-run smoke on T1 (2026-11-24 20:54, workers 1, load ≈ 12: 4.5 CPU-s per run,
+    # more per sample than S1): T1 ≈ 3.5 idle × 55 runs, T2 ≈ 1.2 (144 k samples) × 144, T3 ≈ 1.1 (130 k)
+    # × 119 ≈ 8.3 CPU-min + 25 CPU-s sizing the cases: ≈ 4.5–5 min wall on 2 idle cores, ≈ 7 loaded
     "T": SetRun(fresh_t.SET, "<!-- fresh-held-out-t:begin -->", "<!-- fresh-held-out-t:end -->",
                 "Third held-out set: profiles T1–T3, new families outside the catalogue (issue 29)",
                 "P1–P3, Q1–Q3, R1–R3 and S1–S3", "T1:2,T2:3,T3:2", "T1:1,T2:2,T3:2", "T1:10,T2:50,T3:45", "1",
