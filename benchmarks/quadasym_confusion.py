@@ -8,21 +8,31 @@ stated probability, how often the runner-up is the true one, and the round-one �
 of both (own profiles P1, P2, Q1–Q3; own seeds; never the held-out sets).
 
     python benchmarks/quadasym_confusion.py --profiles P1 Q1 --snr 10 --seeds 20 --out /tmp/x.jsonl
+    python benchmarks/quadasym_confusion.py --table /tmp/x.jsonl      # the Markdown rows
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
+from collections import defaultdict
 from pathlib import Path
+
+import numpy as np
+from scipy.stats import norm
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import validate_discrepancy as inside  # noqa: E402
 import validate_discrepancy_outside as outside  # noqa: E402
+from discrepancy_validation_tables import pct  # noqa: E402
 
+from gyrocal.analysis.discrepancy.noise_model import NoiseModel  # noqa: E402
+from gyrocal.analysis.discrepancy.scoring import gls_fit  # noqa: E402
+from gyrocal.analysis.discrepancy.signatures import placeholder_spec  # noqa: E402
 from gyrocal.analysis.discrepancy.workflow import analyse  # noqa: E402
 from tests.support import discrepancy_scenarios as scenarios  # noqa: E402
 
@@ -56,7 +66,50 @@ def run(pname: str, effect: str, snr: float, seed: int) -> dict:
     }
 
 
+def separation(pname: str, snr: float) -> float:
+    """Whitened distance between the two signatures at ``snr`` once the other is fitted (true noise)."""
+    prof, nominal = profile(pname), scenarios.nominal_model()
+    base = scenarios.true_base(nominal)
+    bins, builder, whitener = scenarios._snr_tools(nominal, prof, NoiseModel.of_model(nominal), 1000)
+    fit = gls_fit(builder, whitener, bins.mean(builder.rate_dph(base)), base)
+    unit = []
+    for name in PAIR:
+        _, x = builder.extra_columns(base, placeholder_spec(name, {}))
+        w = whitener.white(x[:, 0])
+        w = w - fit.basis @ (fit.basis.T @ w)
+        unit.append(w / np.linalg.norm(w))
+    return snr * math.sqrt(max(0.0, 1.0 - float(unit[0] @ unit[1]) ** 2))
+
+
+def table(paths: list[Path]) -> str:
+    """One row per profile, size and true effect: the optimum Φ(d/2) beside what was named."""
+    rows: dict[tuple, list[dict]] = defaultdict(list)
+    for path in paths:
+        for line in path.read_text().splitlines():
+            r = json.loads(line)
+            if r["effect"] in PAIR:
+                rows[(r["profile"], r["snr"], r["effect"])].append(r)
+    out = ["| profile | hidden | d | Φ(d/2) | runs | named first | larger Δχ² of the pair is the truth | "
+           "named first = larger Δχ² (when named) | nothing named | claims ≥ 0.99 (right) |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
+    for (pname, snr, effect), rs in sorted(rows.items()):
+        other = next(n for n in PAIR if n != effect)
+        d = separation(pname, snr)
+        first = [r["found"][0][0] if r["found"] else None for r in rs]
+        ml = [r["dchi2"][effect] > r["dchi2"][other] for r in rs]
+        named = [f == max(PAIR, key=lambda n, r=r: r["dchi2"][n]) for f, r in zip(first, rs, strict=True)
+                 if f is not None]
+        high = [f[0] == effect for r in rs for f in r["found"] if f[1] >= 0.99]
+        out.append(f"| {pname} | {effect} ({snr:g}σ) | {d:.2f} | {norm.cdf(d / 2):.2f} | {len(rs)} | "
+                   f"{pct([f == effect for f in first], True)} | {pct(ml, True)} | {sum(named)}/{len(named)} | "
+                   f"{first.count(None)} | {len(high)} ({sum(high)}) |")
+    return "\n".join(out)
+
+
 def main() -> None:
+    if len(sys.argv) > 1 and sys.argv[1] == "--table":
+        print(table([Path(p) for p in sys.argv[2:]]))
+        return
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--profiles", nargs="+", default=["P1", "Q1"])
     parser.add_argument("--effects", nargs="+", default=list(PAIR))
