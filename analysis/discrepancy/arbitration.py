@@ -225,29 +225,11 @@ def excess_if_effect_true(fit: Fit, probe: Probe, best: CandidateScore) -> float
     data = signal[:, None] + draws
     effect_basis = (best.basis if not best.structural
                     else (signal / np.linalg.norm(signal))[:, None])
-    penalty = probe.delta_chi2 - probe.penalised_against(best.dof, len(signal))
-    excess = probe_gain_searched(fit, probe, data) - penalty - np.sum((effect_basis.T @ data) ** 2, axis=0)
-    return order_statistic_quantile(excess, 1.0 - ALPHA)
-
-
-def probe_gain_searched(fit: Fit, probe: Probe, data: np.ndarray) -> np.ndarray:
-    """The probe's Δχ² on each column of whitened ``data``, searched over its family as on the record.
-
-    The probe on the record is the best of its instances (a rate² on the positive or on the
-    negative rates, a step at any of 150 times), so its excess over an effect must be
-    bootstrapped as the best of them too. With the record's best instance alone, the one-sign
-    rate² beat a true 10σ sf_nonlinearity_quadratic (Δχ² 110 against 105, nothing named) in
-    3 of 60 runs on own P1/Q1/Q2 ladders (benchmarks/quadasym_confusion.py): the other sign
-    catches the noise that lifts it as often, and that half of its chances was not simulated.
-    """
-    family = probe.family
-    if family.shape[1] > 1:
-        perp = family - fit.basis @ (fit.basis.T @ family)
-        norms = np.linalg.norm(perp, axis=0)
-        perp = perp[:, norms > 1e-9] / norms[norms > 1e-9]
-        return np.max((perp.T @ data) ** 2, axis=0)
     probe_basis = _orthonormal(probe.white_columns - fit.basis @ (fit.basis.T @ probe.white_columns))
-    return np.sum((probe_basis.T @ data) ** 2, axis=0)
+    penalty = probe.delta_chi2 - probe.penalised_against(best.dof, len(signal))
+    excess = (np.sum((probe_basis.T @ data) ** 2, axis=0) - penalty
+              - np.sum((effect_basis.T @ data) ** 2, axis=0))
+    return order_statistic_quantile(excess, 1.0 - ALPHA)
 
 
 def _orthonormal(columns: np.ndarray) -> np.ndarray:

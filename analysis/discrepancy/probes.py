@@ -226,10 +226,6 @@ class Probe:
     #: its best score on each simulated effect-free dataset (the column of the family maximum
     #: that ``adequacy.family_threshold`` calibrates against)
     null: np.ndarray = field(default_factory=lambda: np.zeros(0), compare=False, repr=False)
-    #: a searched family's every instance (whitened, ⊥ the fit's basis, unit norm; one column each),
-    #: so a bootstrap of the probe against an effect searches them as the probe did
-    #: (arbitration.excess_if_effect_true); empty for a fixed shape
-    family: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), compare=False, repr=False)
 
     @property
     def score(self) -> float:
@@ -353,8 +349,7 @@ def _projected(columns: np.ndarray, fit: Fit, whitener: Whitener) -> tuple[np.nd
 
 
 def _fitted(kind: ProbeKind, where: float, x: ProbeInputs, fit: Fit, whitener: Whitener,
-            threshold: float, n_candidates: int, null: np.ndarray, tau_s: float = 0.0,
-            family: np.ndarray | None = None) -> Probe | None:
+            threshold: float, n_candidates: int, null: np.ndarray, tau_s: float = 0.0) -> Probe | None:
     """The probe at ``where`` fitted to the residual (its coefficients and Δχ²)."""
     white, perp = _projected(probe_columns(kind, where, x, tau_s), fit, whitener)
     coef, *_ = np.linalg.lstsq(perp, fit.white_resid, rcond=None)
@@ -362,8 +357,7 @@ def _fitted(kind: ProbeKind, where: float, x: ProbeInputs, fit: Fit, whitener: W
     if not np.all(np.isfinite(coef)):
         return None
     return Probe(kind, float(where), tuple(float(c) for c in coef), float(explained @ explained),
-                 white.shape[1], threshold, n_candidates, white, tau_s, null,
-                 np.zeros((0, 0)) if family is None else family)
+                 white.shape[1], threshold, n_candidates, white, tau_s, null)
 
 
 def _single_column_family(kind: ProbeKind, where: np.ndarray, x: ProbeInputs, fit: Fit,
@@ -373,15 +367,14 @@ def _single_column_family(kind: ProbeKind, where: np.ndarray, x: ProbeInputs, fi
     best = _best_column(columns, fit, whitener, z, alpha)
     if best is None:
         return None
-    k, threshold, null, family = best
-    return _fitted(kind, float(where[k]), x, fit, whitener, threshold, family.shape[1], null, family=family)
+    k, threshold, null, count = best
+    return _fitted(kind, float(where[k]), x, fit, whitener, threshold, count, null)
 
 
 def _best_column(columns: np.ndarray, fit: Fit, whitener: Whitener, z: np.ndarray, alpha: float
-                 ) -> tuple[int, float, np.ndarray, np.ndarray] | None:
+                 ) -> tuple[int, float, np.ndarray, int] | None:
     """The column that best explains the residual, the (1 − α) point of the best on the null
-    draws, those null scores, and the usable columns (not spanned by the base), whitened, ⊥ the
-    base and of unit norm (``Probe.family``)."""
+    draws, those null scores, and how many columns were usable (not spanned by the base)."""
     _, perp = _projected(columns, fit, whitener)
     norms = np.linalg.norm(perp, axis=0)
     usable = norms > 1e-9 * max(float(norms.max()), 1e-300)
@@ -391,7 +384,7 @@ def _best_column(columns: np.ndarray, fit: Fit, whitener: Whitener, z: np.ndarra
     k = int(np.argmax((q.T @ fit.white_resid) ** 2))
     null = _null_scores(np.max((q.T @ z) ** 2, axis=0), 1)
     threshold = order_statistic_quantile(null, 1.0 - alpha)
-    return int(np.flatnonzero(usable)[k]), threshold, null, q
+    return int(np.flatnonzero(usable)[k]), threshold, null, int(usable.sum())
 
 
 def decaying_step_probe(fit: Fit, whitener: Whitener, x: ProbeInputs, z: np.ndarray,
@@ -407,9 +400,9 @@ def decaying_step_probe(fit: Fit, whitener: Whitener, x: ProbeInputs, z: np.ndar
     best = _best_column(columns, fit, whitener, z, alpha)
     if best is None:
         return None
-    k, threshold, null, family = best
+    k, threshold, null, count = best
     t0, tau = pairs[k]
-    return _fitted(ProbeKind.DECAYING_STEP, t0, x, fit, whitener, threshold, family.shape[1], null, tau, family)
+    return _fitted(ProbeKind.DECAYING_STEP, t0, x, fit, whitener, threshold, count, null, tau)
 
 
 def _one_shape(kind: ProbeKind, x: ProbeInputs, fit: Fit, whitener: Whitener, z: np.ndarray,
