@@ -75,6 +75,7 @@ from gyrocal.analysis.discrepancy.candidates import (
     library_threshold,
 )
 from gyrocal.analysis.discrepancy.context import Context
+from gyrocal.analysis.discrepancy.g1_null import g1_quantile
 from gyrocal.analysis.discrepancy.gap import (
     FLOOR_PROBABILITY,
     AllanRatios,
@@ -95,7 +96,7 @@ from gyrocal.analysis.discrepancy.periodic import REFINEMENT_FACTOR, PeriodicSca
 from gyrocal.analysis.discrepancy.probes import Probe, ProbeKind, all_probes, strongest
 from gyrocal.analysis.discrepancy.quantization import detect_pulse
 from gyrocal.analysis.discrepancy.result import ALPHA, DiscrepancyResult, FoundEffect, Iteration
-from gyrocal.analysis.discrepancy.scoring import Fit, Whitener, order_statistic_quantile
+from gyrocal.analysis.discrepancy.scoring import Fit, Whitener
 from gyrocal.analysis.discrepancy.stochastic import FINE_BIN_S, MARKOV, StochasticCandidate
 from gyrocal.analysis.measured_log import MeasuredLog
 from gyrocal.models.gyro_model import EffectSpec, GyroModel
@@ -359,7 +360,8 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     found = judged_by_level(ctx, after, found, level)
     found, drift = drifting_line(ctx, after, found)
     structure_left = (search.preempted is not None or search.nonstationary is not None or test.inadequate
-                      or metrics["g1_segment_mean"].after > order_statistic_quantile(null_g1, UNEXPLAINED_LEVEL))
+                      or metrics["g1_segment_mean"].after > g1_quantile(ctx.whitener, after.basis, geometry,
+                                                                       UNEXPLAINED_LEVEL))
     unexplained = structure_left or level.fires or drift is not None
     signals = _signals(ctx, after.model)
     where, notes = "", list(state.notes)
