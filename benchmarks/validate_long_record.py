@@ -86,22 +86,24 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=1000)
     parser.add_argument("--markov-seeds", type=int, default=4)
     parser.add_argument("--snr", type=float, default=10.0)
+    parser.add_argument("--taus", default=",".join(f"{t:g}" for t in MARKOV_TAUS_S), help="Markov τ list, s")
     parser.add_argument("--out", default="")
     args = parser.parse_args()
     profile = long_record_profile(args.hours)
     test = WhittleTest(NoiseModel.of_model(scenarios.nominal_model()), fine_bins(profile.t_s, profile.fs_hz),
                        profile.fs_hz)
     rows = [control(profile, args.first_seed + s) for s in range(args.controls)]
-    for tau in MARKOV_TAUS_S if args.markov_seeds else ():
+    taus = [float(t) for t in args.taus.split(",")] if args.markov_seeds else []
+    for tau in taus:
         rows += [markov(profile, tau, 7100 + s, args.snr) for s in range(args.markov_seeds)]
     if args.out:
         Path(args.out).write_text("".join(json.dumps(r) + "\n" for r in rows))
     controls = [r for r in rows if r["kind"] == "control"]
     k = sum(r["unexplained"] for r in controls)
-    lo, hi = wilson(k, len(controls))
+    lo, hi = wilson(k, len(controls)) if controls else (math.nan, math.nan)
     print(f"controls unexplained {k}/{len(controls)} (Wilson 95 % {100 * lo:.1f}-{100 * hi:.1f} %), "
           f"with a claim {sum(r['claims'] > 0 for r in controls)}")
-    for tau in MARKOV_TAUS_S if args.markov_seeds else ():
+    for tau in taus:
         runs = [r for r in rows if r["kind"] == "markov" and r["tau_s"] == tau]
         sigma = runs[0]["sigma_dph"]
         print(f"markov_bias τ {tau:g} s σ {sigma:.3f} deg/h: named first {sum(r['first'] == 'markov_bias' for r in runs)}"
