@@ -104,7 +104,8 @@ from gyrocal.models.indicated import indicated_rate
 
 __all__ = ["ALPHA", "DiscrepancyResult", "FoundEffect", "Iteration", "analyse"]
 
-#: G1 after the refit above this quantile of its effect-free distribution is "unexplained".
+#: G1 after the refit above this quantile of its effect-free distribution is "unexplained" (the exact
+#: point, g1_null.py: the largest of the 60 shared draws was exceeded by 1/61 of effect-free records).
 UNEXPLAINED_LEVEL = 0.99
 #: Effect-free draws the Allan mismatches' floors come from (each Allan curve costs ~1 ms idle, ~0.1 s
 #: on a loaded machine); the 19th of 20 is their 90 % point (P(new ≤ it) = 19/21).
