@@ -47,6 +47,14 @@ one firing seed fired for all of them alike). CPU: 0.01 s on P1, 0.015 s on
 Q2, 0.06 s on P2 (930 000 samples), 0.6–0.8 s on 10 M samples at 250 Hz (the
 overnight folder's size).
 
+On a long, low-rate record of our own (``tests/support/discrepancy_long_record.py``: 20 h at
+2.5 Hz, a plateau temperature cycle) the test fired on 1 of 100 effect-free controls (temperature,
+t² 10.49 against 10.30). The second held-out set's first run saw it fire on 2 of 40 such controls
+with "falls with |rate| ×0.971"; that text by itself says little (on our profile pure white noise
+gives it at t² 1.2), and no mechanism tried here made it significant: an output LSB of 0.22 or
+1 deg/h, 6 % more variance in temperature ramps, a 0.5″ or 2″ pulse counter all left t² ≤ 2.5
+(docs/discrepancy-validation.md, "Long low-rate records").
+
 Not judged when the model counts pulses (``quantization``) whose rate noise is
 not small beside the white noise (over 1 % of its variance): a pulse
 counter's error depends on how far the angle moves per sample, so its scatter
