@@ -48,10 +48,11 @@ Q2, 0.06 s on P2 (930 000 samples), 0.6–0.8 s on 10 M samples at 250 Hz (the
 overnight folder's size).
 
 On a long, low-rate record of our own (``tests/support/discrepancy_long_record.py``: 20 h at
-2.5 Hz, a plateau temperature cycle) the test fired on 1 of 100 effect-free controls (temperature,
-t² 10.49 against 10.30). The second held-out set's first run saw it fire on 2 of 40 such controls
-with "falls with |rate| ×0.971"; that text by itself says little (on our profile pure white noise
-gives it at t² 1.2), and no mechanism tried here made it significant: an output LSB of 0.22 or
+2.5 Hz, a plateau temperature cycle) the test fired on 2 of 200 effect-free controls (one
+"grows with chamber temperature", one "falls with |rate| ×0.94"), though the simulated noise
+there does not depend on |rate|. The second held-out set's first run saw it fire on 2 of 40 such
+controls with "falls with |rate| ×0.971"; that text by itself says little (on our profile pure
+white noise gives it at t² 1.2), and no mechanism tried here made it significant: an output LSB of 0.22 or
 1 deg/h, 6 % more variance in temperature ramps, a 0.5″ or 2″ pulse counter all left t² ≤ 2.5
 (docs/discrepancy-validation.md, "Long low-rate records").
 
