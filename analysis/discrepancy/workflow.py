@@ -97,6 +97,7 @@ from gyrocal.analysis.discrepancy.probes import Probe, ProbeKind, all_probes, st
 from gyrocal.analysis.discrepancy.quantization import detect_pulse
 from gyrocal.analysis.discrepancy.result import ALPHA, DiscrepancyResult, FoundEffect, Iteration
 from gyrocal.analysis.discrepancy.scoring import Fit, Whitener
+from gyrocal.analysis.discrepancy.split_check import judged_by_split, split_check
 from gyrocal.analysis.discrepancy.stochastic import FINE_BIN_S, MARKOV, StochasticCandidate
 from gyrocal.analysis.measured_log import MeasuredLog
 from gyrocal.models.gyro_model import EffectSpec, GyroModel
@@ -360,10 +361,12 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     level = noise_level_test(ctx, after)
     found = judged_by_level(ctx, after, found, level)
     found, drift = drifting_line(ctx, after, found)
+    split = split_check(ctx, after, found)   # split_check.py: a named effect whose size differs by part
+    found = judged_by_split(found, split)
     structure_left = (search.preempted is not None or search.nonstationary is not None or test.inadequate
                       or metrics["g1_segment_mean"].after > g1_quantile(ctx.whitener, after.basis, geometry,
                                                                        UNEXPLAINED_LEVEL))
-    unexplained = structure_left or level.fires or drift is not None
+    unexplained = structure_left or level.fires or drift is not None or split.fires
     signals = _signals(ctx, after.model)
     where, notes = "", list(state.notes)
     if test.inadequate and test.probe is not None:
@@ -378,6 +381,8 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     notes.append(level.note)
     if drift is not None:   # line_drift.py: a line the fixed-line search smears over many bins
         where = f"{drift.describe()}; {where}" if where else drift.describe()
+    if split.fires:
+        where = f"{split.describe()}; {where}" if where else split.describe()
     return DiscrepancyResult(
         found, unexplained, where, metrics, primary, model, after.model, noise.estimate,
         list(search.iterations), ctx.bins, ctx.segments, np.unique(seg_of_bin), geometry,
