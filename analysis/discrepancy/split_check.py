@@ -7,19 +7,20 @@ the whole record; a wrong name fitted to foreign structure needs a different one
 where the foreign structure differs from the effect's shape. So, after the last
 refit, each named deterministic effect's own binned signature (the effect at its
 fitted parameters, the model with it minus the model without it) is split four
-ways and the split part is offered as one more column beside the whole fit:
+ways into parts, and each part but one is offered as a column of its own beside
+the whole fit (an amplitude of its own in that part):
 
-* the **second half of the record in time** (a law that drifts, steps or
+* **time**: halves and quarters of the record (a law that drifts, steps or
   switches);
-* the bins **above the record's median temperature** (a temperature law of the
-  wrong order, a step at a temperature threshold);
-* the bins at **positive table rate** (a rate-sign-dependent term named after an
-  even or odd catalogue law);
-* the moving bins **above the median |rate|** (a rate law of the wrong power).
+* **temperature**: the bins above and below the median, and the four quartiles
+  (a temperature law of the wrong order, a step at a temperature threshold);
+* **rate sign**: positive and negative table rates (a rate-sign-dependent term
+  named after an even or odd catalogue law);
+* **|rate|**: three bands of the moving bins (a rate law of the wrong power).
 
-The gain of each split column (Δχ², one degree of freedom, after the whole
-refitted basis) is the statistic; its threshold is the (1 − ``ALPHA_SPLIT``)
-point of the best gain over every (effect, split) pair on the same simulated
+The score of each split is −log10 p of its Δχ² on its degrees of freedom, after
+the whole refitted basis; the statistic is the best score, its threshold the
+(1 − ``ALPHA_SPLIT``) point of the best score over every (effect, split) pair on the same simulated
 effect-free residuals the adequacy test uses, draw by draw, so the
 comparisons' correlations are accounted for exactly. A split whose column is
 almost the effect itself (the effect lives on one side only) cannot tell
@@ -42,6 +43,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy import stats
 
 from gyrocal.analysis.discrepancy.context import Context
 from gyrocal.analysis.discrepancy.lookalikes import real_probability
@@ -57,16 +59,17 @@ NOT_SPLIT = ("markov_bias", "periodic_interference", "quantization")
 #: A split column must keep this fraction of the effect's whitened norm once the whole fit is
 #: projected out (less: the effect lives on one side only and the split is the effect itself).
 MIN_FREE_FRACTION = 0.02
-#: Bins each side of a split must hold (fewer: no amplitude of its own to compare).
-MIN_SIDE_BINS = 20
+#: Bins each part of a split must hold (fewer: no amplitude of its own to compare).
+MIN_PART_BINS = 20
+_LN10 = float(np.log(10.0))
 
 
 @dataclass(frozen=True)
 class SplitCheck:
-    """The split test's outcome: best gain, its family-wise threshold, which effect and split."""
+    """The split test's outcome: best score, its family-wise threshold, which effect and split."""
 
-    statistic: float
-    threshold: float
+    statistic: float          # −log10 p of the best split's Δχ² on its degrees of freedom
+    threshold: float          # (1 − ALPHA_SPLIT) point of the best score on effect-free draws
     effect: str | None
     split: str | None
 
@@ -75,34 +78,43 @@ class SplitCheck:
         return self.effect is not None and self.statistic > self.threshold
 
     def describe(self) -> str:
-        return (f"{self.effect} does not keep one size across {self.split} (Δχ² {self.statistic:.1f}, "
+        return (f"{self.effect} does not keep one size across {self.split} (score {self.statistic:.1f}, "
                 f"family-wise threshold {self.threshold:.1f}): a catalogue law fitted to structure "
                 "outside the catalogue")
 
 
-def _masks(ctx: Context) -> dict[str, np.ndarray]:
-    """The splits: side "True" of each, per bin."""
+def _parts(values: np.ndarray, n_parts: int) -> np.ndarray:
+    """Part index per bin: ``n_parts`` groups of equal count by ``values``."""
+    ranks = np.argsort(np.argsort(values, kind="stable"), kind="stable")
+    return (ranks * n_parts) // values.size
+
+
+def _splits(ctx: Context) -> dict[str, np.ndarray]:
+    """The splits: a part index per bin (−1: the bin takes part in no comparison)."""
     bins = ctx.bins
     temp = bins.mean(ctx.inputs.chamber_temp_c)
     rate = ctx.rate_bins_dps
     moving = np.abs(rate) > 0.05
-    masks = {"the two halves of the record in time": bins.centre_s > np.median(bins.centre_s)}
+    splits = {"the two halves of the record in time": _parts(bins.centre_s, 2),
+              "the four quarters of the record in time": _parts(bins.centre_s, 4),
+              "positive and negative table rates": np.where(moving, (rate > 0).astype(int), -1)}
     if np.ptp(temp) > 2.0:
-        masks["temperatures above and below the record's median"] = temp > np.median(temp)
-    masks["positive and negative table rates"] = rate > 0.05
-    if moving.sum() >= 2 * MIN_SIDE_BINS:
-        masks["|rate| above and below the median of the moving bins"] = (
-            np.abs(rate) > np.median(np.abs(rate[moving])))
-    return {k: m for k, m in masks.items()
-            if m.sum() >= MIN_SIDE_BINS and (~m).sum() >= MIN_SIDE_BINS}
+        splits["temperatures above and below the record's median"] = _parts(temp, 2)
+        splits["the record's four temperature quartiles"] = _parts(temp, 4)
+    if moving.sum() >= 3 * MIN_PART_BINS:
+        speed = np.full(rate.size, -1)
+        speed[moving] = _parts(np.abs(rate[moving]), 3)
+        splits["three bands of |rate| among the moving bins"] = speed
+    return {name: part for name, part in splits.items()
+            if all(np.sum(part == k) >= MIN_PART_BINS for k in range(part.max() + 1))}
 
 
 def _columns(ctx: Context, after: Fit, found: list[FoundEffect]
-             ) -> tuple[np.ndarray, list[tuple[str, str]]]:
-    """The whitened split columns beyond the whole fit (unit norm), and their (effect, split)."""
-    masks = _masks(ctx)
+             ) -> list[tuple[np.ndarray, str, str]]:
+    """Per (effect, split): an orthonormal basis of the split parts beyond the whole fit."""
+    splits = _splits(ctx)
     whole = ctx.builder.binned_rate_dph(after.model)
-    cols, labels = [], []
+    out = []
     for f in found:
         if f.name in NOT_SPLIT or not after.model.has_effect(f.name):
             continue
@@ -110,38 +122,44 @@ def _columns(ctx: Context, after: Fit, found: list[FoundEffect]
         norm2 = float(np.sum(ctx.whitener.white(signature) ** 2))
         if not norm2 > 0:
             continue
-        for split, mask in masks.items():
-            w = ctx.whitener.white(np.where(mask, signature, 0.0))
+        for split, part in splits.items():
+            # one column per part but the last (the whole signature is in the fit already)
+            x = np.column_stack([np.where(part == k, signature, 0.0) for k in range(part.max())])
+            w = ctx.whitener.white(x)
             w = w - after.basis @ (after.basis.T @ w)
-            free2 = float(w @ w)
-            if free2 > MIN_FREE_FRACTION * norm2 and free2 > 0:
-                cols.append(w / np.sqrt(free2))
-                labels.append((f.name, split))
-    return (np.column_stack(cols) if cols else np.zeros((after.white_resid.size, 0))), labels
+            keep = np.sum(w * w, axis=0) > MIN_FREE_FRACTION * norm2
+            if keep.any():
+                q, r = np.linalg.qr(w[:, keep])
+                out.append((q[:, np.abs(np.diag(r)) > 1e-9 * np.sqrt(norm2)], f.name, split))
+    return out
+
+
+def _score(gain: np.ndarray, dof: int) -> np.ndarray:
+    return -stats.chi2.logsf(gain, dof) / _LN10
 
 
 def split_check(ctx: Context, after: Fit, found: list[FoundEffect]) -> SplitCheck:
-    """Best split gain of the named effects against its family-wise effect-free threshold."""
-    cols, labels = _columns(ctx, after, found)
-    if not labels:
+    """Best split score of the named effects against its family-wise effect-free threshold."""
+    columns = [c for c in _columns(ctx, after, found) if c[0].shape[1]]
+    if not columns:
         return SplitCheck(0.0, float("inf"), None, None)
-    gains = (cols.T @ after.white_resid) ** 2
     z = ctx.rng.standard_normal((after.white_resid.size, ctx.n_null))
     null_resid = z - after.basis @ (after.basis.T @ z)
-    null_best = np.max((cols.T @ null_resid) ** 2, axis=0)
-    best = int(np.argmax(gains))
-    return SplitCheck(float(gains[best]), order_statistic_quantile(null_best, 1.0 - ALPHA_SPLIT),
-                      *labels[best])
+    scores = [float(_score(np.sum((q.T @ after.white_resid) ** 2), q.shape[1])) for q, _, _ in columns]
+    null_best = np.max([_score(np.sum((q.T @ null_resid) ** 2, axis=0), q.shape[1]) for q, _, _ in columns],
+                       axis=0)
+    best = int(np.argmax(scores))
+    return SplitCheck(scores[best], order_statistic_quantile(null_best, 1.0 - ALPHA_SPLIT),
+                      columns[best][1], columns[best][2])
 
 
 def judged_by_split(found: list[FoundEffect], check: SplitCheck) -> list[FoundEffect]:
     """The named effects with the split effect's probability taken below 0.5 when the test fires.
 
-    Gains are Δχ² here, the claim odds rule works in −log10 p: the difference of the two
-    is turned into decades by the χ²₁ tail's ln(10)/2 per unit of Δχ² (approximately).
+    The claim odds rule turned round, as adequacy.py does: the probability that the
+    effect's one size is the whole account is 1 − real_probability(score, threshold).
     """
     if not check.fires:
         return found
-    decades = (check.statistic - check.threshold) / (2.0 * np.log(10.0))
-    keep = 1.0 - real_probability(float(decades), 0.0)
+    keep = 1.0 - real_probability(check.statistic, check.threshold)
     return [replace(f, probability=f.probability * keep) if f.name == check.effect else f for f in found]
