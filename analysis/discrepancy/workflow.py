@@ -31,7 +31,10 @@
    (line_drift.py), which the fixed-line search smears over many bins and
    passes over: when one is there, the result is unexplained with the line
    and its drift in ``where``, and a periodic_interference named within its
-   frequencies loses its claim.
+   frequencies loses its claim. Nor whether a named effect keeps one size over
+   the record (split_check.py): a catalogue law fitted to foreign structure needs
+   another amplitude in another part (time, temperature, rate sign, |rate|); then
+   the result is unexplained and that effect's probability falls below 0.5.
 
 The code reads as that pipeline: ``_noise_pass`` → ``_search_pass`` (rounds of
 ``_search_round``) → ``_gap_pass`` (with ``_adequacy_pass`` and ``drifting_line``), each returning what the next needs. The
