@@ -146,10 +146,20 @@ def _score(gain: np.ndarray, dof: int) -> np.ndarray:
 
 def split_check(ctx: Context, after: Fit, found: list[FoundEffect]) -> SplitCheck:
     """Best split score of the named effects against its family-wise effect-free threshold."""
-    columns = [c for c in _columns(ctx, after, found) if c[0].shape[1]]
+    return judge(split_columns(ctx, after, found), after, ctx.rng, ctx.n_null)
+
+
+def split_columns(ctx: Context, after: Fit, found: list[FoundEffect]) -> list[tuple[np.ndarray, str, str]]:
+    """The (basis, effect, split) triples the test scores; they depend on the design, not the data."""
+    return [c for c in _columns(ctx, after, found) if c[0].shape[1]]
+
+
+def judge(columns: list[tuple[np.ndarray, str, str]], after: Fit, rng: np.random.Generator,
+          n_null: int) -> SplitCheck:
+    """The best score on ``after``'s residual and its threshold from ``n_null`` effect-free draws."""
     if not columns:
         return SplitCheck(0.0, float("inf"), None, None)
-    z = ctx.rng.standard_normal((after.white_resid.size, ctx.n_null))
+    z = rng.standard_normal((after.white_resid.size, n_null))
     null_resid = z - after.basis @ (after.basis.T @ z)
     scores = [float(_score(np.sum((q.T @ after.white_resid) ** 2), q.shape[1])) for q, _, _ in columns]
     null_best = np.max([_score(np.sum((q.T @ null_resid) ** 2, axis=0), q.shape[1]) for q, _, _ in columns],
