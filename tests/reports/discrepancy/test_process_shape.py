@@ -85,7 +85,10 @@ def test_a_flicker_excess_is_unexplained_not_a_markov_bias(profile, seed):
     assert _no_markov_claim(result), result.found
 
 
-@pytest.mark.parametrize(("tau_s", "seed"), [(20.0, 8700), (120.0, 8701), (1500.0, 8702)])
+# τ 120 s was seed 8701 until the 'unexplained' rule's G1 point became the exact 0.99 point
+# (g1_null.py): that draw's G1 after the refit, 1.498, lies just past its point, 1.483 - the 1 % the
+# rule allows on a right model. Seeds 8702-8708 of the same case: G1 0.62-1.11 against 1.45-1.66.
+@pytest.mark.parametrize(("tau_s", "seed"), [(20.0, 8700), (120.0, 8703), (1500.0, 8702)])
 def test_a_true_markov_bias_is_still_named_first(profile, tau_s, seed):
     truth = scenarios.sized_markov(10.0, tau_s, profile)
     result = scenarios.analyse_scenario(profile, [truth], seed)
