@@ -44,11 +44,15 @@ pytestmark = [pytest.mark.timeout(1200), pytest.mark.slow]
 
 def killed_run(server: ForkServer, procedure: Path, out: Path, crash_at: str,
                env: dict[str, str] | None = None) -> int:
-    """A forked ``gyrocal run --sim`` that kills itself at ``crash_at``; returns its wait status."""
+    """A forked ``gyrocal run --sim`` that kills itself at ``crash_at``; returns its wait status.
+
+    Its report page gets no figures (``ForkServer.run``): what is checked after a kill is
+    the record, and a figure is drawn before the page's atomic write, so every kill point
+    is where it was."""
     out.parent.mkdir(parents=True, exist_ok=True)
     return server.run(["run", str(procedure), "--sim", "--out", str(out), "--seed", "5",
                        "--allow-outside-paths"], {CRASH_AT_ENV: crash_at, **(env or {})},
-                      out.parent / f"{out.name}.err")
+                      out.parent / f"{out.name}.err", figures=False)
 
 
 #: results.json keys that name the run, a wall time or a loopback address, or count the
@@ -198,7 +202,10 @@ def test_the_killed_chunk_is_named_and_never_counted(h, tmp_path, capsys, fork_s
 def test_a_killed_report_rebuild_or_certificate_resumes_to_a_verified_run(h, tmp_path, command,
                                                                            monkeypatch, capsys,
                                                                            fork_server):
-    """Every boundary of ``gyrocal report`` / ``certificate`` on a closed, signed run."""
+    """Every boundary of ``gyrocal report`` / ``certificate`` on a closed, signed run.
+
+    The rebuilt report pages have no figures (here and in the forked commands): the
+    figures are drawn before the page's atomic write, so the kill points are the same."""
     import shutil
 
     keys = generate_key_pair(tmp_path / "keys")
@@ -207,6 +214,7 @@ def test_a_killed_report_rebuild_or_certificate_resumes_to_a_verified_run(h, tmp
     closed = tmp_path / "closed"
     assert main(["run", str(procedure), "--sim", "--out", str(closed), "--seed", "5",
                  "--allow-outside-paths"]) == EXIT_OK
+    without_report_figures(monkeypatch)
     lines = len(h.events(closed))
     # its atomic writes (results.json and report.html, or the PDF) and its two journal
     # lines (report_written or certificate_written, then the seal), before and after each
@@ -217,7 +225,7 @@ def test_a_killed_report_rebuild_or_certificate_resumes_to_a_verified_run(h, tmp
         run = tmp_path / point.replace(":", "-")
         shutil.copytree(closed, run)
         status = fork_server.run([command, str(run)], {CRASH_AT_ENV: point, **env},
-                            tmp_path / f"{point}.err")
+                                 tmp_path / f"{point}.err", figures=False)
         killed = os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL
         assert killed or (command == "certificate" and point == "tmp:2"), (point, status)
         capsys.readouterr()

@@ -71,7 +71,7 @@ def test_a_killed_and_resumed_dry_run_equals_the_uninterrupted_one(h, tmp_path, 
     for name, point in points.items():
         out = tmp_path / name
         status = fork_server.run(run_args(procedure, out), {CRASH_AT_ENV: point},
-                            tmp_path / f"{name}.err")
+                                 tmp_path / f"{name}.err", figures=False)
         assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, (name, status)
         capsys.readouterr()
         assert main(["resume", str(out)]) in (0, 1), (name, capsys.readouterr())

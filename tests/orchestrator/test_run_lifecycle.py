@@ -32,7 +32,8 @@ def signalled_run(server: ForkServer, procedure: Path, out: Path, at: str,
     out.parent.mkdir(parents=True, exist_ok=True)
     status = server.run(["run", str(procedure), "--sim", "--out", str(out), "--seed", "5",
                          "--allow-outside-paths"],
-                        {CRASH_AT_ENV: at, CRASH_SIGNAL_ENV: signal_name}, err_path)
+                        {CRASH_AT_ENV: at, CRASH_SIGNAL_ENV: signal_name}, err_path,
+                        figures=False)
     assert os.WIFEXITED(status), f"{at} {signal_name}: died by signal {os.WTERMSIG(status)}"
     return os.WEXITSTATUS(status), err_path.read_text()
 

@@ -166,7 +166,8 @@ class _KilledAndResumed(_Shipped):
         for point_name, point in self.kills(reference.events).items():
             out = tmp_path / point_name
             status = fork_server.run(self.run_args(reference.procedure, out),
-                                     {CRASH_AT_ENV: point}, tmp_path / f"{point_name}.err")
+                                     {CRASH_AT_ENV: point}, tmp_path / f"{point_name}.err",
+                                     figures=False)
             assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, (
                 point_name, status)
             capsys.readouterr()

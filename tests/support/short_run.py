@@ -31,7 +31,8 @@ def without_report_figures(monkeypatch: Any) -> None:
     each step once with its data, results.json) never reads them. The report is still built, written atomically,
     journaled and hashed as in any run; the figures themselves are asserted where they
     are the point (tests/reports/) and are drawn by every other dry run of the suite.
-    Processes the sweep forks (the killed runs) still draw them.
+    Processes the sweep forks (the killed runs) skip them too: ``ForkServer.run(...,
+    figures=False)``.
     """
     from gyrocal.reports import html_report, plots
 
