@@ -25,6 +25,8 @@ from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
 from gyrocal.record.journal import read_journal
 from gyrocal.record.run_folder import RunFolder
 from gyrocal.record.samples import read_chunks
+from tests.support.fork_server import Forked, ForkServer
+from tests.support.short_run import without_report_figures
 
 pytestmark = [pytest.mark.timeout(240), pytest.mark.slow]
 
@@ -36,7 +38,7 @@ def start_run(procedure: Path, out: Path, root: Path) -> subprocess.Popen:
         cwd=root, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def wait_for_event(out: Path, name: str, proc: subprocess.Popen, timeout_s: float = 90.0,
+def wait_for_event(out: Path, name: str, proc: subprocess.Popen | Forked, timeout_s: float = 90.0,
                    step_id: str | None = None) -> None:
     """Poll the journal (wall time) until ``name`` appears; the process must still be running."""
     deadline = time.monotonic() + timeout_s
@@ -46,9 +48,16 @@ def wait_for_event(out: Path, name: str, proc: subprocess.Popen, timeout_s: floa
             text = path.read_text(errors="replace")
             if f'"event":"{name}"' in text and (step_id is None or f'"step_id":"{step_id}"' in text):
                 return
-        assert proc.poll() is None, f"run ended early: {proc.communicate()}"
+        assert proc.poll() is None, f"run ended early: {ended_early(proc)}"
         time.sleep(0.005)
     raise AssertionError(f"{name} never journaled in {out}")
+
+
+def ended_early(proc: subprocess.Popen | Forked) -> object:
+    """What a run that ended before the test's moment said."""
+    if isinstance(proc, Forked):
+        return proc.stderr_path.read_text()
+    return proc.communicate()
 
 
 def status_text(run_dir: Path, capsys) -> str:
@@ -110,7 +119,11 @@ def step_summary(run_dir: Path) -> dict[str, dict[str, Any]]:
 
 
 def test_kill_9_at_random_points_then_resume_matches_an_uninterrupted_run(
-        h: Any, tmp_path: Path, capsys) -> None:
+        h: Any, tmp_path: Path, capsys, monkeypatch, fork_server: ForkServer) -> None:
+    """The killed runs are forked from the warm fork server (each a process of its own,
+    killed by its pid from here; no interpreter start and imports, ~2.5 s of CPU a trial);
+    no report here draws its figures (only results.json and the samples are compared)."""
+    without_report_figures(monkeypatch)
     procedure = h.write_procedure(tmp_path)
     reference = tmp_path / "reference"
     assert main(["run", str(procedure), "--sim", "--out", str(reference), "--seed", "5"]) == EXIT_OK
@@ -124,15 +137,17 @@ def test_kill_9_at_random_points_then_resume_matches_an_uninterrupted_run(
     killed_in: list[str] = []
     for trial, delay_s in enumerate(delays_s):
         out = tmp_path / f"killed{trial}"
-        proc = start_run(procedure, out, h.REPO_ROOT)
+        proc = fork_server.start(["run", str(procedure), "--sim", "--out", str(out),
+                                  "--seed", "5"], {}, tmp_path / f"killed{trial}.err",
+                                 figures=False)
         try:
             wait_for_event(out, "preflight_ok", proc)
             time.sleep(delay_s)
             os.kill(proc.pid, signal.SIGKILL)
-            proc.communicate(timeout=90)
         finally:
             if proc.poll() is None:
-                proc.kill()
+                os.kill(proc.pid, signal.SIGKILL)
+            proc.wait()
         log = h.events(out)   # reading verifies the chain up to any torn last line
         killed_in.append(f"{delay_s:.2f}s→#{log[-1]['seq']} {log[-1]['event']}")
         if h.manifest(out)["state"] == "running":
