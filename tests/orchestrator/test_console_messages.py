@@ -179,7 +179,7 @@ READ_RUN_STATE = bytes([0x01, 0x03, 0x00, 0xC8])
 
 
 def test_a_chamber_lost_in_preflight_after_identify_says_nothing_was_commanded(
-        tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch) -> None:
+        tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch, fork_server) -> None:
     """Issue 28: the instruments identified, then the chamber stops answering at preflight's
     first status read. Nothing has been commanded yet, so the console says so (and the run
     commands no safe state into a rig it never drove), never "NOT CONFIRMED SAFE"."""
@@ -187,7 +187,7 @@ def test_a_chamber_lost_in_preflight_after_identify_says_nothing_was_commanded(
     from tests.support.sim_serve import served_station
 
     monkeypatch.setenv(LOCK_DIR_ENV, str(tmp_path / "locks"))
-    with served_station(tmp_path / "live-station.yaml") as live:
+    with served_station(tmp_path / "live-station.yaml", server=fork_server) as live:
         station = yaml.safe_load(live.read_text())
         chamber_port = int(station["chamber"]["address"].rsplit(":", 1)[1])
         proxy = CutAfterProxy(("127.0.0.1", chamber_port), READ_RUN_STATE)

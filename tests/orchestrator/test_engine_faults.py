@@ -18,8 +18,18 @@ import pytest
 
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
 from gyrocal.record.journal import read_journal
+from tests.support.short_run import without_report_figures
 
 pytestmark = pytest.mark.timeout(60)
+
+
+@pytest.fixture(autouse=True)
+def _no_report_figures(monkeypatch) -> None:
+    """The runs' and resumes' reports get no figures (~0.5 s of CPU each, 17 reports): what
+    is asserted is the fault handling, the safe state and the record; figures of such a
+    run (a static, ± scale-factor pairs) are drawn by the session's smoke run and checked
+    in tests/reports/."""
+    without_report_figures(monkeypatch)
 
 
 def run(procedure: Path, out: Path, *extra: str, capture=None) -> int:

@@ -22,7 +22,8 @@ pytestmark = pytest.mark.timeout(240)
 REPO = Path(__file__).resolve().parents[2]
 
 
-def test_an_accelerometer_range_the_unit_contradicts_is_a_fault_at_connect(tmp_path, capsys):
+def test_an_accelerometer_range_the_unit_contradicts_is_a_fault_at_connect(tmp_path, capsys,
+                                                                           fork_server):
     data = yaml.safe_load((REPO / "stations" / "sim.yaml").read_text(encoding="utf-8"))
     data["gyro"].pop("with_temperature", None)
     data["gyro"].update(datagram=0x93, accelerometer_range_g=30)
@@ -30,7 +31,7 @@ def test_an_accelerometer_range_the_unit_contradicts_is_a_fault_at_connect(tmp_p
     served = tmp_path / "served.yaml"
     served.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     live = tmp_path / "live.yaml"
-    with served_station(live, station=str(served)):
+    with served_station(live, station=str(served), server=fork_server):
         text = live.read_text(encoding="utf-8")
         assert "accelerometer_range_g: 30" in text
         wrong = tmp_path / "wrong.yaml"

@@ -27,6 +27,7 @@ from gyrocal.record.locks import (
     holder,
     run_folder_lock,
 )
+from tests.support.fork_server import Forked
 from tests.support.sim_serve import served_station, stop
 
 pytestmark = pytest.mark.timeout(120)
@@ -73,7 +74,7 @@ def test_a_killed_holder_leaves_a_stale_record_not_a_blocking_lock(tmp_path: Pat
             child.wait()
 
 
-def wait_for(predicate, proc: subprocess.Popen, timeout_s: float = 60.0) -> None:
+def wait_for(predicate, proc: subprocess.Popen | Forked, timeout_s: float = 60.0) -> None:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if predicate():
@@ -85,13 +86,11 @@ def wait_for(predicate, proc: subprocess.Popen, timeout_s: float = 60.0) -> None
 
 @pytest.mark.slow
 def test_resume_and_report_beside_a_running_run_are_refused_and_the_run_verifies(
-        h: Any, tmp_path: Path, capsys) -> None:
+        h: Any, tmp_path: Path, capsys, fork_server) -> None:
     procedure = h.write_procedure(tmp_path)
     out = tmp_path / "run"
-    run = subprocess.Popen(
-        [sys.executable, "-m", "gyrocal", "run", str(procedure), "--sim", "--out", str(out),
-         "--seed", "3"],
-        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    run = fork_server.start(["run", str(procedure), "--sim", "--out", str(out), "--seed", "3"],
+                            {}, tmp_path / "run.err")     # a process of its own, forked warm
     try:
         # The operator's pause holds the run (and its lock) between steps for as long as
         # the test needs, whatever the machine's speed.
@@ -148,16 +147,15 @@ sequence:
 
 @pytest.mark.slow
 def test_two_runs_on_one_live_station_the_second_is_refused_naming_the_holder(
-        tmp_path: Path, private_lock_dir: Path, capsys) -> None:
+        tmp_path: Path, private_lock_dir: Path, capsys, fork_server) -> None:
     env = {**os.environ, LOCK_DIR_ENV: str(private_lock_dir)}
     first = None
-    with served_station(tmp_path / "live-station.yaml", env=env) as live:
+    with served_station(tmp_path / "live-station.yaml", env=env, server=fork_server) as live:
         try:
             procedure = write_live_procedure(tmp_path, live)
-            first = subprocess.Popen(
-                [sys.executable, "-m", "gyrocal", "run", str(procedure), "--station", str(live),
-                 "--out", str(tmp_path / "first")],
-                cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+            first = fork_server.start(["run", str(procedure), "--station", str(live),
+                                       "--out", str(tmp_path / "first")], env,
+                                      tmp_path / "first.err")
             wait_for(lambda: (tmp_path / "first" / "journal.jsonl").exists(), first)
             capsys.readouterr()
             code = main(["run", str(procedure), "--station", str(live),

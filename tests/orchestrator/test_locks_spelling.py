@@ -13,8 +13,6 @@ and verifies with no fault in its journal.
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -24,6 +22,7 @@ from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
 from gyrocal.instruments.address import instrument_keys
 from gyrocal.record.locks import LOCK_DIR_ENV
 from tests.orchestrator.test_locks import wait_for, write_live_procedure
+from tests.support.fork_server import Forked, ForkServer
 from tests.support.sim_serve import served_station, stop
 from tests.support.tcp_proxy import ExchangeProxy
 
@@ -56,18 +55,18 @@ def _respelled(live: Path, out: Path, **changes: str) -> Path:
     return out
 
 
-def _first_run(tmp_path: Path, procedure: Path, live: Path, env: dict[str, str]):
-    first = subprocess.Popen(
-        [sys.executable, "-m", "gyrocal", "run", str(procedure), "--station", str(live),
-         "--out", str(tmp_path / "first")],
-        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+def _first_run(tmp_path: Path, procedure: Path, live: Path, env: dict[str, str],
+               server: ForkServer) -> Forked:
+    """The first controller, forked from the warm fork server (a process of its own)."""
+    first = server.start(["run", str(procedure), "--station", str(live),
+                          "--out", str(tmp_path / "first")], env, tmp_path / "first.err")
     # preflight passed: the first controller holds every lock and commands the rig
     wait_for(lambda: (tmp_path / "first" / "journal.jsonl").exists() and
              '"preflight_ok"' in (tmp_path / "first" / "journal.jsonl").read_text(), first)
     return first
 
 
-def _first_finishes_untouched(first: subprocess.Popen, tmp_path: Path) -> None:
+def _first_finishes_untouched(first: Forked, tmp_path: Path) -> None:
     _, stderr = first.communicate(timeout=120)
     assert first.returncode in (0, 1), stderr
     journal = (tmp_path / "first" / "journal.jsonl").read_text()
@@ -84,12 +83,12 @@ def _other_spelling(station: dict, role: str) -> str:
 @pytest.mark.slow
 @pytest.mark.parametrize("role", ["table", "chamber", "gyro"])
 def test_a_second_controller_spelling_an_instrument_differently_is_refused_before_any_command(
-        tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch, role: str) -> None:
+        tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch, role: str, fork_server) -> None:
     monkeypatch.setenv(LOCK_DIR_ENV, str(tmp_path / "locks"))
     env = {**os.environ}
     first = None
     own_pty = os.openpty()
-    with served_station(tmp_path / "live-station.yaml", env=env) as live:
+    with served_station(tmp_path / "live-station.yaml", env=env, server=fork_server) as live:
         try:
             procedure = write_live_procedure(tmp_path, live)
             station = yaml.safe_load(live.read_text())
@@ -100,7 +99,7 @@ def test_a_second_controller_spelling_an_instrument_differently_is_refused_befor
             other = _respelled(live, tmp_path / "other-spelling.yaml",
                                chamber__address=elsewhere["chamber"],
                                table__address=elsewhere["table"], gyro__port=elsewhere["gyro"])
-            first = _first_run(tmp_path, procedure, live, env)
+            first = _first_run(tmp_path, procedure, live, env, fork_server)
             capsys.readouterr()
             code = main(["run", str(procedure), "--station", str(other),
                          "--out", str(tmp_path / "second")])
@@ -119,11 +118,11 @@ def test_a_second_controller_spelling_an_instrument_differently_is_refused_befor
 
 @pytest.mark.slow
 def test_a_second_controller_reaching_the_chamber_by_another_endpoint_meets_its_serial(
-        tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch) -> None:
+        tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch, fork_server) -> None:
     monkeypatch.setenv(LOCK_DIR_ENV, str(tmp_path / "locks"))
     env = {**os.environ}
     first = None
-    with served_station(tmp_path / "live-station.yaml", env=env) as live:
+    with served_station(tmp_path / "live-station.yaml", env=env, server=fork_server) as live:
         station = yaml.safe_load(live.read_text())
         chamber_port = int(station["chamber"]["address"].rsplit(":", 1)[1])
         relay = ExchangeProxy(("127.0.0.1", chamber_port))    # another endpoint, same chamber
@@ -135,7 +134,7 @@ def test_a_second_controller_reaching_the_chamber_by_another_endpoint_meets_its_
                 chamber__address=f"socket://127.0.0.1:{relay.port}",
                 table__address="TCPIP0::127.0.0.1::9::SOCKET",   # never reached
                 gyro__port=os.ttyname(own_pty[1]))                # a pty of our own
-            first = _first_run(tmp_path, procedure, live, env)
+            first = _first_run(tmp_path, procedure, live, env, fork_server)
             capsys.readouterr()
             code = main(["run", str(procedure), "--station", str(other),
                          "--out", str(tmp_path / "second")])

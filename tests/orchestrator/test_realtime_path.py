@@ -90,8 +90,9 @@ def true_sf(sensor_temp_c: float) -> float:
 
 @pytest.mark.slow
 @pytest.mark.timeout(150)
-def test_speed_1_against_sim_serve_through_a_live_station_file(h: Any, tmp_path: Path) -> None:
-    with served_station(tmp_path / "live-station.yaml") as live:
+def test_speed_1_against_sim_serve_through_a_live_station_file(h: Any, tmp_path: Path,
+                                                               fork_server) -> None:
+    with served_station(tmp_path / "live-station.yaml", server=fork_server) as live:
         out = tmp_path / "run"
         code = main(["run", str(short_procedure(tmp_path, live)), "--station", str(live),
                      "--out", str(out)])

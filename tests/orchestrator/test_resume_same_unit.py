@@ -21,8 +21,6 @@ import os
 import re
 import shutil
 import signal
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -32,6 +30,7 @@ import yaml
 
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
 from gyrocal.record.locks import LOCK_DIR_ENV
+from tests.support.fork_server import Forked, ForkServer
 from tests.support.sim_serve import served_station
 from tests.support.tcp_proxy import ExchangeProxy
 
@@ -115,7 +114,7 @@ def _events(out: Path) -> list[dict]:
     return [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()]
 
 
-def _wait(condition, proc: subprocess.Popen, timeout_s: float = 120.0) -> None:
+def _wait(condition, proc: Forked, timeout_s: float = 120.0) -> None:
     deadline = time.monotonic() + timeout_s
     while not condition():
         assert proc.poll() is None, proc.communicate()[1]
@@ -123,12 +122,12 @@ def _wait(condition, proc: subprocess.Popen, timeout_s: float = 120.0) -> None:
         time.sleep(0.1)
 
 
-def _start_and_kill_paused(procedure: Path, station: Path, out: Path) -> None:
-    """Run until the operator's pause holds it (preflight done, the unit identified), then kill -9."""
-    run = subprocess.Popen(
-        [sys.executable, "-m", "gyrocal", "run", str(procedure), "--station", str(station),
-         "--out", str(out), "--allow-outside-paths"],
-        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+def _start_and_kill_paused(procedure: Path, station: Path, out: Path,
+                           server: ForkServer) -> None:
+    """Run until the operator's pause holds it (preflight done, the unit identified), then kill -9.
+    The run is forked from the warm fork server (a process of its own, killed by its pid)."""
+    run = server.start(["run", str(procedure), "--station", str(station), "--out", str(out),
+                        "--allow-outside-paths"], {}, out.parent / f"{out.name}.err")
     try:
         _wait(lambda: (out / "journal.jsonl").exists(), run)
         (out / "PAUSE").touch()
@@ -140,20 +139,20 @@ def _start_and_kill_paused(procedure: Path, station: Path, out: Path) -> None:
 
 
 def test_a_resume_on_another_unit_is_refused_and_the_original_unit_finishes(
-        tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch) -> None:
+        tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch, fork_server) -> None:
     monkeypatch.setenv(LOCK_DIR_ENV, str(tmp_path / "locks"))
     stable = StableStation(tmp_path)
     procedure = _procedure(tmp_path, stable.path)
     out = tmp_path / "run"
     try:
-        with served_station(tmp_path / "live-a.yaml", extra_args=("--unit-serial", UNIT_A)) as live:
+        with served_station(tmp_path / "live-a.yaml", extra_args=("--unit-serial", UNIT_A), server=fork_server) as live:
             stable.point_at(live)
-            _start_and_kill_paused(procedure, stable.path, out)
+            _start_and_kill_paused(procedure, stable.path, out, fork_server)
         first = [e for e in _events(out) if e["event"] == "instrument_identified"
                  and e["role"] == "gyro"]
         assert len(first) == 1 and f"serial {UNIT_A}" in first[0]["description"]
 
-        with served_station(tmp_path / "live-b.yaml", extra_args=("--unit-serial", UNIT_B)) as live:
+        with served_station(tmp_path / "live-b.yaml", extra_args=("--unit-serial", UNIT_B), server=fork_server) as live:
             stable.point_at(live)
             capsys.readouterr()
             code = main(["resume", str(out)])
@@ -166,7 +165,7 @@ def test_a_resume_on_another_unit_is_refused_and_the_original_unit_finishes(
         assert not any(e["event"] == "step_started" for e in events)
         assert any(e["event"] == "fault" and UNIT_B in json.dumps(e) for e in events)
 
-        with served_station(tmp_path / "live-a2.yaml", extra_args=("--unit-serial", UNIT_A)) as live:
+        with served_station(tmp_path / "live-a2.yaml", extra_args=("--unit-serial", UNIT_A), server=fork_server) as live:
             stable.point_at(live)
             code = main(["resume", str(out)])
         err = capsys.readouterr().err

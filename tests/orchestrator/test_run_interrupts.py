@@ -48,16 +48,9 @@ def wait_for_event(out: Path, name: str, proc: subprocess.Popen | Forked, timeou
             text = path.read_text(errors="replace")
             if f'"event":"{name}"' in text and (step_id is None or f'"step_id":"{step_id}"' in text):
                 return
-        assert proc.poll() is None, f"run ended early: {ended_early(proc)}"
+        assert proc.poll() is None, f"run ended early: {proc.communicate()}"
         time.sleep(0.005)
     raise AssertionError(f"{name} never journaled in {out}")
-
-
-def ended_early(proc: subprocess.Popen | Forked) -> object:
-    """What a run that ended before the test's moment said."""
-    if isinstance(proc, Forked):
-        return proc.stderr_path.read_text()
-    return proc.communicate()
 
 
 def status_text(run_dir: Path, capsys) -> str:

@@ -38,7 +38,7 @@ from pymodbus.client import ModbusTcpClient
 from pymodbus.framer import FramerType
 
 from gyrocal.cli import EXIT_FAULT
-from tests.support.fork_server import ForkServer
+from tests.support.fork_server import Forked, ForkServer
 from tests.support.sim_serve import served_station
 from tests.support.tcp_proxy import ExchangeProxy
 
@@ -119,61 +119,35 @@ def read_simulator(chamber: tuple[str, int], table: tuple[str, int]) -> tuple[fl
     return setpoint_c, rate_dps
 
 
-class Controller:
+def start_controller(argv: list[str], out: Path, server: ForkServer | None
+                     ) -> subprocess.Popen | Forked:
     """The ``gyrocal run --station`` process under test: ``python -m gyrocal`` as the lab
     starts it (the first trial), or forked from the warm fork server (the others: a
     process of its own all the same, signalled by its pid, without an interpreter start
     and the package's imports, ~2.5 s of CPU a trial)."""
-
-    def __init__(self, argv: list[str], out: Path, server: ForkServer | None) -> None:
-        self.err_path = out.parent / f"{out.name}.err"
-        self._popen = self._forked = None
-        if server is None:
-            self._popen = subprocess.Popen([sys.executable, "-m", "gyrocal", *argv], cwd=REPO,
-                                           stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                           text=True)
-            self.pid = self._popen.pid
-        else:
-            self._forked = server.start(argv, {}, self.err_path)
-            self.pid = self._forked.pid
-
-    def running(self) -> bool:
-        return (self._popen.poll() if self._popen else self._forked.poll()) is None
-
-    def finish(self, timeout_s: float) -> tuple[int, str]:
-        """(exit code, stderr) once it has ended; killed if still running after ``timeout_s``."""
-        if self._forked is not None:
-            code = os.waitstatus_to_exitcode(self._forked.wait(timeout_s))
-            return code, self.err_path.read_text()
-        try:
-            _, err = self._popen.communicate(timeout=timeout_s)
-        finally:
-            self.kill()
-        return self._popen.returncode, err
-
-    def kill(self) -> None:
-        """SIGKILL if it is still running (a trial that failed before it ended)."""
-        if self.running():
-            os.kill(self.pid, signal.SIGKILL)
-            self.finish(60)
+    if server is not None:
+        return server.start(argv, {}, out.parent / f"{out.name}.err")
+    return subprocess.Popen([sys.executable, "-m", "gyrocal", *argv], cwd=REPO,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def wait_for_step(out: Path, step_id: str, proc: Controller, timeout_s: float = 90) -> None:
+def wait_for_step(out: Path, step_id: str, proc: subprocess.Popen | Forked,
+                  timeout_s: float = 90) -> None:
     deadline = time.monotonic() + timeout_s
     journal = out / "journal.jsonl"
     while time.monotonic() < deadline:
         if journal.exists() and '"event":"step_started"' in (text := journal.read_text(
                 errors="replace")) and f'"step_id":"{step_id}"' in text:
             return
-        assert proc.running(), proc.finish(0)
+        assert proc.poll() is None, proc.communicate()
         time.sleep(0.01)
     raise AssertionError(f"{step_id} never started")
 
 
 @pytest.fixture
-def served(tmp_path: Path):
+def served(tmp_path: Path, fork_server: ForkServer):
     """``gyrocal sim serve`` in its own process; yields its live station file's content."""
-    with served_station(tmp_path / "live.yaml") as live:
+    with served_station(tmp_path / "live.yaml", server=fork_server) as live:
         yield yaml.safe_load(live.read_text())
 
 
@@ -209,17 +183,19 @@ def test_sigint_inside_exchanges_at_many_points_leaves_the_simulator_safe(
             present_c = read_f4_register_c(chamber, 100)
             procedure = write_procedure(tmp_path, station_path, present_c + above_c)
             out = tmp_path / f"run{n}"
-            proc = Controller(["run", str(procedure), "--station", str(station_path),
-                               "--out", str(out)], out, fork_server if n else None)
+            proc = start_controller(["run", str(procedure), "--station", str(station_path),
+                                     "--out", str(out)], out, fork_server if n else None)
             try:
                 wait_for_step(out, step_id, proc)
                 proxies[instrument].arm(after, lambda pid=proc.pid: os.kill(pid, signal.SIGINT))
-                code, err = proc.finish(120)
+                _, err = proc.communicate(timeout=120)
             finally:
-                proc.kill()
+                if proc.poll() is None:
+                    proc.kill()
+                    proc.communicate()
             where = f"point {n}: SIGINT in a {instrument} exchange during {step_id}"
             assert proxies[instrument].fired_at_request == after, where   # it did land mid-exchange
-            assert code == EXIT_FAULT, (where, err)
+            assert proc.returncode == EXIT_FAULT, (where, err)
             assert "Traceback" not in err, (where, err)
             assert "interrupted" in err and f"gyrocal resume {out}" in err, (where, err)
             assert re.search(r"table stopped \(read back -?0\.00\d deg/s\)", err), (where, err)

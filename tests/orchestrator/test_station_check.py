@@ -45,9 +45,9 @@ def station_with(tmp_path: Path, **sections: dict) -> Path:
 
 
 @pytest.mark.slow
-def test_the_simulated_station_is_fit_and_reported(tmp_path: Path, capsys) -> None:
+def test_the_simulated_station_is_fit_and_reported(tmp_path: Path, capsys, fork_server) -> None:
     out = tmp_path / "check.json"
-    with served_station(tmp_path / "live.yaml") as live:
+    with served_station(tmp_path / "live.yaml", server=fork_server) as live:
         station = yaml.safe_load(live.read_text())
         code = main(["station", "check", str(live), "--json", str(out)])
     printed = capsys.readouterr()
@@ -140,7 +140,8 @@ def test_an_instrument_that_does_not_answer_is_a_problem_not_a_traceback(tmp_pat
 
 
 @pytest.mark.slow
-def test_a_0x93_unit_at_250_hz_then_a_wrong_declaration(tmp_path: Path, capsys) -> None:
+def test_a_0x93_unit_at_250_hz_then_a_wrong_declaration(tmp_path: Path, capsys,
+                                                         fork_server) -> None:
     """TS1524: 0x93 carries rate, acceleration and inclination (Table 5-21); at 250 Hz the
     counter steps 8 (§7.5.2.2.18). Declared right: fit, with the accelerometer and
     inclinometer means (a level unit: about +1 g on one axis), its configuration confirmed by
@@ -148,7 +149,7 @@ def test_a_0x93_unit_at_250_hz_then_a_wrong_declaration(tmp_path: Path, capsys) 
     station declares."""
     station = station_with(tmp_path, gyro={"datagram": 0x93, "sample_rate_hz": 250,
                                            "with_temperature": False})
-    with served_station(tmp_path / "live.yaml", station=str(station)) as live:
+    with served_station(tmp_path / "live.yaml", station=str(station), server=fork_server) as live:
         code = main(["station", "check", str(live), "--only", "gyro", "--json",
                      str(tmp_path / "g.json")])
         first = capsys.readouterr()     # whole, for the message below (a repr is cut short)
@@ -182,11 +183,12 @@ def test_a_station_with_sim_addresses_is_bad_input(capsys) -> None:
     assert "sim serve --write-station" in capsys.readouterr().err
 
 
-def test_a_replayed_unit_does_not_answer_c_and_that_is_said_not_faulted(tmp_path: Path, capsys) -> None:
+def test_a_replayed_unit_does_not_answer_c_and_that_is_said_not_faulted(tmp_path: Path, capsys,
+                                                                          fork_server) -> None:
     """A replayed capture is one-way: no answer to C<CR> within the bound is no fault (the
     stream's own type stands); the check says the configuration is not confirmed."""
     out = tmp_path / "g.json"
-    with served_station(tmp_path / "live.yaml", extra_args=("--replay-gyro", str(SLOW))) as live:
+    with served_station(tmp_path / "live.yaml", extra_args=("--replay-gyro", str(SLOW)), server=fork_server) as live:
         code = main(["station", "check", str(live), "--only", "gyro", "--json", str(out)])
     printed = capsys.readouterr()
     assert code == EXIT_OK, printed

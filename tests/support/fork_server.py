@@ -58,7 +58,8 @@ for line in sys.stdin:
             devnull = os.open(os.devnull, os.O_WRONLY)
             err = os.open(request["stderr"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
             os.dup2(devnull, 0)
-            os.dup2(devnull, 1)
+            os.dup2(os.open(request["stdout"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+                    if request["stdout"] else devnull, 1)
             os.dup2(err, 2)
             os.environ.update(request["env"])
             if not request["figures"]:       # as tests/support/short_run.without_report_figures
@@ -86,14 +87,20 @@ class ForkServer:
         """``figures=False``: the child's report page gets no figures, as
         ``without_report_figures`` does in the test's own process (for sweeps whose
         killed runs are checked for their records, never for the figures)."""
-        return self.start(argv, env, stderr_path, figures=figures).wait()
+        forked = self.start(argv, env, stderr_path, figures=figures)
+        forked.wait()
+        assert forked.status is not None
+        return forked.status
 
     def start(self, argv: list[str], env: dict[str, str], stderr_path: Path, *,
-              figures: bool = True) -> Forked:
-        """The command forked and left running (a test that signals it from outside)."""
-        answer = self._ask({"argv": argv, "env": env, "figures": figures,
-                            "stderr": str(stderr_path)})
-        return Forked(self, int(answer["pid"]), stderr_path)
+              figures: bool = True, stdout_path: Path | None = None) -> Forked:
+        """The command forked and left running (a test that signals it from outside);
+        its stdout in ``stdout_path`` if given, else discarded."""
+        # the test's environment as a subprocess would inherit it, then ``env``
+        answer = self._ask({"argv": argv, "env": {**os.environ, **env}, "figures": figures,
+                            "stderr": str(stderr_path),
+                            "stdout": str(stdout_path) if stdout_path else None})
+        return Forked(self, int(answer["pid"]), stderr_path, stdout_path)
 
     def _wait(self, pid: int, block: bool) -> int | None:
         return self._ask({"wait": pid, "block": block})["status"]
@@ -119,27 +126,48 @@ class ForkServer:
 
 
 class Forked:
-    """A command the server forked: its pid (to signal), its end (``poll``, ``wait``)."""
+    """A command the server forked, used as a ``subprocess.Popen`` of it is: ``pid`` (to
+    signal), ``poll``, ``wait``, ``communicate`` (its stdout and stderr files' text),
+    ``returncode``, ``send_signal``, ``kill``."""
 
-    def __init__(self, server: ForkServer, pid: int, stderr_path: Path) -> None:
+    def __init__(self, server: ForkServer, pid: int, stderr_path: Path,
+                 stdout_path: Path | None) -> None:
         self._server = server
         self.pid = pid
         self.stderr_path = stderr_path
+        self.stdout_path = stdout_path
+        self.status: int | None = None      # its wait status, once it has ended
+
+    @property
+    def returncode(self) -> int | None:
+        """Its exit code (``-N`` when signal N ended it), None while it runs."""
+        return None if self.status is None else os.waitstatus_to_exitcode(self.status)
 
     def poll(self) -> int | None:
-        """Its wait status if it has ended, else None."""
-        return self._server._wait(self.pid, block=False)
+        if self.status is None:
+            self.status = self._server._wait(self.pid, block=False)
+        return self.returncode
 
-    def wait(self, timeout_s: float | None = None) -> int:
-        """Its wait status; killed (SIGKILL) if still running after ``timeout_s``."""
-        if timeout_s is not None:
-            deadline = time.monotonic() + timeout_s
-            while time.monotonic() < deadline and self.poll() is None:
-                time.sleep(0.05)
-            if self.poll() is None:
-                os.kill(self.pid, signal.SIGKILL)
-        return int(self._server._wait(self.pid, block=True))
+    def wait(self, timeout: float | None = None) -> int:
+        """Its exit code once it has ended (``subprocess.TimeoutExpired`` after ``timeout``)."""
+        if timeout is not None:
+            deadline = time.monotonic() + timeout
+            while self.poll() is None:
+                if time.monotonic() > deadline:
+                    raise subprocess.TimeoutExpired(f"forked {self.pid}", timeout)
+                time.sleep(0.02)
+        if self.status is None:
+            self.status = int(self._server._wait(self.pid, block=True))
+        return int(self.returncode)
 
-    def returncode(self) -> int:
-        """Its exit code (``-N`` when signal N ended it), after it has ended."""
-        return os.waitstatus_to_exitcode(self.wait())
+    def communicate(self, timeout: float | None = None) -> tuple[str, str]:
+        self.wait(timeout)
+        return (self.stdout_path.read_text() if self.stdout_path else "",
+                self.stderr_path.read_text())
+
+    def send_signal(self, signum: int) -> None:
+        if self.poll() is None:
+            os.kill(self.pid, signum)
+
+    def kill(self) -> None:
+        self.send_signal(signal.SIGKILL)
