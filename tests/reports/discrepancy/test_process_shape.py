@@ -17,6 +17,7 @@ import discrepancy_scenarios as scenarios
 import numpy as np
 import pytest
 
+from gyrocal.analysis.discrepancy import process_shape
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.analysis.discrepancy.process_shape import gauss_markov_shape, two_level_fit
 from gyrocal.analysis.discrepancy.stochastic import WhittleTest, fine_bins
@@ -134,3 +135,16 @@ def test_the_two_level_fit_recovers_levels_and_switch_rate():
     assert float(fit.high[0]) == pytest.approx(1.0, abs=0.05)
     assert float(fit.switch[0]) == pytest.approx(0.02, rel=0.25)
     assert float(fit.variance[0]) == pytest.approx(0.16, rel=0.1)
+
+
+def test_the_compiled_passes_give_the_numpy_loops_bits():
+    """The two-level fit's forward-backward passes run compiled; the numpy loops are their oracle
+    (same operations in the same order, no fused multiply-add: equal to the last bit)."""
+    rng = np.random.default_rng(77)
+    for m, cols in [(24, 1), (137, 25), (400, 7)]:
+        y = rng.standard_normal((m, cols)) + 2.0 * (rng.random((m, cols)) < 0.4)
+        fit = process_shape.two_level_fit(y, iterations=3)
+        compiled = process_shape._forward_backward(y, fit)
+        oracle = process_shape._forward_backward(y, fit, compiled=False)
+        for got, want in zip(compiled, oracle, strict=True):
+            assert np.array_equal(got, want)
