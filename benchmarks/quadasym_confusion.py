@@ -15,13 +15,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from collections import defaultdict
 from pathlib import Path
 
-import numpy as np
 from scipy.stats import norm
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -30,9 +28,6 @@ import validate_discrepancy as inside  # noqa: E402
 import validate_discrepancy_outside as outside  # noqa: E402
 from discrepancy_validation_tables import pct  # noqa: E402
 
-from gyrocal.analysis.discrepancy.noise_model import NoiseModel  # noqa: E402
-from gyrocal.analysis.discrepancy.scoring import gls_fit  # noqa: E402
-from gyrocal.analysis.discrepancy.signatures import placeholder_spec  # noqa: E402
 from gyrocal.analysis.discrepancy.workflow import analyse  # noqa: E402
 from tests.support import discrepancy_scenarios as scenarios  # noqa: E402
 
@@ -68,17 +63,7 @@ def run(pname: str, effect: str, snr: float, seed: int) -> dict:
 
 def separation(pname: str, snr: float) -> float:
     """Whitened distance between the two signatures at ``snr`` once the other is fitted (true noise)."""
-    prof, nominal = profile(pname), scenarios.nominal_model()
-    base = scenarios.true_base(nominal)
-    bins, builder, whitener = scenarios._snr_tools(nominal, prof, NoiseModel.of_model(nominal), 1000)
-    fit = gls_fit(builder, whitener, bins.mean(builder.rate_dph(base)), base)
-    unit = []
-    for name in PAIR:
-        _, x = builder.extra_columns(base, placeholder_spec(name, {}))
-        w = whitener.white(x[:, 0])
-        w = w - fit.basis @ (fit.basis.T @ w)
-        unit.append(w / np.linalg.norm(w))
-    return snr * math.sqrt(max(0.0, 1.0 - float(unit[0] @ unit[1]) ** 2))
+    return scenarios.pair_separation(profile(pname), PAIR, snr, 1000)
 
 
 def table(paths: list[Path]) -> str:

@@ -178,6 +178,26 @@ def _snr_tools(nominal: GyroModel, profile: Profile, noise: NoiseModel, max_bins
     return bins, builder, Whitener(cov)
 
 
+def pair_separation(profile: Profile, pair: tuple[str, str], snr: float, max_bins: int,
+                    nominal: GyroModel | None = None) -> float:
+    """Whitened distance between two effects' signatures at ``snr`` once the other is fitted.
+
+    With the nominal model's true noise: the design separation d of the pair on ``profile``, so
+    the best any rule can do naming the right one first is Φ(d/2).
+    """
+    nominal = nominal or nominal_model()
+    base = true_base(nominal)
+    bins, builder, whitener = _snr_tools(nominal, profile, NoiseModel.of_model(nominal), max_bins)
+    fit = gls_fit(builder, whitener, bins.mean(builder.rate_dph(base)), base)
+    unit = []
+    for name in pair:
+        _, x = builder.extra_columns(base, placeholder_spec(name, {}))
+        w = whitener.white(x[:, 0])
+        w = w - fit.basis @ (fit.basis.T @ w)
+        unit.append(w / np.linalg.norm(w))
+    return snr * math.sqrt(max(0.0, 1.0 - float(unit[0] @ unit[1]) ** 2))
+
+
 def sized_effect(name: str, snr: float, profile: Profile, nominal: GyroModel | None = None,
                  shape: dict[str, float] | None = None, max_bins: int = 2000) -> EffectSpec:
     """The effect at the amplitude (or τ) whose known-shape detection SNR is ``snr``.

@@ -58,16 +58,7 @@ def tools():
 
 def separation() -> float:
     """Whitened distance d between the two 10σ signatures once the other is fitted (true noise)."""
-    _, base, bins, builder, whitener = tools()
-    fit = gls_fit(builder, whitener, bins.mean(builder.rate_dph(base)), base)
-    unit = []
-    for name in PAIR:
-        _, x = builder.extra_columns(base, placeholder_spec(name, {}))
-        w = whitener.white(x[:, 0])
-        w = w - fit.basis @ (fit.basis.T @ w)
-        unit.append(w / np.linalg.norm(w))
-    rho = float(unit[0] @ unit[1])
-    return 10.0 * math.sqrt(1.0 - rho * rho)
+    return scenarios.pair_separation(tools()[0], PAIR, 10.0, MAX_BINS)
 
 
 def draws(truth: str) -> list[tuple[str, float, float]]:
