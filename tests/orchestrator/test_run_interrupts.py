@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+import gyrocal.app.watch.status  # noqa: F401 - imported here, not by the first status call mid-run
 from gyrocal.cli import EXIT_FAULT, EXIT_OK, main
 from gyrocal.record.journal import read_journal
 from gyrocal.record.run_folder import RunFolder
@@ -64,9 +65,14 @@ def test_sigint_goes_safe_exits_3_and_resumes(h: Any, tmp_path: Path, capsys) ->
     out = tmp_path / "run"
     proc = start_run(procedure, out, h.REPO_ROOT)
     try:
-        wait_for_event(out, "step_started", proc, step_id="T01.sf.+20dps")
+        # The live status is read while the run soaks (T01.ramp completed), and the signal is
+        # sent the moment the sweep step starts: read between the two, the status (with its
+        # lazy imports, ~0.5 s idle) outlasted the last 0.25 s of stepping on a host at load
+        # 15-19, and the signal then landed in "reporting", after the last step.
+        wait_for_event(out, "step_started", proc, step_id="T01.soak")
         live = status_text(out, capsys)           # gyrocal status on a live run
         assert "state: running" in live and "completed" in live
+        wait_for_event(out, "step_started", proc, step_id="T01.sf.+20dps")
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=90)
     finally:
