@@ -13,10 +13,10 @@ workflow should not read this file.
   heating and 15 °C/min cooling), the table running the same ±0.25…240 deg/s
   rungs in a different shuffled order every 65 s; U2, 3.5 h at 12 Hz, plateaus
   25 → 50 → 15 → 40 → −10 → 20 °C joined by raised-cosine (S-shaped)
-  transitions, a stepped rate sweep −150 → +150 → −150 deg/s in 30 deg/s
+  transitions, a stepped rate sweep 0 → +150 → −150 → 0 deg/s in 30 deg/s
   steps in each plateau and a slow 2.5 deg/s turn through each transition;
   U3, 15 h at 1.25 Hz, static-heavy in a room-like diurnal temperature
-  (21 − 4·cos φ + 1.5·sin 2φ °C, a 12-h "day"), a 7-minute rate block every
+  (21 − 4·cos φ − 1.5·sin 2φ °C, a 12-h "day"), a 7-minute rate block every
   100 minutes, still otherwise;
 * families of structure outside the catalogue that no earlier set had
   (``UNKNOWN``): a second, unlogged table axis indexing (Earth-rate levels and
@@ -57,17 +57,24 @@ U1_SHUFFLE_SEED = 20261124
 
 
 def u1_temp_c(t_s: np.ndarray) -> np.ndarray:
-    """Air after each setpoint step: T_sp + (T_0 − T_sp)·(1 + s/τ)·e^(−s/τ), s the time since the step.
+    """Air after each setpoint step: T_sp + (A + B·s)·e^(−s), s = time since the step / τ.
 
-    A critically damped approach (heater and air mass): dT/dt starts from 0 at
-    every step, so the path has no corner; the peak slope is ΔT/(e·τ).
+    A critically damped approach (heater and air mass): A and B carry over the
+    air's temperature and slope at the step, so the path has no corner; from
+    rest the peak slope is ΔT/(e·τ).
     """
     temp = np.full(t_s.size, U1_SETPOINTS[0][1])
+    previous = (0.0, U1_SETPOINTS[0][1], 0.0, 0.0)             # (start s, setpoint °C, A, B)
     for start_s, setpoint_c in U1_SETPOINTS[1:]:
+        p_start, p_setpoint, a, b = previous
+        s = (start_s - p_start) / U1_AIR_TAU_S
+        level_c = p_setpoint + (a + b * s) * math.exp(-s)
+        slope_c_per_s = (b - a - b * s) * math.exp(-s) / U1_AIR_TAU_S
+        a = level_c - setpoint_c
+        previous = (start_s, setpoint_c, a, a + U1_AIR_TAU_S * slope_c_per_s)
         after = t_s >= start_s
-        start_c = temp[np.argmax(after)]
         s = (t_s[after] - start_s) / U1_AIR_TAU_S
-        temp[after] = setpoint_c + (start_c - setpoint_c) * (1.0 + s) * np.exp(-s)
+        temp[after] = setpoint_c + (previous[2] + previous[3] * s) * np.exp(-s)
     return temp
 
 
@@ -119,10 +126,10 @@ def u2_temp_c(t_s: np.ndarray) -> np.ndarray:
 
 
 def _u2() -> scenarios.Profile:
-    """3.5 h at 12 Hz on ``u2_temp_c``: 3 min into each plateau a stepped sweep −150 → +150 → −150 deg/s
-    (30 deg/s steps held 12 s), a 2.5 deg/s turn through each transition; 6 deg/s², still elsewhere."""
+    """3.5 h at 12 Hz on ``u2_temp_c``: 3 min into each plateau a stepped sweep 0 → +150 → −150 → 0 deg/s
+    (30 deg/s steps held 12 s, 5 of them slewing), a 2.5 deg/s turn through each transition; 6 deg/s²."""
     t = np.arange(int(round(U2_DURATION_S * U2_FS_HZ))) / U2_FS_HZ
-    steps = U2_SWEEP_DPS + U2_SWEEP_DPS[-2::-1]
+    steps = U2_SWEEP_DPS[5:] + U2_SWEEP_DPS[-2::-1] + U2_SWEEP_DPS[1:6]     # 0 → +150 → −150 → 0
     rate = np.zeros_like(t)
     plateau_starts = [0.0] + [end for _, end, _, _ in u2_segments()]
     for start in plateau_starts:
@@ -142,10 +149,10 @@ U3_BLOCK_STARTS_S = tuple(60.0 * (40.0 + 100.0 * k) for k in range(9))
 
 
 def u3_temp_c(t_s: np.ndarray) -> np.ndarray:
-    """A room's day, compressed to 12 h: 21 − 4·cos φ + 1.5·sin 2φ °C (a quick morning warm-up, a long
-    evening cool-down; non-monotone, never held)."""
+    """A room's day, compressed to 12 h: 21 − 4·cos φ − 1.5·sin 2φ °C, 16.2 … 25.8 °C (a quick morning
+    warm-up, up to 0.061 °C/min, a slower evening cool-down, 0.032 °C/min at most; never held)."""
     phi = 2.0 * math.pi * t_s / U3_DAY_S
-    return 21.0 - 4.0 * np.cos(phi) + 1.5 * np.sin(2.0 * phi)
+    return 21.0 - 4.0 * np.cos(phi) - 1.5 * np.sin(2.0 * phi)
 
 
 def _u3() -> scenarios.Profile:
@@ -325,7 +332,7 @@ UNKNOWN: dict[str, Unknown] = {
 
 PROFILES: dict[str, FreshProfile] = {
     # two monotone legs: the backlash is the path shifted against its motion, a tempco and a dT/dt bias
-    # there (2.8σ of 10 left beside temp_rate_bias; 7.7σ on U2, 6.5σ on U3, where the path turns back often)
+    # there (2.8σ of 10 left beside temp_rate_bias; 7.7σ on U2, 6.7σ on U3, where the path turns back)
     "U1": FreshProfile("U1 (12 min, 500 Hz, thermal shock: setpoint steps 20 → 65 → 0 °C followed by the air "
                        "with a critically damped 90-s response, up to 11 °C/min up and 15 °C/min down; ±0.25, 1, "
                        "4, 15, 60, 240 deg/s rungs of 4 s in a new shuffled order every 65 s, 300 deg/s²)",
@@ -334,14 +341,14 @@ PROFILES: dict[str, FreshProfile] = {
                        0.5, (12.0, 70.0), 0.3, catalogue_alike=(PLAY,)),
     "U2": FreshProfile("U2 (3.5 h, 12 Hz, plateaus 25 → 50 → 15 → 40 → −10 → 20 °C of 18 min joined by "
                        "raised-cosine transitions (mean 1.2–3 °C/min); per plateau a stepped sweep "
-                       "−150 → +150 → −150 deg/s in 30 deg/s steps of 12 s, a 2.5 deg/s turn through every "
+                       "0 → +150 → −150 → 0 deg/s in 30 deg/s steps of 12 s, a 2.5 deg/s turn through every "
                        "transition, 6 deg/s²)",
                        _u2, {"warmup_transient": {"tau_s": 600.0}, "table_angle_harmonic": {"phase_deg": 130.0},
                              "periodic_interference": {"freq_hz": 4.16}},
                        4.0, (25.0, 700.0), 0.8),
     # three dwell magnitudes (0.7, 9, 65 deg/s): the bump at 60 deg/s is an even rate law there (0.1σ of 10
     # left beside sf_nonlinearity_quadratic; 9.8σ on U1 and 9.5σ on U2, whose rates reach past it)
-    "U3": FreshProfile("U3 (15 h, 1.25 Hz, static-heavy in a room-like 12-h day 21 − 4·cos φ + 1.5·sin 2φ °C; "
+    "U3": FreshProfile("U3 (15 h, 1.25 Hz, static-heavy in a room-like 12-h day 21 − 4·cos φ − 1.5·sin 2φ °C; "
                        "every 100 min a 7-min block of ±0.7, ±9, ±65 deg/s dwells and a 2 deg/s full turn, "
                        "10 deg/s², still otherwise)",
                        _u3, {"warmup_transient": {"tau_s": 3000.0}, "table_angle_harmonic": {"phase_deg": -110.0},
