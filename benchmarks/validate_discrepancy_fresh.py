@@ -7,8 +7,10 @@ are meant to be run against it, not tuned on: ``--set R``
 (``tests/support/discrepancy_fresh.py``: profiles R1–R3, 13 out-of-catalogue
 cases; run and read twice while the workflow changed, so no longer fully held
 out), ``--set S`` (``tests/support/discrepancy_fresh_s.py``: profiles S1–S3,
-14 out-of-catalogue cases) and ``--set T`` (``tests/support/discrepancy_fresh_t.py``:
-profiles T1–T3, 16 out-of-catalogue cases, unseen: kept for the end of the work).
+14 out-of-catalogue cases), ``--set T`` (``tests/support/discrepancy_fresh_t.py``:
+profiles T1–T3, 16 out-of-catalogue cases; run and read once) and ``--set U``
+(``tests/support/discrepancy_fresh_u.py``: profiles U1–U3, 16 out-of-catalogue
+cases, unseen: kept for the end of the work).
 Each set writes its own marked section.
 Measures, with Wilson 95 % intervals:
 
@@ -25,10 +27,12 @@ Set R: one run costs about 4 CPU-s on R1 (960 k samples) and about 1 CPU-s on
 R2 and R3 (43 k samples); the defaults (430 runs) take about 14 CPU-min, about
 8 min wall on 2 idle cores. Set S: 300 runs, about 10 CPU-min, 4–6 min wall on 2
 cores (the smoke's figures are at ``SETS``). Set T: 318 runs, estimated at about 8.5 CPU-min.
+Set U: 322 runs, estimated at about 7.5 CPU-min (never run before its first real run; see ``SETS``).
 
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --workers 2
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --set S --workers 2
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --set T --workers 2
+    .venv/bin/python benchmarks/validate_discrepancy_fresh.py --set U --workers 2
 """
 
 from __future__ import annotations
@@ -47,6 +51,7 @@ from functools import partial
 import discrepancy_fresh as fresh  # noqa: E402
 import discrepancy_fresh_s as fresh_s  # noqa: E402
 import discrepancy_fresh_t as fresh_t  # noqa: E402
+import discrepancy_fresh_u as fresh_u  # noqa: E402
 import discrepancy_validation_tables as tables  # noqa: E402
 import numpy as np
 from discrepancy_cases import Case  # noqa: E402
@@ -102,6 +107,18 @@ SETS = {
                 "workflow's internals nor any run of it on these cases; nobody changing the workflow read its "
                 "generator) and no run of it was read before the run below (a two-run smoke checked only that "
                 "the runner works)."),
+    # 322 runs, never smoked (its builder ran no analysis on it). Estimated from T's run (median CPU s per
+    # run T1 2.3 at 375 k samples, T2 1.4 at 144 k, T3 1.3 at 130 k) and R3's ≈ 1 at 43 k: U1 ≈ 2.2
+    # (360 k) × 57 runs, U2 ≈ 1.3 (151 k) × 139, U3 ≈ 1.0 (67.5 k) × 126 ≈ 7.2 CPU-min + 8 CPU-s sizing
+    # the cases: ≈ 4 min wall on 2 idle cores, ≈ 6 loaded
+    "U": SetRun(fresh_u.SET, "<!-- fresh-held-out-u:begin -->", "<!-- fresh-held-out-u:end -->",
+                "Fourth held-out set: profiles U1–U3, new families outside the catalogue (issue 29)",
+                "P1–P3, Q1–Q3, R1–R3, S1–S3 and T1–T3", "U1:2,U2:3,U3:2", "U1:1,U2:2,U3:2",
+                "U1:10,U2:45,U3:50", "1", "U2,U3",
+                "this set was built by someone who read neither the workflow's internals nor its tests' "
+                "detector logic and ran no analysis on these cases (only the generators, for sizes and "
+                "digests); nobody changing the workflow read its generator, and no run of it was read before "
+                "the run below (none was made before it, not even a smoke)."),
 }
 
 
