@@ -331,6 +331,7 @@ UNKNOWN: dict[str, Unknown] = {
 }
 
 PROFILES: dict[str, FreshProfile] = {
+    # thermal_lag is sized at the sizing's floor τ 1 s here, a 29σ signature (10σ would need τ ≈ 0.3 s)
     # two monotone legs: the backlash is the path shifted against its motion, a tempco and a dT/dt bias
     # there (2.8σ of 10 left beside temp_rate_bias; 7.7σ on U2, 6.7σ on U3, where the path turns back)
     "U1": FreshProfile("U1 (12 min, 500 Hz, thermal shock: setpoint steps 20 → 65 → 0 °C followed by the air "
