@@ -1,0 +1,317 @@
+"""Single-sample outliers and spikes in the final refit's full-rate residual (issue 29).
+
+Every other test reads bin means, a spectrum or a within-window scatter that
+clips spikes (noise_level.py clips at 5 robust σ on purpose, so a spike cannot
+pose as a noise level). On the third held-out set "five single-sample outliers
+(Laplace values)" and "one sample's angle counted twice every 7.3 s (spikes ∝ ω)"
+came out with no claim and not ``unexplained`` on every profile: nothing looked
+at the tails of the samples.
+
+What is measured. Each sample's departure from its neighbours,
+``D_k = r_k − (L_k + R_k)/2`` with ``L_k``, ``R_k`` the means of the
+``SIDE_SAMPLES`` samples on either side: a linear filter, so under the fitted
+noise model (white rate noise, white angle noise, slow processes) D is
+Gaussian, and anything slower than a few samples (a missing catalogue effect,
+the Markov bias, a slew's smooth residual, a ramp) cancels. A sample counts as a
+*spike* only when it stands out from both sides alike (``r_k − L_k`` and
+``r_k − R_k`` of one sign, each at least half of ``D_k``) and its neighbours do
+not (each ``|D_(k±1)|`` below ``NEIGHBOUR_SHARE`` of ``|D_k|``): a step (dead_zone
+at a slew, a block of zeroed samples) or a two-sample block is not a spike.
+``D`` is standardized by its own scale per window of ``WINDOW_SAMPLES``
+(clipped RMS, so the spikes do not set it), and the per-sample null law is
+Student's t with the window's degrees of freedom (the scale is estimated).
+
+The test. Three −log10 p-values on one record: the largest |z| (extreme value,
+``P = 1 − exp(−n·p(z))``), and the count of spikes beyond ``COUNT_LEVELS``
+(3.5 and 4.5) against Poisson(n·p(level)). The first sees a few large outliers,
+the counts many moderate ones (a doubled sample every few seconds). The
+statistic is the smallest p; its threshold is the ``ALPHA_OUTLIERS`` point of
+the same smallest p on ``N_NULL_DRAWS`` simulated effect-free records (the
+null exceedance process: a Poisson count above the lower level, its values
+drawn from the tail law), so the three tests' dependence is accounted for, as
+adequacy.family_threshold does for the probes. ``ALPHA_OUTLIERS`` = 0.5 %: the
+budget this test may add to the family-wise false alarms.
+
+Non-Gaussian noise the model has on purpose (a pulse counter's quantization,
+an output LSB) is bounded: its tails are lighter than the Gaussian's, so it can
+only make the test conservative.
+
+When it fires the result is ``unexplained`` and ``where`` says how many spikes,
+how large, whether their sizes follow |rate| (and their sign the rate's), and
+when (a period when they are regular). A named deterministic effect that no
+longer adds significantly once the spikes are taken out has its probability
+multiplied by ``whole_account`` (the claim odds rule), as adequacy.py does for
+a probe.
+
+Measured (``benchmarks/validate_outliers.py``; figures in
+docs/discrepancy-validation.md, "Single-sample outliers and spikes"): see there.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy import stats
+
+from gyrocal.analysis.discrepancy.adequacy import NOT_JUDGED
+from gyrocal.analysis.discrepancy.context import Context
+from gyrocal.analysis.discrepancy.lookalikes import real_probability
+from gyrocal.analysis.discrepancy.result import FoundEffect
+from gyrocal.analysis.discrepancy.scoring import (
+    Fit,
+    gls_fit,
+    order_statistic_quantile,
+    score_from_delta,
+)
+from gyrocal.analysis.discrepancy.signatures import effect_columns
+
+#: Family-wise false-alarm rate this test may add.
+ALPHA_OUTLIERS = 0.005
+#: Samples on each side whose mean is a sample's local level.
+SIDE_SAMPLES = 4
+#: Samples per window of the scale estimate (a shorter tail is merged into the last window).
+WINDOW_SAMPLES = 4096
+#: Spike counts are compared with their null expectation beyond these |z| levels.
+COUNT_LEVELS = (3.5, 4.5)
+#: A spike's neighbours stand out by less than this share of it.
+NEIGHBOUR_SHARE = 0.75
+#: Clip of the scale estimate, in first-pass robust standard deviations.
+CLIP_SIGMA = 5.0
+#: Simulated effect-free exceedance processes for the threshold.
+N_NULL_DRAWS = 20000
+#: Spikes listed by time in ``where`` when they are few and irregular.
+MAX_LISTED = 5
+#: Spikes needed, and the rank correlation's p-value, to say their sizes follow |rate|.
+MIN_FOR_RATE_LAW = 6
+RATE_LAW_P = 0.001
+#: Smallest gaps tried as the period of a regular spike train.
+PERIOD_CANDIDATES = 30
+
+
+@dataclass(frozen=True)
+class Spikes:
+    """The spike test's outcome."""
+
+    statistic: float          # −log10 of the smallest of the three p-values
+    threshold: float          # −log10 of its ALPHA_OUTLIERS point on simulated null records
+    samples: int              # samples judged
+    index: np.ndarray         # the spikes described (sample indices)
+    size_dph: np.ndarray      # their departures D_k, deg/h
+    z: np.ndarray             # their |z|
+    level: float              # |z| beyond which they are listed
+    expected: float           # spikes expected beyond ``level`` under the noise model
+    description: str = ""
+
+    @property
+    def fires(self) -> bool:
+        return self.statistic > self.threshold
+
+    @property
+    def note(self) -> str:
+        verdict = self.description if self.fires else "no single-sample spikes beyond the noise model"
+        return (f"{verdict}: smallest tail p 10^-{self.statistic:.1f} over {self.samples:,} samples, "
+                f"threshold 10^-{self.threshold:.1f} (outliers.py)")
+
+    @property
+    def whole_account(self) -> float:
+        """Probability that the tails are the noise model's: the claim odds rule on −log10 p."""
+        return 1.0 - real_probability(self.statistic, self.threshold) if self.fires else 1.0
+
+
+def spike_test(ctx: Context, after: Fit) -> Spikes:
+    """The test on the refitted model's full-rate residual (see the module docstring)."""
+    d, spike = departures(ctx.resid_full(after))
+    z, nu = _standardized(d)
+    n = int(np.count_nonzero(nu))
+    if n < 100:
+        return Spikes(0.0, math.inf, n, np.zeros(0, int), np.zeros(0), np.zeros(0), math.inf, 0.0)
+    nu_eff = float(np.median(nu[nu > 0]))
+    az = np.where(spike, np.abs(z), 0.0)
+    counts = [int(np.count_nonzero(az > c)) for c in COUNT_LEVELS]
+    logp, which = _log10_pvalues(float(az.max()), counts, n, nu_eff)
+    threshold = _null_threshold(n, nu_eff, ctx.rng)
+    level = _max_level(n, nu_eff) if which == 0 else COUNT_LEVELS[which - 1]
+    idx = np.flatnonzero(az > level)
+    expected = n * _two_sided_sf(level, nu_eff)
+    out = Spikes(-logp, threshold, n, idx, d[idx], az[idx], level, expected)
+    return replace(out, description=describe(out, ctx.log.t_s, ctx.log.table_rate_dps, ctx.fs_hz))
+
+
+def departures(resid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each sample's departure D from the mean level of its two sides, and whether it is spike-shaped."""
+    r = np.asarray(resid, dtype=float)
+    n, w = r.size, SIDE_SAMPLES
+    d = np.zeros(n)
+    spike = np.zeros(n, dtype=bool)
+    if n < 2 * w + 3:
+        return d, spike
+    c = np.concatenate(([0.0], np.cumsum(r - r.mean())))
+    k = np.arange(w, n - w)
+    rk = r[k] - r.mean()
+    left = (c[k] - c[k - w]) / w
+    right = (c[k + w + 1] - c[k + 1]) / w
+    a, b = rk - left, rk - right
+    d[k] = 0.5 * (a + b)
+    ad = np.abs(d[k])
+    one_sided = (a * b > 0) & (np.minimum(np.abs(a), np.abs(b)) >= 0.5 * ad)
+    spike[k] = one_sided
+    neighbours = np.maximum(np.abs(d[k - 1]), np.abs(d[k + 1]))
+    spike[k] &= neighbours < NEIGHBOUR_SHARE * ad
+    return d, spike
+
+
+def _standardized(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """D over its window's clipped RMS, and each sample's degrees of freedom (0: not judged)."""
+    n = d.size
+    nwin = max(n // WINDOW_SAMPLES, 1)
+    win = np.minimum(np.arange(n) // WINDOW_SAMPLES, nwin - 1)
+    valid = d != 0.0
+    d2 = d * d
+    scale = np.zeros(nwin)
+    robust = 1.4826 * float(np.median(np.abs(d[valid]))) if np.any(valid) else 0.0
+    clip = np.full(nwin, (CLIP_SIGMA + 1.0) * robust)
+    for _ in range(2):   # a window's own clip from its first-pass RMS; spikes do not set the scale
+        keep = valid & (np.abs(d) < clip[win])
+        count = np.bincount(win, weights=keep, minlength=nwin)
+        ss = np.bincount(win, weights=np.where(keep, d2, 0.0), minlength=nwin)
+        scale = np.sqrt(ss / np.maximum(count, 1.0) / _TRUNCATED_VARIANCE)
+        clip = CLIP_SIGMA * scale
+    ok = (count > 10) & (scale > 0)
+    z = np.where(valid & ok[win], d / np.where(ok, scale, 1.0)[win], 0.0)
+    nu = np.where(valid & ok[win], count[win] - 1.0, 0.0)
+    return z, nu
+
+
+#: Variance of a standard normal truncated at ±CLIP_SIGMA (the clipped RMS's consistency factor).
+_TRUNCATED_VARIANCE = 1.0 - 2.0 * CLIP_SIGMA * stats.norm.pdf(CLIP_SIGMA) / (1.0 - 2.0 * stats.norm.sf(CLIP_SIGMA))
+
+
+def _two_sided_sf(z: float | np.ndarray, nu: float) -> float | np.ndarray:
+    return 2.0 * stats.t.sf(z, nu)
+
+
+def _log10_pvalues(zmax: float, counts: list[int], n: int, nu: float) -> tuple[float, int]:
+    """log10 of the smallest p-value (max test, then the counts), and which one it was."""
+    p_max = -math.expm1(-n * float(_two_sided_sf(zmax, nu)))
+    logs = [math.log10(max(p_max, 1e-300))]
+    for level, count in zip(COUNT_LEVELS, counts, strict=True):
+        lam = n * float(_two_sided_sf(level, nu))
+        logs.append(float(stats.poisson.logsf(count - 1, lam)) / math.log(10.0) if count > 0 else 0.0)
+    which = int(np.argmin(logs))
+    return logs[which], which
+
+
+def _max_level(n: int, nu: float) -> float:
+    """|z| a single sample must pass to be significant by itself at ALPHA_OUTLIERS."""
+    return float(stats.t.isf(-math.log1p(-ALPHA_OUTLIERS) / n / 2.0, nu))
+
+
+def _null_threshold(n: int, nu: float, rng: np.random.Generator) -> float:
+    """−log10 of the ALPHA_OUTLIERS point of the smallest p on simulated effect-free records.
+
+    Under the noise model the samples beyond the lower count level form a Poisson
+    process of rate n·p(level) whose |z| follow the tail law; a draw is the count,
+    how many of them pass the higher level (binomial), and the largest (the
+    smallest of k uniform tail probabilities is 1 − V^(1/k)). As exact as drawing
+    n samples per record, and its cost does not grow with the record.
+    """
+    lo, hi = COUNT_LEVELS
+    p_lo, p_hi = float(_two_sided_sf(lo, nu)), float(_two_sided_sf(hi, nu))
+    n_lo = rng.poisson(n * p_lo, N_NULL_DRAWS)
+    n_hi = rng.binomial(n_lo, p_hi / p_lo)
+    v = rng.random(N_NULL_DRAWS)
+    top = np.where(n_hi > 0, p_hi, p_lo)
+    k = np.where(n_hi > 0, n_hi, n_lo)
+    floor = np.where(n_hi > 0, 0.0, p_hi)
+    tail = np.where(k > 0, floor + (top - floor) * -np.expm1(np.log(v) / np.maximum(k, 1)), p_lo)
+    logs = np.vstack([np.log10(np.maximum(-np.expm1(-n * tail), 1e-300)),
+                      stats.poisson.logsf(n_lo - 1, n * p_lo) / math.log(10.0),
+                      stats.poisson.logsf(n_hi - 1, n * p_hi) / math.log(10.0)])
+    logs[1:][np.vstack([n_lo, n_hi]) == 0] = 0.0
+    return -order_statistic_quantile(np.min(logs, axis=0), ALPHA_OUTLIERS)
+
+
+def describe(spikes: Spikes, t_s: np.ndarray, rate_dps: np.ndarray, fs_hz: float) -> str:
+    """The spikes in plain words: how many, how large, against |rate|, when."""
+    idx = spikes.index
+    if idx.size == 0:
+        return ""
+    sigma = spikes.size_dph / np.where(spikes.z > 0, spikes.z, 1.0)
+    sizes = spikes.z
+    head = (f"{idx.size} single-sample spike{'s' if idx.size > 1 else ''} of {sizes.min():.3g}–"
+            f"{sizes.max():.3g}σ beyond the fitted noise (expected {spikes.expected:.2g} beyond "
+            f"{spikes.level:.2g}σ; largest {np.max(np.abs(spikes.size_dph)):.3g} deg/h, σ "
+            f"{float(np.median(np.abs(sigma))):.3g} deg/h)")
+    parts = [head, _against_rate(spikes.size_dph, rate_dps[idx]), _when(t_s[idx] - float(t_s[0]), fs_hz)]
+    return ", ".join(p for p in parts if p)
+
+
+def _against_rate(size_dph: np.ndarray, rate_dps: np.ndarray) -> str:
+    """Whether the sizes follow |rate| (rank correlation of |size| and |rate|) and the sign the rate's."""
+    abs_rate = np.abs(rate_dps)
+    moving = abs_rate > 1e-6
+    if not np.any(moving):
+        return "all at rest"
+    count = int(np.count_nonzero(moving))
+    text = f"{count} of {size_dph.size} while the table turns"
+    if size_dph.size >= MIN_FOR_RATE_LAW:
+        rho, p = stats.spearmanr(np.abs(size_dph), abs_rate)
+        law = "∝ |rate|" if rho > 0 and p < RATE_LAW_P else "not ∝ |rate|"
+        text = f"sizes {law} (rank r = {rho:.2f})"
+    if count >= MIN_FOR_RATE_LAW:
+        same = float(np.mean(np.sign(size_dph[moving]) == np.sign(rate_dps[moving])))
+        if same >= 0.9 or same <= 0.1:
+            text += f", sign {'with' if same >= 0.9 else 'against'} the rate"
+    return text
+
+
+def _when(t_s: np.ndarray, fs_hz: float) -> str:
+    """The spikes' times: listed when few, a period when they are regular, else their span."""
+    if t_s.size <= MAX_LISTED:
+        return "at t = " + ", ".join(f"{t:.1f}" for t in t_s) + " s"
+    period = _period(np.diff(t_s), fs_hz)
+    if period:
+        return f"every {period:.3g} s (or a multiple) from {t_s[0]:.0f} to {t_s[-1]:.0f} s"
+    return f"from {t_s[0]:.0f} to {t_s[-1]:.0f} s"
+
+
+def _period(gaps: np.ndarray, fs_hz: float) -> float:
+    """The smallest gap of which ≥ 80 % of the gaps are whole multiples (at most 20), else 0.
+
+    A multiple is within max(1.5 samples, 2 %) of the gap: a chance match of random
+    times is then rare (a few % per gap), so "every P s" is said only of a real train.
+    """
+    gaps = gaps[gaps > 0]
+    for g in np.unique(np.round(gaps, 3))[:PERIOD_CANDIDATES]:
+        m = np.round(gaps / g)
+        near = (m >= 1) & (m <= 20) & (np.abs(gaps - m * g) <= max(1.5 / fs_hz, 0.02 * g))
+        if np.mean(near) >= 0.8:
+            return float(gaps[near].sum() / m[near].sum())
+    return 0.0
+
+
+def judged_by_spikes(ctx: Context, after: Fit, found: list[FoundEffect], spikes: Spikes) -> list[FoundEffect]:
+    """The named effects with the probabilities the spikes leave them.
+
+    The spikes are taken out (each replaced by its local level) and every named
+    deterministic effect refitted: one that no longer adds significantly (its own
+    threshold) was the spikes' weight in a bin mean, and its probability is
+    multiplied by ``spikes.whole_account``.
+    """
+    if not spikes.fires or all(f.name in NOT_JUDGED for f in found):
+        return found
+    y = ctx.y_full.copy()
+    y[spikes.index] -= spikes.size_dph
+    y_bins = ctx.bins.mean(y)
+    with_all = gls_fit(ctx.builder, ctx.whitener, y_bins, after.model).chi2
+    out = []
+    for f in found:
+        if f.name not in NOT_JUDGED:
+            without = gls_fit(ctx.builder, ctx.whitener, y_bins, after.model.without_effect(f.name)).chi2
+            dof = max(len(effect_columns(f.name)), 1)
+            if score_from_delta(without - with_all, dof) <= f.threshold:
+                f = replace(f, probability=f.probability * spikes.whole_account)
+        out.append(f)
+    return out

@@ -1,0 +1,116 @@
+"""The spike test (analysis/discrepancy/outliers.py) alone: false alarms, detection, cost.
+
+Each draw simulates a log on a profile, refits the nominal model (the base
+numbers; nothing is searched, so what the test sees is what the workflow's
+final refit leaves when nothing is named) and runs the test. Cases:
+
+* ``control``: nothing hidden (the false-alarm rate; ≤ 0.5 % is the budget);
+* ``outliers``: 3–8 single-sample outliers of 8–30σ, heavy-tailed sizes
+  (``tests/support/outlier_cases.py``);
+* ``doubled``: a sample's angle increment counted twice every 4.1 s while the table turns
+  (spikes of ω); ``doubled_small``: the same at a fraction sized to 10σ at the top rate;
+* a catalogue effect at 10σ (dead_zone 2 deg/s, quantization 1″, markov_bias:τ, or any
+  sized effect), *not* in the refitted model, so the test sees it raw: it must not fire.
+
+Profiles as ``validate_noise_level.py`` (P1–P3, Q1–Q3, L1, L2). Prints one row per
+profile and case with the CPU time of the test itself. ``--timing N`` instead times the
+test on a record of N samples at 250 Hz (the overnight folder's rate).
+
+    .venv/bin/python benchmarks/validate_outliers.py --profiles P1,Q1,Q2,Q3 --cases control --draws 100
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+# the synthetic scenarios are test material (tests/support), shared with the benchmarks
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "support"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import argparse
+import time
+
+import discrepancy_scenarios as scenarios  # noqa: E402
+import numpy as np
+import outlier_cases as cases  # noqa: E402
+from threadpoolctl import threadpool_limits
+from validate_noise_level import hidden_of, profile  # noqa: E402
+
+from gyrocal.analysis.discrepancy.context import Context
+from gyrocal.analysis.discrepancy.noise_model import NoiseModel
+from gyrocal.analysis.discrepancy.outliers import spike_test
+
+SPIKE_CASES = ("control", "outliers", "doubled", "doubled_small")
+
+
+def extra_of(case: str, prof: scenarios.Profile, seed: int) -> np.ndarray | None:
+    if case == "outliers":
+        return cases.outliers_dph(prof, seed)
+    if case == "doubled":
+        return cases.doubled_dph(prof)
+    if case == "doubled_small":
+        return cases.doubled_dph(prof, cases.doubled_fraction_for(prof, 10.0))
+    return None
+
+
+def run(pname: str, case: str, draws: int, seed0: int) -> tuple[int, float, str]:
+    """Fires out of ``draws``, the test's mean CPU seconds, and the last firing description."""
+    prof = profile(pname)
+    hidden = [] if case in SPIKE_CASES else hidden_of(case, prof)
+    fires, cpu, said = 0, 0.0, ""
+    for seed in range(seed0, seed0 + draws):
+        log = scenarios.as_measured_log(scenarios.simulate_log(prof, hidden, seed,
+                                                               extra_dph=extra_of(case, prof, seed)))
+        model = scenarios.nominal_model()
+        if case == "quantization":              # the workflow names it from the output lattice first
+            model = model.with_effect(hidden[0])
+        ctx = Context(model, log, seed, 300, 1000)
+        ctx.use_noise(NoiseModel.of_model(model))
+        after = ctx.fit(model)
+        start = time.process_time()
+        spikes = spike_test(ctx, after)
+        cpu += time.process_time() - start
+        fires += spikes.fires
+        said = spikes.description if spikes.fires else said
+    return fires, cpu / draws, said
+
+
+def timing(n_samples: int) -> None:
+    fs = 250.0
+    prof = scenarios.procedure_profile(n_samples / fs, fs, ramps_c_per_min=(1.0, 2.0, 1.0), dwell_s=60.0,
+                                       static_s=600.0)
+    log = scenarios.as_measured_log(scenarios.simulate_log(prof, [], 1))
+    model = scenarios.nominal_model()
+    ctx = Context(model, log, 1, 300, 2000)
+    ctx.use_noise(NoiseModel.of_model(model))
+    after = ctx.fit(model)
+    start = time.process_time()
+    ctx.resid_full(after)
+    resid = time.process_time() - start
+    start = time.process_time()
+    spikes = spike_test(ctx, after)
+    print(f"{len(log):,} samples at {fs:g} Hz: the test {time.process_time() - start:.2f} CPU-s "
+          f"(of which the full-rate residual {resid:.2f} s), fires {spikes.fires}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--profiles", default="P1,Q1,Q2,Q3")
+    parser.add_argument("--cases", default="control,outliers,doubled,doubled_small")
+    parser.add_argument("--draws", type=int, default=100)
+    parser.add_argument("--seed", type=int, default=9300)
+    parser.add_argument("--timing", type=int, default=0, help="time the test on a record of N samples")
+    args = parser.parse_args()
+    with threadpool_limits(limits=1, user_api="blas"):
+        if args.timing:
+            timing(args.timing)
+            return
+        print("| profile | case | draws | fired | CPU per test (s) | last description |\n|---|---|---|---|---|---|")
+        for pname in args.profiles.split(","):
+            for case in args.cases.split(","):
+                fires, cpu, said = run(pname, case, args.draws, args.seed)
+                print(f"| {pname} | {case} | {args.draws} | {fires} | {cpu:.3f} | {said} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
