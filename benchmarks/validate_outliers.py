@@ -14,7 +14,8 @@ final refit leaves when nothing is named) and runs the test. Cases:
 
 Profiles as ``validate_noise_level.py`` (P1–P3, Q1–Q3, L1, L2). Prints one row per
 profile and case with the CPU time of the test itself. ``--timing N`` instead times the
-test on a record of N samples at 250 Hz (the overnight folder's rate).
+test on a record of N samples at 250 Hz (the overnight folder's rate); ``--white N`` runs it on
+``--draws`` records of N samples of pure Gaussian white noise (the calibration itself).
 
     .venv/bin/python benchmarks/validate_outliers.py --profiles P1,Q1,Q2,Q3 --cases control --draws 100
 """
@@ -38,7 +39,7 @@ from validate_noise_level import hidden_of, profile  # noqa: E402
 
 from gyrocal.analysis.discrepancy.context import Context
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
-from gyrocal.analysis.discrepancy.outliers import spike_test
+from gyrocal.analysis.discrepancy.outliers import spike_test, spikes_in
 
 SPIKE_CASES = ("control", "outliers", "doubled", "doubled_small")
 
@@ -75,6 +76,18 @@ def run(pname: str, case: str, draws: int, seed0: int) -> tuple[int, float, str]
     return fires, cpu / draws, said
 
 
+def white_null(n_samples: int, draws: int, seed: int) -> None:
+    """The test on pure Gaussian white noise (the noise model's sample-level part exactly), at rest.
+
+    A direct check of the threshold's calibration with many more draws than the simulated logs allow.
+    """
+    rng = np.random.default_rng(seed)
+    t = np.arange(n_samples) / 100.0
+    rate = np.zeros(n_samples)
+    fires = sum(spikes_in(rng.standard_normal(n_samples), t, rate, 100.0).fires for _ in range(draws))
+    print(f"white noise, {n_samples:,} samples: fired {fires} of {draws} ({100.0 * fires / draws:.2f} %)")
+
+
 def timing(n_samples: int) -> None:
     fs = 250.0
     prof = scenarios.procedure_profile(n_samples / fs, fs, ramps_c_per_min=(1.0, 2.0, 1.0), dwell_s=60.0,
@@ -100,10 +113,14 @@ def main() -> None:
     parser.add_argument("--draws", type=int, default=100)
     parser.add_argument("--seed", type=int, default=9300)
     parser.add_argument("--timing", type=int, default=0, help="time the test on a record of N samples")
+    parser.add_argument("--white", type=int, default=0, help="the test on N-sample white-noise records")
     args = parser.parse_args()
     with threadpool_limits(limits=1, user_api="blas"):
         if args.timing:
             timing(args.timing)
+            return
+        if args.white:
+            white_null(args.white, args.draws, args.seed)
             return
         print("| profile | case | draws | fired | CPU per test (s) | last description |\n|---|---|---|---|---|---|")
         for pname in args.profiles.split(","):

@@ -81,6 +81,8 @@ NEIGHBOUR_SHARE = 0.75
 CLIP_SIGMA = 5.0
 #: Simulated effect-free exceedance processes for the threshold.
 N_NULL_DRAWS = 20000
+#: Seed of the null draws (their own generator, see ``_null_threshold``).
+NULL_SEED = 2929
 #: Spikes listed by time in ``where`` when they are few and irregular.
 MAX_LISTED = 5
 #: Spikes needed, and the rank correlation's p-value, to say their sizes follow |rate|.
@@ -122,7 +124,12 @@ class Spikes:
 
 def spike_test(ctx: Context, after: Fit) -> Spikes:
     """The test on the refitted model's full-rate residual (see the module docstring)."""
-    d, spike = departures(ctx.resid_full(after))
+    return spikes_in(ctx.resid_full(after), ctx.log.t_s, ctx.log.table_rate_dps, ctx.fs_hz)
+
+
+def spikes_in(resid_dph: np.ndarray, t_s: np.ndarray, rate_dps: np.ndarray, fs_hz: float) -> Spikes:
+    """The test on a full-rate residual (deg/h) with its times and table rates."""
+    d, spike = departures(resid_dph)
     z, nu = _standardized(d)
     n = int(np.count_nonzero(nu))
     if n < 100:
@@ -131,12 +138,11 @@ def spike_test(ctx: Context, after: Fit) -> Spikes:
     az = np.where(spike, np.abs(z), 0.0)
     counts = [int(np.count_nonzero(az > c)) for c in COUNT_LEVELS]
     logp, which = _log10_pvalues(float(az.max()), counts, n, nu_eff)
-    threshold = _null_threshold(n, nu_eff, ctx.rng)
     level = _max_level(n, nu_eff) if which == 0 else COUNT_LEVELS[which - 1]
     idx = np.flatnonzero(az > level)
-    expected = n * _two_sided_sf(level, nu_eff)
-    out = Spikes(-logp, threshold, n, idx, d[idx], az[idx], level, expected)
-    return replace(out, description=describe(out, ctx.log.t_s, ctx.log.table_rate_dps, ctx.fs_hz))
+    out = Spikes(-logp, _null_threshold(n, nu_eff), n, idx, d[idx], az[idx], level,
+                 n * float(_two_sided_sf(level, nu_eff)))
+    return replace(out, description=describe(out, t_s, rate_dps, fs_hz))
 
 
 def departures(resid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -208,15 +214,18 @@ def _max_level(n: int, nu: float) -> float:
     return float(stats.t.isf(-math.log1p(-ALPHA_OUTLIERS) / n / 2.0, nu))
 
 
-def _null_threshold(n: int, nu: float, rng: np.random.Generator) -> float:
+def _null_threshold(n: int, nu: float) -> float:
     """−log10 of the ALPHA_OUTLIERS point of the smallest p on simulated effect-free records.
 
     Under the noise model the samples beyond the lower count level form a Poisson
     process of rate n·p(level) whose |z| follow the tail law; a draw is the count,
     how many of them pass the higher level (binomial), and the largest (the
     smallest of k uniform tail probabilities is 1 − V^(1/k)). As exact as drawing
-    n samples per record, and its cost does not grow with the record.
+    n samples per record, and its cost does not grow with the record. The draws
+    have their own seed: the threshold is a function of (n, ν) alone, and the
+    workflow's shared generator is left to the tests after this one.
     """
+    rng = np.random.default_rng(NULL_SEED)
     lo, hi = COUNT_LEVELS
     p_lo, p_hi = float(_two_sided_sf(lo, nu)), float(_two_sided_sf(hi, nu))
     n_lo = rng.poisson(n * p_lo, N_NULL_DRAWS)
@@ -240,11 +249,12 @@ def describe(spikes: Spikes, t_s: np.ndarray, rate_dps: np.ndarray, fs_hz: float
         return ""
     sigma = spikes.size_dph / np.where(spikes.z > 0, spikes.z, 1.0)
     sizes = spikes.z
-    head = (f"{idx.size} single-sample spike{'s' if idx.size > 1 else ''} of {sizes.min():.3g}–"
-            f"{sizes.max():.3g}σ beyond the fitted noise (expected {spikes.expected:.2g} beyond "
-            f"{spikes.level:.2g}σ; largest {np.max(np.abs(spikes.size_dph)):.3g} deg/h, σ "
+    span = f"{sizes.min():.3g}–{sizes.max():.3g}" if idx.size > 1 else f"{sizes.max():.3g}"
+    head = (f"{idx.size} single-sample spike{'s' if idx.size > 1 else ''} of {span}σ beyond the fitted "
+            f"noise (expected {spikes.expected:.2g} beyond {spikes.level:.2g}σ; largest {np.max(np.abs(spikes.size_dph)):.3g} deg/h, σ "
             f"{float(np.median(np.abs(sigma))):.3g} deg/h)")
-    parts = [head, _against_rate(spikes.size_dph, rate_dps[idx]), _when(t_s[idx] - float(t_s[0]), fs_hz)]
+    parts = [head, _against_rate(spikes.size_dph, rate_dps[idx]),
+             _when(t_s[idx] - float(t_s[0]), fs_hz)]
     return ", ".join(p for p in parts if p)
 
 
@@ -278,15 +288,18 @@ def _when(t_s: np.ndarray, fs_hz: float) -> str:
 
 
 def _period(gaps: np.ndarray, fs_hz: float) -> float:
-    """The smallest gap of which ≥ 80 % of the gaps are whole multiples (at most 20), else 0.
+    """The smallest gap of which ≥ 80 % of the gaps are whole multiples, else 0.
 
-    A multiple is within max(1.5 samples, 2 %) of the gap: a chance match of random
-    times is then rare (a few % per gap), so "every P s" is said only of a real train.
+    A multiple is within max(1.5 samples, 2 %) of the gap, and a gap is tried only
+    when that tolerance is under a quarter of it: a chance match of random times is
+    then rare, so "every P s" is said only of a real train.
     """
     gaps = gaps[gaps > 0]
     for g in np.unique(np.round(gaps, 3))[:PERIOD_CANDIDATES]:
+        if 1.5 / fs_hz > 0.25 * g:
+            continue
         m = np.round(gaps / g)
-        near = (m >= 1) & (m <= 20) & (np.abs(gaps - m * g) <= max(1.5 / fs_hz, 0.02 * g))
+        near = (m >= 1) & (np.abs(gaps - m * g) <= max(1.5 / fs_hz, 0.02 * g))
         if np.mean(near) >= 0.8:
             return float(gaps[near].sum() / m[near].sum())
     return 0.0

@@ -387,12 +387,12 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
         where = f"{level.description}; {where}" if where else level.description
     notes.append(level.note)
     notes.append(spikes.note)
-    if spikes.fires:
-        where = f"{spikes.description}; {where}" if where else spikes.description
     if drift is not None:   # line_drift.py: a line the fixed-line search smears over many bins
         where = f"{drift.describe()}; {where}" if where else drift.describe()
     if split.fires:
         where = f"{split.describe()}; {where}" if where else split.describe()
+    if spikes.fires:   # outliers.py: the spikes first, a comb of lines they make comes after
+        where = f"{spikes.description}; {where}" if where else spikes.description
     return DiscrepancyResult(
         found, unexplained, where, metrics, primary, model, after.model, noise.estimate,
         list(search.iterations), ctx.bins, ctx.segments, np.unique(seg_of_bin), geometry,
