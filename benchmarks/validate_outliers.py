@@ -15,7 +15,9 @@ final refit leaves when nothing is named) and runs the test. Cases:
 Profiles as ``validate_noise_level.py`` (P1–P3, Q1–Q3, L1, L2). Prints one row per
 profile and case with the CPU time of the test itself. ``--timing N`` instead times the
 test on a record of N samples at 250 Hz (the overnight folder's rate); ``--white N`` runs it on
-``--draws`` records of N samples of pure Gaussian white noise (the calibration itself).
+``--draws`` records of N samples of pure Gaussian white noise (the calibration itself);
+``--workflow 61,62`` runs the whole workflow on each case and seed with the test and with it
+made never to fire (before/after on the same code; catalogue effects must be unchanged).
 
     .venv/bin/python benchmarks/validate_outliers.py --profiles P1,Q1,Q2,Q3 --cases control --draws 100
 """
@@ -29,7 +31,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "support"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import argparse
+import contextlib
 import time
+from dataclasses import replace
 
 import discrepancy_scenarios as scenarios  # noqa: E402
 import numpy as np
@@ -37,6 +41,7 @@ import outlier_cases as cases  # noqa: E402
 from threadpoolctl import threadpool_limits
 from validate_noise_level import hidden_of, profile  # noqa: E402
 
+import gyrocal.analysis.discrepancy.workflow as workflow_module
 from gyrocal.analysis.discrepancy.context import Context
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.analysis.discrepancy.outliers import spike_test, spikes_in
@@ -76,6 +81,36 @@ def run(pname: str, case: str, draws: int, seed0: int) -> tuple[int, float, str]
     return fires, cpu / draws, said
 
 
+def workflow(pname: str, case: str, seeds: list[int]) -> None:
+    """The whole workflow on a case, with and without the spike test (before/after on the same code)."""
+    prof = profile(pname)
+    hidden = [] if case in SPIKE_CASES else hidden_of(case, prof)
+    for seed in seeds:
+        row = []
+        for label, active in (("before", False), ("after", True)):
+            with _spike_test(active):
+                result = scenarios.analyse_scenario(prof, hidden, seed, max_bins=1000,
+                                                    extra_dph=extra_of(case, prof, seed))
+            named = ", ".join(f"{f.name} {f.probability:.2f}" for f in result.found) or "–"
+            row.append(f"{label}: {named}, unexplained {result.unexplained}")
+        fired = any("single-sample spike" in n and "no single-sample" not in n for n in result.notes)
+        print(f"| {pname} | {case} | {seed} | {row[0]} | {row[1]} | {'fired' if fired else '–'} |", flush=True)
+
+
+@contextlib.contextmanager
+def _spike_test(active: bool):
+    """The workflow with the spike test (``active``) or with one that never fires ("before")."""
+    if active:
+        yield
+        return
+    real = workflow_module.spike_test
+    workflow_module.spike_test = lambda ctx, after: replace(real(ctx, after), statistic=0.0)
+    try:
+        yield
+    finally:
+        workflow_module.spike_test = real
+
+
 def white_null(n_samples: int, draws: int, seed: int) -> None:
     """The test on pure Gaussian white noise (the noise model's sample-level part exactly), at rest.
 
@@ -113,11 +148,18 @@ def main() -> None:
     parser.add_argument("--draws", type=int, default=100)
     parser.add_argument("--seed", type=int, default=9300)
     parser.add_argument("--timing", type=int, default=0, help="time the test on a record of N samples")
+    parser.add_argument("--workflow", default="", help="seeds (a,b,…): the whole workflow before/after")
     parser.add_argument("--white", type=int, default=0, help="the test on N-sample white-noise records")
     args = parser.parse_args()
     with threadpool_limits(limits=1, user_api="blas"):
         if args.timing:
             timing(args.timing)
+            return
+        if args.workflow:
+            print("| profile | case | seed | before | after | spike test |\n|---|---|---|---|---|---|")
+            for pname in args.profiles.split(","):
+                for case in args.cases.split(","):
+                    workflow(pname, case, [int(x) for x in args.workflow.split(",")])
             return
         if args.white:
             white_null(args.white, args.draws, args.seed)
