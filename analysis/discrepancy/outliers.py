@@ -130,11 +130,9 @@ def spike_test(ctx: Context, after: Fit) -> Spikes:
 def spikes_in(resid_dph: np.ndarray, t_s: np.ndarray, rate_dps: np.ndarray, fs_hz: float) -> Spikes:
     """The test on a full-rate residual (deg/h) with its times and table rates."""
     d, spike = departures(resid_dph)
-    z, nu = _standardized(d)
-    n = int(np.count_nonzero(nu))
+    z, n, nu_eff = _standardized(d)
     if n < 100:
         return Spikes(0.0, math.inf, n, np.zeros(0, int), np.zeros(0), np.zeros(0), math.inf, 0.0)
-    nu_eff = float(np.median(nu[nu > 0]))
     az = np.where(spike, np.abs(z), 0.0)
     counts = [int(np.count_nonzero(az > c)) for c in COUNT_LEVELS]
     logp, which = _log10_pvalues(float(az.max()), counts, n, nu_eff)
@@ -153,41 +151,60 @@ def departures(resid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     spike = np.zeros(n, dtype=bool)
     if n < 2 * w + 3:
         return d, spike
-    c = np.concatenate(([0.0], np.cumsum(r - r.mean())))
-    k = np.arange(w, n - w)
-    rk = r[k] - r.mean()
-    left = (c[k] - c[k - w]) / w
-    right = (c[k + w + 1] - c[k + 1]) / w
-    a, b = rk - left, rk - right
-    d[k] = 0.5 * (a + b)
-    ad = np.abs(d[k])
-    one_sided = (a * b > 0) & (np.minimum(np.abs(a), np.abs(b)) >= 0.5 * ad)
-    spike[k] = one_sided
-    neighbours = np.maximum(np.abs(d[k - 1]), np.abs(d[k + 1]))
-    spike[k] &= neighbours < NEIGHBOUR_SHARE * ad
+    c = np.empty(n + 1)
+    c[0] = 0.0
+    np.cumsum(r - r[0], out=c[1:])        # less the first sample: the sums stay small
+    body = slice(w, n - w)
+    a = r[body] - r[0] - (c[w:n - w] - c[: n - 2 * w]) / w               # less the left mean
+    b = r[body] - r[0] - (c[2 * w + 1:] - c[w + 1: n - w + 1]) / w        # less the right mean
+    d[body] = 0.5 * (a + b)
+    half = 0.5 * np.abs(d[body])
+    ok = (a * b > 0) & (np.abs(a) >= half) & (np.abs(b) >= half)
+    # neighbours below NEIGHBOUR_SHARE of it: |D| ≥ 2·half, so the bound is NEIGHBOUR_SHARE·2·half
+    bound = 2.0 * NEIGHBOUR_SHARE * half
+    ok &= np.abs(d[w - 1: n - w - 1]) < bound
+    ok &= np.abs(d[w + 1: n - w + 1]) < bound
+    spike[body] = ok
     return d, spike
 
 
-def _standardized(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """D over its window's clipped RMS, and each sample's degrees of freedom (0: not judged)."""
+def _standardized(d: np.ndarray) -> tuple[np.ndarray, int, float]:
+    """D over its window's clipped RMS (0: not judged), the samples judged, and the median window's ν."""
     n = d.size
     nwin = max(n // WINDOW_SAMPLES, 1)
-    win = np.minimum(np.arange(n) // WINDOW_SAMPLES, nwin - 1)
     valid = d != 0.0
-    d2 = d * d
-    scale = np.zeros(nwin)
-    robust = 1.4826 * float(np.median(np.abs(d[valid]))) if np.any(valid) else 0.0
+    ad = np.abs(d)
+    # the first clip only needs to be generous: a median of every 7th sample will do
+    some = ad[::7][valid[::7]]
+    robust = 1.4826 * float(np.median(some)) if some.size else 0.0
     clip = np.full(nwin, (CLIP_SIGMA + 1.0) * robust)
     for _ in range(2):   # a window's own clip from its first-pass RMS; spikes do not set the scale
-        keep = valid & (np.abs(d) < clip[win])
-        count = np.bincount(win, weights=keep, minlength=nwin)
-        ss = np.bincount(win, weights=np.where(keep, d2, 0.0), minlength=nwin)
+        keep = valid & (ad < _per_sample(clip, n))
+        count = _window_sums(keep.astype(float), nwin)
+        ss = _window_sums(np.where(keep, d * d, 0.0), nwin)
         scale = np.sqrt(ss / np.maximum(count, 1.0) / _TRUNCATED_VARIANCE)
         clip = CLIP_SIGMA * scale
     ok = (count > 10) & (scale > 0)
-    z = np.where(valid & ok[win], d / np.where(ok, scale, 1.0)[win], 0.0)
-    nu = np.where(valid & ok[win], count[win] - 1.0, 0.0)
-    return z, nu
+    judged = valid & _per_sample(ok, n)
+    z = np.where(judged, d / _per_sample(np.where(ok, scale, 1.0), n), 0.0)
+    nu = float(np.median(count[ok] - 1.0)) if np.any(ok) else 0.0
+    return z, int(np.count_nonzero(judged)), nu
+
+
+def _window_sums(x: np.ndarray, nwin: int) -> np.ndarray:
+    """Sums over windows of WINDOW_SAMPLES (the tail after the last whole window joins it)."""
+    whole = min(nwin * WINDOW_SAMPLES, x.size)
+    sums = x[:whole].reshape(nwin, -1).sum(axis=1)
+    sums[-1] += x[whole:].sum()
+    return sums
+
+
+def _per_sample(per_window: np.ndarray, n: int) -> np.ndarray:
+    """Window values back on the samples (the tail takes the last window's)."""
+    out = np.repeat(per_window, WINDOW_SAMPLES)[:n]
+    if out.size < n:
+        out = np.concatenate([out, np.full(n - out.size, per_window[-1])])
+    return out
 
 
 #: Variance of a standard normal truncated at ±CLIP_SIGMA (the clipped RMS's consistency factor).

@@ -22,7 +22,12 @@ import pytest
 
 from gyrocal.analysis.discrepancy.context import Context
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
-from gyrocal.analysis.discrepancy.outliers import departures, judged_by_spikes, spike_test, spikes_in
+from gyrocal.analysis.discrepancy.outliers import (
+    departures,
+    judged_by_spikes,
+    spike_test,
+    spikes_in,
+)
 from gyrocal.analysis.discrepancy.result import FoundEffect
 from gyrocal.models.gyro_model import EffectSpec
 
