@@ -6,9 +6,10 @@ final refit leaves when nothing is named) and runs the test. Cases:
 
 * ``control``: nothing hidden (the false-alarm rate; ≤ 0.5 % is the budget);
 * ``outliers``: 3–8 single-sample outliers of 8–30σ, heavy-tailed sizes
-  (``tests/support/outlier_cases.py``);
+  (``tests/support/outlier_cases.py``; ``outliers:5:10`` for 5–10σ);
 * ``doubled``: a sample's angle increment counted twice every 4.1 s while the table turns
-  (spikes of ω); ``doubled_small``: the same at a fraction sized to 10σ at the top rate;
+  (spikes of ω); ``doubled_small``: the same at a fraction sized to 10σ at the top rate
+  (``doubled_small:6`` for 6σ);
 * a catalogue effect at 10σ (dead_zone 2 deg/s, quantization 1″, markov_bias:τ, or any
   sized effect), *not* in the refitted model, so the test sees it raw: it must not fire.
 
@@ -50,19 +51,21 @@ SPIKE_CASES = ("control", "outliers", "doubled", "doubled_small")
 
 
 def extra_of(case: str, prof: scenarios.Profile, seed: int) -> np.ndarray | None:
-    if case == "outliers":
-        return cases.outliers_dph(prof, seed)
-    if case == "doubled":
+    """The case's spikes (deg/h per sample); ``outliers:lo:hi`` and ``doubled_small:σ`` set the sizes."""
+    kind, *sizes = case.split(":")
+    if kind == "outliers":
+        return cases.outliers_dph(prof, seed, *(float(x) for x in sizes))
+    if kind == "doubled":
         return cases.doubled_dph(prof)
-    if case == "doubled_small":
-        return cases.doubled_dph(prof, cases.doubled_fraction_for(prof, 10.0))
+    if kind == "doubled_small":
+        return cases.doubled_dph(prof, cases.doubled_fraction_for(prof, float(sizes[0]) if sizes else 10.0))
     return None
 
 
 def run(pname: str, case: str, draws: int, seed0: int) -> tuple[int, float, str]:
     """Fires out of ``draws``, the test's mean CPU seconds, and the last firing description."""
     prof = profile(pname)
-    hidden = [] if case in SPIKE_CASES else hidden_of(case, prof)
+    hidden = [] if case.split(":")[0] in SPIKE_CASES else hidden_of(case, prof)
     fires, cpu, said = 0, 0.0, ""
     for seed in range(seed0, seed0 + draws):
         log = scenarios.as_measured_log(scenarios.simulate_log(prof, hidden, seed,
@@ -84,7 +87,7 @@ def run(pname: str, case: str, draws: int, seed0: int) -> tuple[int, float, str]
 def workflow(pname: str, case: str, seeds: list[int]) -> None:
     """The whole workflow on a case, with and without the spike test (before/after on the same code)."""
     prof = profile(pname)
-    hidden = [] if case in SPIKE_CASES else hidden_of(case, prof)
+    hidden = [] if case.split(":")[0] in SPIKE_CASES else hidden_of(case, prof)
     for seed in seeds:
         row = []
         for label, active in (("before", False), ("after", True)):
