@@ -58,7 +58,7 @@ from scipy import stats
 from gyrocal.analysis.discrepancy.adequacy import NOT_JUDGED
 from gyrocal.analysis.discrepancy.context import Context
 from gyrocal.analysis.discrepancy.lookalikes import real_probability
-from gyrocal.analysis.discrepancy.result import FoundEffect
+from gyrocal.analysis.discrepancy.result import DiscrepancyResult, FoundEffect
 from gyrocal.analysis.discrepancy.scoring import (
     Fit,
     gls_fit,
@@ -320,6 +320,21 @@ def _period(gaps: np.ndarray, fs_hz: float) -> float:
         if np.mean(near) >= 0.8:
             return float(gaps[near].sum() / m[near].sum())
     return 0.0
+
+
+def with_spikes(ctx: Context, after: Fit, result: DiscrepancyResult) -> DiscrepancyResult:
+    """The workflow's result once the spike test has run on the final refit.
+
+    Fired: ``unexplained``, the spikes first in ``where`` (a comb of lines they make
+    comes after), and the named effects they replace below their claim. Always: its note.
+    """
+    spikes = spike_test(ctx, after)
+    notes = [*result.notes, spikes.note]
+    if not spikes.fires:
+        return replace(result, notes=notes)
+    where = f"{spikes.description}; {result.where}" if result.where else spikes.description
+    return replace(result, found=judged_by_spikes(ctx, after, result.found, spikes), unexplained=True,
+                   where=where, notes=notes)
 
 
 def judged_by_spikes(ctx: Context, after: Fit, found: list[FoundEffect], spikes: Spikes) -> list[FoundEffect]:

@@ -32,8 +32,9 @@
    passes over: when one is there, the result is unexplained with the line
    and its drift in ``where``, and a periodic_interference named within its
    frequencies loses its claim. Nor single-sample outliers and spikes, which the
-   scatter test clips (outliers.py: the tails of the full-rate residual). Nor whether a named effect keeps one size over
-   the record (split_check.py): a catalogue law fitted to foreign structure needs
+   scatter test clips (outliers.py reads the tails of the full-rate residual, with
+   the same result). Nor whether a named effect keeps one size over the record
+   (split_check.py): a catalogue law fitted to foreign structure needs
    another amplitude in another part (time, temperature, rate sign, |rate|); then
    the result is unexplained and that effect's probability falls below 0.5.
 
@@ -95,7 +96,7 @@ from gyrocal.analysis.discrepancy.gap import (
 from gyrocal.analysis.discrepancy.line_drift import drifting_line
 from gyrocal.analysis.discrepancy.noise_level import judged_by_level, noise_level_test
 from gyrocal.analysis.discrepancy.noise_model import NoiseEstimate, NoiseModel, estimate_noise
-from gyrocal.analysis.discrepancy.outliers import judged_by_spikes, spike_test
+from gyrocal.analysis.discrepancy.outliers import with_spikes
 from gyrocal.analysis.discrepancy.own_gap import EffectGap
 from gyrocal.analysis.discrepancy.periodic import REFINEMENT_FACTOR, PeriodicScan, sine_dph
 from gyrocal.analysis.discrepancy.probes import Probe, ProbeKind, all_probes, strongest
@@ -365,15 +366,13 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     found, test, last_probe = _adequacy_pass(ctx, after, found)
     level = noise_level_test(ctx, after)
     found = judged_by_level(ctx, after, found, level)
-    spikes = spike_test(ctx, after)   # outliers.py: single-sample tails the scatter tests clip
-    found = judged_by_spikes(ctx, after, found, spikes)
     found, drift = drifting_line(ctx, after, found)
     split = split_check(ctx, after, found)   # split_check.py: a named effect whose size differs by part
     found = judged_by_split(found, split)
     structure_left = (search.preempted is not None or search.nonstationary is not None or test.inadequate
                       or metrics["g1_segment_mean"].after > g1_quantile(ctx.whitener, after.basis, geometry,
                                                                        UNEXPLAINED_LEVEL))
-    unexplained = structure_left or level.fires or drift is not None or split.fires or spikes.fires
+    unexplained = structure_left or level.fires or drift is not None or split.fires
     signals = _signals(ctx, after.model)
     where, notes = "", list(state.notes)
     if test.inadequate and test.probe is not None:
@@ -386,18 +385,15 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     if level.fires:
         where = f"{level.description}; {where}" if where else level.description
     notes.append(level.note)
-    notes.append(spikes.note)
     if drift is not None:   # line_drift.py: a line the fixed-line search smears over many bins
         where = f"{drift.describe()}; {where}" if where else drift.describe()
     if split.fires:
         where = f"{split.describe()}; {where}" if where else split.describe()
-    if spikes.fires:   # outliers.py: the spikes first, a comb of lines they make comes after
-        where = f"{spikes.description}; {where}" if where else spikes.description
-    return DiscrepancyResult(
+    return with_spikes(ctx, after, DiscrepancyResult(   # outliers.py: single-sample tails
         found, unexplained, where, metrics, primary, model, after.model, noise.estimate,
         list(search.iterations), ctx.bins, ctx.segments, np.unique(seg_of_bin), geometry,
         before.resid_bins, after.resid_bins, signals, scan_before, scan_after, noise.before,
-        float(ctx.log.t_s[0]), notes, {gap.effect: gap.headline for gap in gaps})
+        float(ctx.log.t_s[0]), notes, {gap.effect: gap.headline for gap in gaps}))
 
 
 def _adequacy_pass(ctx: Context, after: Fit, found: list[FoundEffect]
