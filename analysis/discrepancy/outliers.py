@@ -147,10 +147,9 @@ def spike_test(ctx: Context, after: Fit) -> Spikes:
 def spikes_in(resid_dph: np.ndarray, t_s: np.ndarray, rate_dps: np.ndarray, fs_hz: float) -> Spikes:
     """The test on a full-rate residual (deg/h) with its times and table rates."""
     d, spike = departures(resid_dph)
-    z, n, nu_eff = _standardized(d)
+    az, n, nu_eff = scaled(d, spike)
     if n < 100:
         return Spikes(0.0, math.inf, n, np.zeros(0, int), np.zeros(0), np.zeros(0), math.inf, 0.0)
-    az = np.where(spike, np.abs(z), 0.0)
     counts = [int(np.count_nonzero(az > c)) for c in COUNT_LEVELS]
     logp, which = _log10_pvalues(float(az.max()), counts, n, nu_eff)
     level = _max_level(n, nu_eff) if which == 0 else COUNT_LEVELS[which - 1]
@@ -160,14 +159,25 @@ def spikes_in(resid_dph: np.ndarray, t_s: np.ndarray, rate_dps: np.ndarray, fs_h
     return replace(out, description=describe(out, t_s, rate_dps, fs_hz))
 
 
-def departures(resid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each sample's departure D from the mean level of its two sides, and whether it is spike-shaped."""
-    r = np.asarray(resid, dtype=float)
-    n, w = r.size, SIDE_SAMPLES
-    d = np.zeros(n)
-    spike = np.zeros(n, dtype=bool)
-    if n < 2 * w + 3:
+def departures(resid: np.ndarray, compiled: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Each sample's departure D from the mean level of its two sides, and whether it is spike-shaped.
+
+    ``compiled``: the one-pass loop (numba) when it is there, else the array version, its oracle.
+    """
+    r = np.ascontiguousarray(resid, dtype=np.float64)
+    d = np.zeros(r.size)
+    spike = np.zeros(r.size, dtype=np.bool_)
+    if r.size < 2 * SIDE_SAMPLES + 3:
         return d, spike
+    if compiled and _departures_loop is not None:
+        _departures_loop(r, SIDE_SAMPLES, NEIGHBOUR_SHARE, d, spike)
+    else:
+        _departures_numpy(r, d, spike)
+    return d, spike
+
+
+def _departures_numpy(r: np.ndarray, d: np.ndarray, spike: np.ndarray) -> None:
+    n, w = r.size, SIDE_SAMPLES
     c = np.empty(n + 1)
     c[0] = 0.0
     np.cumsum(r - r[0], out=c[1:])        # less the first sample: the sums stay small
@@ -177,35 +187,47 @@ def departures(resid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     d[body] = 0.5 * (a + b)
     half = 0.5 * np.abs(d[body])
     ok = (a * b > 0) & (np.abs(a) >= half) & (np.abs(b) >= half)
-    # neighbours below NEIGHBOUR_SHARE of it: |D| ≥ 2·half, so the bound is NEIGHBOUR_SHARE·2·half
+    # neighbours below NEIGHBOUR_SHARE of it: |D| = 2·half
     bound = 2.0 * NEIGHBOUR_SHARE * half
     ok &= np.abs(d[w - 1: n - w - 1]) < bound
     ok &= np.abs(d[w + 1: n - w + 1]) < bound
     spike[body] = ok
-    return d, spike
 
 
-def _standardized(d: np.ndarray) -> tuple[np.ndarray, int, float]:
-    """D over its window's clipped RMS (0: not judged), the samples judged, and the median window's ν."""
-    n = d.size
-    nwin = max(n // WINDOW_SAMPLES, 1)
-    valid = d != 0.0
-    ad = np.abs(d)
-    # the first clip only needs to be generous: a median of every 7th sample will do
-    some = ad[::7][valid[::7]]
-    robust = 1.4826 * float(np.median(some)) if some.size else 0.0
-    clip = np.full(nwin, (CLIP_SIGMA + 1.0) * robust)
-    for _ in range(2):   # a window's own clip from its first-pass RMS; spikes do not set the scale
+def scaled(d: np.ndarray, spike: np.ndarray, compiled: bool = True) -> tuple[np.ndarray, int, float]:
+    """|D| over its window's clipped RMS at the spikes (0 elsewhere), the samples judged, the median ν.
+
+    The first clip only needs to be generous: (CLIP_SIGMA + 1) robust σ from a median of
+    every 7th sample. Each window then clips at CLIP_SIGMA of its own first-pass RMS, so the
+    spikes do not set the scale.
+    """
+    valid = d[::7] != 0.0
+    some = np.abs(d[::7][valid])
+    clip0 = (CLIP_SIGMA + 1.0) * 1.4826 * float(np.median(some)) if some.size else 0.0
+    nwin = max(d.size // WINDOW_SAMPLES, 1)
+    az, count = np.zeros(d.size), np.zeros(nwin)
+    if compiled and _scaled_loop is not None:
+        _scaled_loop(d, spike, WINDOW_SAMPLES, clip0, CLIP_SIGMA, _TRUNCATED_VARIANCE, az, count)
+    else:
+        _scaled_numpy(d, spike, clip0, az, count)
+    ok = count > 10
+    judged = int(count[ok].sum())
+    return az, judged, float(np.median(count[ok] - 1.0)) if np.any(ok) else 0.0
+
+
+def _scaled_numpy(d: np.ndarray, spike: np.ndarray, clip0: float, az: np.ndarray, count: np.ndarray) -> None:
+    n, nwin = d.size, count.size
+    valid, ad = d != 0.0, np.abs(d)
+    clip = np.full(nwin, clip0)
+    for _ in range(2):
         keep = valid & (ad < _per_sample(clip, n))
-        count = _window_sums(keep.astype(float), nwin)
+        count[:] = _window_sums(keep.astype(float), nwin)
         ss = _window_sums(np.where(keep, d * d, 0.0), nwin)
         scale = np.sqrt(ss / np.maximum(count, 1.0) / _TRUNCATED_VARIANCE)
         clip = CLIP_SIGMA * scale
-    ok = (count > 10) & (scale > 0)
-    judged = valid & _per_sample(ok, n)
-    z = np.where(judged, d / _per_sample(np.where(ok, scale, 1.0), n), 0.0)
-    nu = float(np.median(count[ok] - 1.0)) if np.any(ok) else 0.0
-    return z, int(np.count_nonzero(judged)), nu
+    count[:] = _window_sums(valid.astype(float), nwin) * ((count > 10) & (scale > 0))
+    ok = count > 10
+    az[:] = np.where(spike & _per_sample(ok, n), ad / _per_sample(np.where(ok, scale, 1.0), n), 0.0)
 
 
 def _window_sums(x: np.ndarray, nwin: int) -> np.ndarray:
@@ -222,6 +244,60 @@ def _per_sample(per_window: np.ndarray, n: int) -> np.ndarray:
     if out.size < n:
         out = np.concatenate([out, np.full(n - out.size, per_window[-1])])
     return out
+
+
+try:  # numba is a declared dependency; the fallback keeps the test alive if it breaks
+    import numba
+
+    @numba.njit(cache=True, nogil=True)
+    def _departures_loop(r, w, share, d, spike):  # pragma: no cover
+        # _departures_numpy in one pass: running sums of the w samples either side
+        n, r0 = r.size, r[0]
+        left, right = 0.0, 0.0
+        for i in range(w):
+            left += r[i] - r0
+            right += r[w + 1 + i] - r0
+        for k in range(w, n - w):
+            if k > w:
+                left += r[k - 1] - r[k - 1 - w]
+                right += r[k + w] - r[k]
+            a = r[k] - r0 - left / w
+            b = r[k] - r0 - right / w
+            d[k] = 0.5 * (a + b)
+            half = 0.5 * abs(d[k])
+            spike[k] = a * b > 0 and abs(a) >= half and abs(b) >= half
+        for k in range(w, n - w):
+            if spike[k]:
+                bound = share * abs(d[k])
+                spike[k] = abs(d[k - 1]) < bound and abs(d[k + 1]) < bound
+
+    @numba.njit(cache=True, nogil=True)
+    def _scaled_loop(d, spike, window, clip0, clip_sigma, truncated, az, count):  # pragma: no cover
+        # _scaled_numpy window by window: two clipped passes, then |z| at the spikes
+        nwin = count.size
+        for j in range(nwin):
+            lo, hi = j * window, (j + 1) * window if j < nwin - 1 else d.size
+            clip, scale, kept = clip0, 0.0, 0.0
+            for _ in range(2):
+                ss, kept = 0.0, 0.0
+                for i in range(lo, hi):
+                    if d[i] != 0.0 and abs(d[i]) < clip:
+                        ss += d[i] * d[i]
+                        kept += 1.0
+                scale = np.sqrt(ss / max(kept, 1.0) / truncated)
+                clip = clip_sigma * scale
+            if kept <= 10 or scale <= 0:
+                continue
+            valid = 0.0
+            for i in range(lo, hi):
+                if d[i] != 0.0:
+                    valid += 1.0
+                    if spike[i]:
+                        az[i] = abs(d[i]) / scale
+            count[j] = valid
+except ImportError:  # pragma: no cover - exercised only where numba cannot be installed
+    _departures_loop = None
+    _scaled_loop = None
 
 
 #: Variance of a standard normal truncated at ±CLIP_SIGMA (the clipped RMS's consistency factor).

@@ -25,6 +25,7 @@ from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.analysis.discrepancy.outliers import (
     departures,
     judged_by_spikes,
+    scaled,
     spike_test,
     spikes_in,
 )
@@ -102,6 +103,24 @@ def test_steps_blocks_and_ramps_are_not_spikes_a_single_sample_is():
     d, spike = departures(r)
     assert np.flatnonzero(spike & (np.abs(d) > 10.0)).tolist() == [30]
     assert d[30] == pytest.approx(80.0)
+
+
+@pytest.mark.parametrize("n", [9000, 20000, 100003])
+def test_the_compiled_passes_agree_with_their_array_oracle(n):
+    """Spikes, a step, a two-sample block and a noise level changing every 1000 samples."""
+    rng = np.random.default_rng(n)
+    r = rng.standard_normal(n) * np.repeat(rng.uniform(0.5, 2.0, n // 1000 + 1), 1000)[:n]
+    r[rng.integers(0, n, 20)] += 30.0
+    r[n // 2:] += 50.0
+    r[100:102] += 40.0
+    d, spike = departures(r)
+    d0, spike0 = departures(r, compiled=False)
+    np.testing.assert_allclose(d, d0, rtol=0, atol=1e-8)
+    assert np.array_equal(spike, spike0) and 15 <= np.count_nonzero(spike & (np.abs(d) > 10)) <= 20
+    az, judged, nu = scaled(d, spike)
+    az0, judged0, nu0 = scaled(d0, spike0, compiled=False)
+    np.testing.assert_allclose(az, az0, rtol=1e-9, atol=1e-9)
+    assert (judged, nu) == (judged0, nu0)
 
 
 @pytest.mark.timeout(120)
