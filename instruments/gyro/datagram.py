@@ -53,7 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gyrocal.instruments.gyro import crc32_mpeg2
+from gyrocal.instruments.gyro import crc32_mpeg2, field_packing
 from gyrocal.instruments.gyro.channels import SensorChannels, concat_channels
 from gyrocal.instruments.gyro.crc32_mpeg2 import crc32_mpeg2_prefix_rows
 from gyrocal.instruments.gyro.datagram_types import (  # noqa: F401 - re-exported for the driver, sim and tests
@@ -238,12 +238,22 @@ def _as_xyz(values: np.ndarray, n: int) -> np.ndarray:
     return np.broadcast_to(values.reshape(-1, 3) if values.ndim == 2 else values.reshape(-1, 1), (n, 3))
 
 
+#: pack fields with the compiled loops (field_packing.py); the numpy below is their oracle
+_COMPILED = field_packing.AVAILABLE
+
+
 def _put_triplet(frames: np.ndarray, offset: int, status_offset: int, scaled: np.ndarray,
                  status: np.ndarray | None, full_scale: int, width: int, what: str) -> None:
     """x, y, z fields of ``width`` bytes and their status byte (overload bits on clipping)."""
     n = frames.shape[0]
     status_out = np.zeros(n, np.uint8) if status is None else np.broadcast_to(
         np.asarray(status, dtype=np.uint8), (n,)).copy()
+    if _COMPILED and scaled.shape[1:] == (len(STATUS_AXIS_BITS),):
+        first_nan = field_packing.pack_triplet(frames, offset, status_offset, scaled, status_out,
+                                               full_scale, width, STATUS_AXIS_BITS, STATUS_OVERLOAD)
+        if first_nan >= 0:
+            raise ValueError(f"{what}[{first_nan}] is NaN: a datagram cannot carry it")
+        return
     raw, saturated = _to_raw(scaled, full_scale, what)
     status_out |= _overload_bits(saturated)
     _put_int(frames, offset, raw, width)
@@ -252,6 +262,9 @@ def _put_triplet(frames: np.ndarray, offset: int, status_offset: int, scaled: np
 
 def _put_int(frames: np.ndarray, offset: int, values: np.ndarray, width: int) -> None:
     """Write the columns of ``values`` as consecutive big-endian ``width``-byte fields."""
+    if _COMPILED:
+        field_packing.pack_ints(frames, offset, values, width)
+        return
     mask = (1 << (8 * width)) - 1
     # big-endian 32-bit words whose low ``width`` bytes are the fields: one strided copy per
     # byte position for all columns (a shift and mask per byte and column cost ~3x more)

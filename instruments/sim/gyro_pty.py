@@ -99,7 +99,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from gyrocal.instruments.gyro import crc32_mpeg2
+from gyrocal.instruments.gyro import crc32_mpeg2, field_packing
 from gyrocal.instruments.gyro.datagram import (
     DEFAULT_ACCELEROMETER_RANGE_G,
     DEFAULT_LSB,
@@ -280,6 +280,7 @@ class SimulatedGyroPort(PtyWriterPort):
 
     def _before_start(self) -> None:
         crc32_mpeg2.warm_up()      # the compiled CRC, before the first (timed) exchange
+        field_packing.warm_up()    # and the compiled field packing
         if isinstance(self.clock, SimClock):
             self.next_frame = max(self.next_frame, self._frames_before(self.clock.now_s()))
             self.clock.subscribe(self._on_advance)
