@@ -238,7 +238,8 @@ def _as_xyz(values: np.ndarray, n: int) -> np.ndarray:
     return np.broadcast_to(values.reshape(-1, 3) if values.ndim == 2 else values.reshape(-1, 1), (n, 3))
 
 
-#: pack fields with the compiled loops (field_packing.py); the numpy below is their oracle
+#: pack and unpack fields with the compiled loops (field_packing.py); the numpy here is
+#: their oracle
 _COMPILED = field_packing.AVAILABLE
 
 
@@ -348,6 +349,7 @@ class FrameDecoder:
             raise ValueError(f"counter_step must be within 1..255, got {counter_step!r}")
         self.layout = layout_for(with_temperature, crlf) if datagram is None else layout_of(datagram, crlf)
         crc32_mpeg2.warm_up()      # the compiled CRC, before the first (timed) read
+        field_packing.warm_up()    # and the compiled field reads
         self.lsb = float(lsb)
         self.acc_lsb_g = accelerometer_lsb_g(accelerometer_range_g)
         self.counter_step = int(counter_step)
@@ -587,6 +589,8 @@ def _cluster(rows: np.ndarray, offset: int | None, status_offset: int | None, wi
 
 def _get_int(rows: np.ndarray, offset: int, count: int, width: int, signed: bool = True) -> np.ndarray:
     """``count`` consecutive big-endian ``width``-byte fields from ``offset`` as int64 columns."""
+    if _COMPILED and rows.dtype == np.uint8 and rows.ndim == 2:
+        return field_packing.unpack_ints(rows, offset, count, width, signed)
     words = np.zeros((rows.shape[0], count, 4), dtype=np.uint8)   # big-endian 32-bit words
     stop = offset + count * width
     for byte in range(width):

@@ -1,4 +1,4 @@
-"""Big-endian datagram fields packed by compiled loops, byte for byte the numpy encoder's.
+"""Big-endian datagram fields packed and unpacked by compiled loops, as the numpy code does.
 
 Why: the simulated IMU's 0xA7 datagrams carry eight field groups (rates,
 accelerometers, inclinometers, three temperature clusters, latency, PPS), and
@@ -7,10 +7,13 @@ spends ~20 array operations on each group, on blocks of 2,500 frames: ~0.45 ms a
 block, 72 % of the encoding, about a second of the simulated gyro's thread in an
 IMU dry run, and it holds the interpreter lock the controller needs. One pass
 per group over the block does the same rounding (``np.rint``: half to even),
-clipping, overload bits and byte order, without the lock.
+clipping, overload bits and byte order, without the lock. The decoder's field
+reads (``datagram._get_int``: a word array filled byte by byte, viewed big-endian,
+sign-extended) are the same kind of work on the controller's thread, where every
+block of the stream is decoded: one pass per field group there too.
 
 The numpy functions stay as the oracle and the fallback (``tests/instruments/
-gyro/test_field_packing.py`` compares the two on random and edge values).
+gyro/test_field_packing.py`` compares the two on random and edge values, both ways).
 """
 
 from __future__ import annotations
@@ -58,9 +61,22 @@ try:  # numba is a declared dependency; without it datagram.py packs with numpy
                 for b in range(width):
                     frames[i, base + b] = (value >> (8 * (width - 1 - b))) & 0xFF
 
+    @numba.njit(cache=True, nogil=True)
+    def _unpack_ints(rows, offset, width, signed, out):  # pragma: no cover - compiled
+        sign = np.int64(1) << (8 * width - 1)
+        for i in range(out.shape[0]):
+            for j in range(out.shape[1]):
+                base = offset + j * width
+                value = np.int64(0)
+                for b in range(width):
+                    value = (value << 8) | np.int64(rows[i, base + b])
+                if signed:
+                    value = (value ^ sign) - sign
+                out[i, j] = value
+
     AVAILABLE = True
 except ImportError:  # pragma: no cover - exercised only where numba cannot be installed
-    _pack_triplet = _pack_ints = None
+    _pack_triplet = _pack_ints = _unpack_ints = None
     AVAILABLE = False
 
 
@@ -86,6 +102,15 @@ def pack_ints(frames: np.ndarray, offset: int, values: np.ndarray, width: int) -
     _pack_ints(frames, offset, np.ascontiguousarray(values, dtype=np.int64), width)
 
 
+def unpack_ints(rows: np.ndarray, offset: int, count: int, width: int, signed: bool) -> np.ndarray:
+    """``count`` consecutive big-endian ``width``-byte fields from ``offset`` of each row of
+    ``rows`` (uint8, 2-D), as int64 (n, count); two's complement when ``signed``."""
+    assert _unpack_ints is not None, "field_packing.AVAILABLE is False: numba is missing"
+    out = np.empty((rows.shape[0], count), dtype=np.int64)
+    _unpack_ints(rows, offset, width, signed, out)
+    return out
+
+
 @cache
 def _axis_bits(bits: tuple[int, ...]) -> np.ndarray:
     table = np.array(bits, dtype=np.uint8)
@@ -103,3 +128,6 @@ def warm_up() -> None:
     frames = np.zeros((1, 8), dtype=np.uint8)
     pack_triplet(frames, 0, 7, np.zeros((1, 3)), np.zeros(1, np.uint8), 1, 2, (1, 2, 4), 16)
     pack_ints(frames, 0, np.zeros((1, 1), dtype=np.int64), 2)
+    received = np.frombuffer(bytes(8), dtype=np.uint8).reshape(1, 8)   # a read block: read-only
+    for rows in (frames, received):
+        unpack_ints(rows, 0, 1, 2, True)

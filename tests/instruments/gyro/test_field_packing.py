@@ -94,3 +94,38 @@ def test_pack_ints_is_big_endian_twos_complement():
     field_packing.pack_ints(frames, 0, np.array([[0x1234]]), 2)
     field_packing.pack_ints(frames, 2, np.array([[-1, 0xABCDEF]]), 3)
     assert frames[0].tolist() == [0x12, 0x34, 0xFF, 0xFF, 0xFF, 0xAB, 0xCD, 0xEF]
+
+
+def _decoded_arrays(decoded) -> dict[str, np.ndarray]:
+    arrays = {name: value for name, value in vars(decoded).items() if isinstance(value, np.ndarray)}
+    arrays.update(decoded.channels.columns())
+    return arrays
+
+
+@pytest.mark.parametrize("datagram_type", TYPES)
+def test_compiled_field_reads_give_the_numpy_samples(monkeypatch, datagram_type):
+    """The decoder's fields read both ways from one stream: with garbage between frames
+    and a corrupted frame, so the general scan (gathered, writable rows) runs besides the
+    aligned one (read-only views of the received bytes)."""
+    frames, _ = _encode_both(monkeypatch, datagram_type, 7)
+    aligned = frames.tobytes()
+    broken = frames.copy()
+    broken[140, 2] ^= 0xFF
+    messy = frames[:100].tobytes() + b"\x00\x13garbage" + broken[100:].tobytes()
+    for stream in (aligned, messy):
+        decoded = {}
+        for compiled in (True, False):
+            monkeypatch.setattr(datagram, "_COMPILED", compiled)
+            decoder = datagram.FrameDecoder(datagram=datagram_type,
+                                            counter_step=counter_step(250.0),
+                                            accelerometer_range_g=10)
+            decoded[compiled] = decoder.feed(stream)
+        assert len(decoded[True]) > 0
+        assert decoded[True].crc_errors == (stream is messy)
+        assert decoded[True].crc_errors == decoded[False].crc_errors
+        assert decoded[True].garbage_bytes == decoded[False].garbage_bytes
+        ours, oracle = _decoded_arrays(decoded[True]), _decoded_arrays(decoded[False])
+        assert ours.keys() == oracle.keys()
+        for name, values in ours.items():
+            assert values.dtype == oracle[name].dtype, name
+            np.testing.assert_array_equal(values, oracle[name], err_msg=name)
