@@ -51,6 +51,11 @@ with time, or a ramp in |t − t0|, drew markov_bias at 1.0). The probes:
   apart, the BIC charge of a second column would not), and a **bias
   in the table's angular acceleration** dω/dt (deg/h per deg/s², non-zero in slews only):
   shapes that live in transitions (transitions.py says what they took the place of).
+* a **bias from table spin heating**: |ω| or ω² through a first-order memory of any of
+  ``SPIN_TAUS`` time constants (log-spaced from three bins to a third of the record), deg/h
+  per deg/s or per (deg/s)² once settled; and a **bias ∝ the net table turns** since the
+  start, ∫ω dt (deg/h per turn), a cable winding up. Shapes in the rate's history
+  (rate_history.py argues them and says what they took the place of).
 
 Each is scored like a catalogue effect (the Δχ² of its columns after the
 refitted base and the whitening); its threshold is the (1 − α) point of its
@@ -73,6 +78,7 @@ from enum import Enum
 import numpy as np
 from scipy import stats
 
+from gyrocal.analysis.discrepancy.rate_history import first_order_memory, net_turns
 from gyrocal.analysis.discrepancy.scoring import (
     Fit,
     Whitener,
@@ -93,6 +99,9 @@ ABS_RAMP_POSITIONS = 40
 #: catalogue's warm-up): 60 × 6 single columns, one matrix product against the null draws.
 DECAY_POSITIONS = 60
 DECAY_TAUS = 6
+#: Time constants the spin-heating probe tries, for |ω| and for ω² (log-spaced like the
+#: decaying step's): 2 × 8 single columns.
+SPIN_TAUS = 8
 #: Most frequencies the slow-sinusoid probe tries.
 MAX_FREQUENCIES = 200
 _DPH_PER_PPM_PER_DPS = 3600.0 * 1e-6
@@ -117,6 +126,8 @@ class ProbeKind(Enum):
     TEMP_RATE_SIGN = "bias by the sign of dT/dt"
     HEAT_COOL_LEVELS = "bias levels while heating and while cooling"
     TABLE_ACCEL = "bias in table angular acceleration"
+    SPIN_HEAT = "bias from table spin heating"
+    NET_TURNS = "bias in net table turns"
 
 
 @dataclass(frozen=True)
@@ -150,13 +161,22 @@ class ProbeInputs:
     def reduce(self, per_sample: np.ndarray) -> np.ndarray:
         return per_sample if self.bins is None else self.bins.mean(per_sample)
 
+    @property
+    def step_s(self) -> float:
+        """The spacing of the shapes' points: a bin's width, or the sample interval."""
+        return self.bins.width_s if self.bins is not None else float(self.t_s[1] - self.t_s[0])
+
 
 def probe_columns(kind: ProbeKind, where: float, x: ProbeInputs, tau_s: float = 0.0) -> np.ndarray:
     """The probe's regressors (n × dof) at ``where`` (a time, a frequency or a rate sign).
 
-    ``tau_s`` is the decaying step's time constant (the one probe with two shape parameters).
+    ``tau_s`` is the decaying step's and the spin heating's time constant (``where`` is the
+    spin heating's power of |ω|).
     """
     t = x.time_s
+    if kind is ProbeKind.SPIN_HEAT:
+        return first_order_memory(_cached(x, (kind, where), lambda: x.reduce(np.abs(x.rate_dps) ** where)),
+                                  x.step_s, tau_s)[:, None]
     if kind is ProbeKind.DECAYING_STEP:
         return np.where(t >= where, np.exp(-np.maximum(t - where, 0.0) / tau_s), 0.0)[:, None]
     if kind is ProbeKind.BIAS_STEP:
@@ -173,13 +193,16 @@ def probe_columns(kind: ProbeKind, where: float, x: ProbeInputs, tau_s: float = 
         return (np.abs(t - where) / 3600.0)[:, None]
     if kind is ProbeKind.SF_TIME_RAMP:      # ppm per hour: ω·1e-6·ppm·t/3600, deg/h
         return (_DPH_PER_PPM_PER_DPS * x.reduce(x.rate_dps) * t / 3600.0)[:, None]
-    key = (kind, where)
-    if x.bins is not None and key in x._cache:
-        return x._cache[key]
-    out = _sample_shape(kind, where, x)
-    if x.bins is not None:
-        x._cache[key] = out
-    return out
+    return _cached(x, (kind, where), lambda: _sample_shape(kind, where, x))
+
+
+def _cached(x: ProbeInputs, key: tuple, make) -> np.ndarray:
+    """A binned shape averaged over the samples once per record (per-sample shapes are not kept)."""
+    if x.bins is None:
+        return make()
+    if key not in x._cache:
+        x._cache[key] = make()
+    return x._cache[key]
 
 
 def _sample_shape(kind: ProbeKind, where: float, x: ProbeInputs) -> np.ndarray:
@@ -198,6 +221,8 @@ def _sample_shape(kind: ProbeKind, where: float, x: ProbeInputs) -> np.ndarray:
         return np.column_stack([x.reduce((sign > 0).astype(float)), x.reduce((sign < 0).astype(float))])
     if kind is ProbeKind.TABLE_ACCEL:
         return x.reduce(angular_acceleration_dps2(x.t_s, w))[:, None]
+    if kind is ProbeKind.NET_TURNS:
+        return x.reduce(net_turns(w, float(x.t_s[1] - x.t_s[0])))[:, None]
     if kind is ProbeKind.TEMP_CUBIC:
         dt = x.temp_c - float(np.mean(x.temp_c))
         return np.column_stack([x.reduce(dt * dt), x.reduce(dt ** 3)])
@@ -292,6 +317,10 @@ class Probe:
         if k is ProbeKind.DECAYING_STEP:
             return (f"a bias step of {s:+.3g} deg/h near t = {self.where:.0f} s decaying with "
                     f"τ {self.tau_s:.0f} s")
+        if k is ProbeKind.SPIN_HEAT:
+            rate, per = ("|ω|", "deg/s") if self.where == 1.0 else ("ω²", "(deg/s)²")
+            return (f"a bias from table spin heating: {rate} through a first-order memory of τ "
+                    f"{self.tau_s:.0f} s, {s:+.3g} deg/h per {per} once settled")
         if k is ProbeKind.RATE_SIGN_BIAS:
             return f"a bias by rate sign of ±{abs(s):.3g} deg/h ({'+' if s > 0 else '−'} for positive rates)"
         if k is ProbeKind.TEMP_RATE_SIGN:
@@ -314,6 +343,8 @@ _DESCRIPTIONS: dict[ProbeKind, str] = {
     ProbeKind.ABS_TIME_RAMP:
         "a bias ramp in |t − t0| of {s:+.3g} deg/h per hour turning at t0 = {where:.0f} s",
     ProbeKind.SF_TIME_RAMP: "a scale factor drifting by {s:+.3g} ppm per hour",
+    ProbeKind.NET_TURNS:
+        "a bias ∝ the net table turns since the start (a cable winding up) of {s:+.3g} deg/h per turn",
     ProbeKind.ABS_TEMP_RATE:
         "a bias in |dT/dt| of {s:+.3g} deg/h per degC/min (same sign heating and cooling)",
     ProbeKind.TEMP_RATE_X_TEMP: "a bias in dT/dt·(T − mean T) of {s:+.3g} deg/h per degC·degC/min",
@@ -405,6 +436,22 @@ def decaying_step_probe(fit: Fit, whitener: Whitener, x: ProbeInputs, z: np.ndar
     return _fitted(ProbeKind.DECAYING_STEP, t0, x, fit, whitener, threshold, count, null, tau)
 
 
+def spin_heat_probe(fit: Fit, whitener: Whitener, x: ProbeInputs, z: np.ndarray,
+                    alpha: float) -> Probe | None:
+    """The best of |ω| and ω² through a first-order memory, over time constants (one column each)."""
+    duration_s = x.duration_s
+    top = max(duration_s / 3.0, 6.0 * x.step_s)
+    taus = np.geomspace(min(3.0 * x.step_s, top / 2.0), top, SPIN_TAUS)
+    pairs = [(power, float(tau)) for power in (1.0, 2.0) for tau in taus]
+    columns = np.column_stack([probe_columns(ProbeKind.SPIN_HEAT, p, x, tau)[:, 0] for p, tau in pairs])
+    best = _best_column(columns, fit, whitener, z, alpha)
+    if best is None:
+        return None
+    k, threshold, null, count = best
+    power, tau = pairs[k]
+    return _fitted(ProbeKind.SPIN_HEAT, power, x, fit, whitener, threshold, count, null, tau)
+
+
 def _one_shape(kind: ProbeKind, x: ProbeInputs, fit: Fit, whitener: Whitener, z: np.ndarray,
                alpha: float) -> Probe | None:
     """A probe with one fixed shape of one or more columns (no search)."""
@@ -459,7 +506,9 @@ def all_probes(fit: Fit, whitener: Whitener, bins: Bins, x: ProbeInputs, z: np.n
               decaying_step_probe(fit, whitener, x, z, alpha)]
     if np.any(np.abs(x.rate_dps) > 0):
         probes += [_single_column_family(ProbeKind.SF_STEP, step_times, x, fit, whitener, z, alpha),
-                   _one_shape(ProbeKind.SF_TIME_RAMP, x, fit, whitener, z, alpha)]
+                   _one_shape(ProbeKind.SF_TIME_RAMP, x, fit, whitener, z, alpha),
+                   spin_heat_probe(fit, whitener, x, z, alpha),
+                   _one_shape(ProbeKind.NET_TURNS, x, fit, whitener, z, alpha)]
     if np.any(x.rate_dps > 0) and np.any(x.rate_dps < 0):
         probes += [_single_column_family(ProbeKind.ONE_SIGN_RATE2, np.array([1.0, -1.0]), x, fit,
                                          whitener, z, alpha),
