@@ -34,6 +34,11 @@ import discrepancy_scenarios as scenarios  # noqa: E402
 import validate_discrepancy as inside  # noqa: E402
 import validate_discrepancy_outside as outside  # noqa: E402
 
+from gyrocal.analysis.discrepancy.noise_model import NoiseModel  # noqa: E402
+from gyrocal.analysis.discrepancy.probes import ProbeInputs, ProbeKind, all_probes  # noqa: E402
+from gyrocal.analysis.discrepancy.scoring import Whitener, gls_fit, order_statistic_quantile  # noqa: E402
+from gyrocal.analysis.discrepancy.segments import make_bins  # noqa: E402
+from gyrocal.analysis.discrepancy.signatures import DesignBuilder, placeholder_spec  # noqa: E402
 from gyrocal.analysis.discrepancy.workflow import analyse  # noqa: E402
 
 NEIGHBOURS = ("markov_bias", "sf_asymmetry", "bias_ramp", "warmup_transient", "sf_nonlinearity_quadratic",
@@ -97,6 +102,74 @@ def jobs(group: str, profiles: list[str], seeds: int, controls: int) -> list[tup
     return out
 
 
+#: catalogue look-alikes of the rate-history shapes, with the shape parameters tried (the closest wins)
+LOOKALIKES = {"bias_ramp": [{}], "sf_asymmetry": [{}], "sf_nonlinearity_quadratic": [{}],
+              "warmup_transient": [{"tau_s": float(t)} for t in np.geomspace(60.0, 3000.0, 12)]}
+
+
+def separation(pname: str, snr: float = 10.0) -> None:
+    """Each unknown's whitened, base-projected binned shape at ``snr``: the SNR left once its closest
+    catalogue look-alike is fitted (the design separation d; the true noise, no analysis)."""
+    prof = profile(pname)
+    nominal = scenarios.nominal_model()
+    base = scenarios.true_base(nominal)
+    bins = make_bins(prof.t_s, prof.fs_hz, max_bins=1000)
+    builder = DesignBuilder(prof.inputs, bins)
+    whitener = Whitener(NoiseModel.of_model(nominal).bin_covariance(bins.centre_s, bins.width_s,
+                                                                    bins.samples_per_bin, prof.fs_hz))
+    fit = gls_fit(builder, whitener, bins.mean(builder.rate_dph(base)), base)
+
+    def unit(binned: np.ndarray) -> np.ndarray:
+        w = whitener.white(binned)
+        w = w - fit.basis @ (fit.basis.T @ w)
+        return w / np.linalg.norm(w)
+
+    for case, shape in UNKNOWN.items():
+        u = unit(bins.mean(shape(prof)))
+        left = {name: min(snr * np.sqrt(max(0.0, 1.0 - float(u @ unit(
+            builder.extra_columns(base, placeholder_spec(name, sh))[1][:, 0])) ** 2)) for sh in shapes)
+            for name, shapes in LOOKALIKES.items()}
+        name = min(left, key=left.get)
+        print(f"| {pname} | {case.replace('|', chr(92) + '|')} | {name} | {left[name]:.1f} |")
+
+
+def null_alpha(pname: str, draws: int, n_null: int = 300, alpha: float = 0.02) -> None:
+    """The probes' false alarms on effect-free whitened residuals, by the workflow's own null machinery.
+
+    One call of ``all_probes`` with ``n_null`` + ``draws`` standard-normal whitened columns: each
+    probe's null scores on the first ``n_null`` give its threshold (as in a run), its scores on
+    the rest stand for effect-free records (what the refit leaves of them under the true noise).
+    Counts: a rate-history probe above its own threshold, and the adequacy family (every probe's
+    best score against the family-wise threshold, ``adequacy.family_threshold``) with and without them.
+    """
+    prof = profile(pname)
+    nominal = scenarios.nominal_model()
+    base = scenarios.true_base(nominal)
+    bins = make_bins(prof.t_s, prof.fs_hz, max_bins=1000)
+    builder = DesignBuilder(prof.inputs, bins)
+    whitener = Whitener(NoiseModel.of_model(nominal).bin_covariance(bins.centre_s, bins.width_s,
+                                                                    bins.samples_per_bin, prof.fs_hz))
+    fit = gls_fit(builder, whitener, bins.mean(builder.rate_dph(base)), base)
+    x = ProbeInputs(prof.t_s, prof.table_rate_dps, prof.chamber_temp_c, np.zeros_like(prof.t_s),
+                    bins=bins, reference_temp_c=nominal.reference_temp_c)
+    z = np.random.default_rng(2029).standard_normal((bins.n_bins, n_null + draws))
+    probes = all_probes(fit, whitener, bins, x, z, alpha)
+    rate_history = (ProbeKind.SPIN_HEAT, ProbeKind.NET_TURNS)   # here: the tool also runs the code before them
+
+    def alarms(chosen: list) -> np.ndarray:
+        null = np.vstack([p.null[:n_null] for p in chosen]).max(axis=0)
+        data = np.vstack([p.null[n_null:] for p in chosen]).max(axis=0)
+        return data > order_statistic_quantile(null, 1.0 - alpha)
+
+    own = np.zeros(draws, dtype=bool)
+    for p in (p for p in probes if p.kind in rate_history):
+        own |= p.null[n_null:] > order_statistic_quantile(p.null[:n_null], 1.0 - alpha)
+    with_all = alarms(probes)
+    without = alarms([p for p in probes if p.kind not in rate_history])
+    print(f"| {pname} | {draws} | {own.sum()} | {with_all.sum()} | {without.sum()} | "
+          f"{(with_all & ~without).sum()} |")
+
+
 def table(path: str) -> None:
     rows: dict[tuple[str, str], list[dict]] = defaultdict(list)
     for line in Path(path).read_text().splitlines():
@@ -125,9 +198,21 @@ def main() -> None:
     parser.add_argument("--controls", type=int, default=100)
     parser.add_argument("--out", default="")
     parser.add_argument("--table", default="", help="print the Markdown rows of a JSON-lines file and stop")
+    parser.add_argument("--separation", action="store_true",
+                        help="print each unknown's SNR left after its closest catalogue look-alike and stop")
+    parser.add_argument("--null-draws", type=int, default=0,
+                        help="count the probes' false alarms on this many effect-free whitened draws and stop")
     args = parser.parse_args()
+    if args.null_draws:
+        for pname in args.profiles.split(","):
+            null_alpha(pname, args.null_draws)
+        return
     if args.table:
         table(args.table)
+        return
+    if args.separation:
+        for pname in args.profiles.split(","):
+            separation(pname)
         return
     with open(args.out or "/dev/stdout", "a", encoding="utf-8") as out:
         for pname, case, seed in jobs(args.group, args.profiles.split(","), args.seeds, args.controls):
