@@ -161,12 +161,13 @@ def null_alpha(pname: str, draws: int, n_null: int = 300, alpha: float = 0.02) -
         data = np.vstack([p.null[n_null:] for p in chosen]).max(axis=0)
         return data > order_statistic_quantile(null, 1.0 - alpha)
 
-    own = np.zeros(draws, dtype=bool)
-    for p in (p for p in probes if p.kind in rate_history):
-        own |= p.null[n_null:] > order_statistic_quantile(p.null[:n_null], 1.0 - alpha)
+    each = {p.kind: p.null[n_null:] > order_statistic_quantile(p.null[:n_null], 1.0 - alpha)
+            for p in probes if p.kind in rate_history}
+    own = np.any(np.vstack(list(each.values())), axis=0)
     with_all = alarms(probes)
     without = alarms([p for p in probes if p.kind not in rate_history])
-    print(f"| {pname} | {draws} | {own.sum()} | {with_all.sum()} | {without.sum()} | "
+    print(f"| {pname} | {draws} | {' / '.join(str(v.sum()) for v in each.values())} | {own.sum()} | "
+          f"{with_all.sum()} | {without.sum()} | "
           f"{(with_all & ~without).sum()} |")
 
 

@@ -25,18 +25,21 @@ spin heating → markov_bias and sf_asymmetry, cable wind-up → bias_ramp and s
 Both are evaluated on the samples' grid or on equal bins with the same formula
 (``first_order_memory``), exact for an input held constant over each step.
 
-Measured on own cases (``benchmarks/validate_rate_history.py``: profiles P1, Q1, Q2, 10σ by
-known-shape SNR, spin heating ω² τ 150 and 800 s and |ω| τ 400 s, net turns; 2 seeds each):
-before the probes 15 of 24 runs `unexplained` (the spin heating described as a slow sinusoid) and 10
-with a wrong claim ≥ 0.8 (net turns →
-bias_ramp 0.86–1.0 in 6 of 6, spin heating on Q2 → markov_bias 0.91–1.0 in 4 of 6); after,
-23 of 24 `unexplained` with the probe in ``where``, 1 wrong claim ≥ 0.8 (net turns on Q2,
-bias_ramp 0.96: there the net angle is mostly the four one-way turns' staircase, and 4.9σ
-of its 10σ is left once a ramp is fitted). The 10σ neighbours (markov_bias τ 300 s,
-sf_asymmetry, bias_ramp, warmup_transient, sf_nonlinearity_quadratic, thermal_lag; 36 runs)
-come out the same but for one bias_ramp at 0.98 instead of 0.99. CPU: 0.016 s for the first
-call on a P2-sized record (930 000 samples, 2000 bins, 500 null draws), 0.01 s each later
-call; 0.09 s first call on 10 M samples (``benchmarks/bench_rate_history_probes.py``).
+Measured on own cases (``benchmarks/validate_rate_history.py``; docs/discrepancy-validation.md,
+"Rate-history probes"): profiles P1, Q1–Q3 at 10σ by known-shape SNR, spin heating ω² τ 150
+and 800 s and |ω| τ 400 s, net turns, 2 seeds each. Before these probes 23 of 32 runs were
+`unexplained` (described as a slow sinusoid, a bias by rate sign, a cubic in time) and 10 had a
+wrong claim ≥ 0.8 (net turns → bias_ramp 0.86–1.0 in 6 of 8, spin heating on Q2 →
+markov_bias 0.91–1.0 in 4 of 6); after, 31 of 32 `unexplained` with the probe in ``where`` and
+1 wrong claim ≥ 0.8 (net turns on Q2, bias_ramp 0.96; 7 of 8 seeds there `unexplained`: Q2's
+net angle is mostly the staircase of its one-way turns, and 4.9σ of the 10σ is left once a
+ramp is fitted). The 10σ neighbours (markov_bias τ 300 s, sf_asymmetry, bias_ramp,
+warmup_transient, sf_nonlinearity_quadratic, thermal_lag; 48 runs) named first 45 of 48
+before and after, 47 runs identical, one bias_ramp at 0.98 instead of 0.99. Effect-free: 300
+controls (P1, Q1, Q2) no claim ≥ 0.8 and no `where` naming these probes; on 3000 null draws
+each of P1, Q1–Q3, P2 the adequacy family fires 0–1 times more with them. CPU: 0.016 s for the
+first call on a P2-sized record (930 000 samples, 2000 bins, 500 null draws), 0.01 s each
+later call; 0.09 s first call on 10 M samples (``benchmarks/bench_rate_history_probes.py``).
 """
 
 from __future__ import annotations
