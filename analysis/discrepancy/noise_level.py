@@ -99,6 +99,11 @@ CLIP_SIGMA = 5.0
 #: Pulse-counter rate-noise variance, as a fraction of the white noise's, above which the test
 #: is not judged (its own scatter changes with the angle moved per sample).
 QUANTIZATION_SHARE_MAX = 0.01
+#: Order of the polynomial in time removed from each window: a slew at constant acceleration
+#: turns an SF error into a line in time and a rate-dependent term's curvature into a parabola.
+DETREND_ORDER = 2
+#: The slewing covariate needs at least this many slewing and this many other windows.
+MIN_CLASS_WINDOWS = 20
 #: |rate| scale of the logarithmic rate covariate, deg/s.
 RATE_SCALE_DPS = 1.0
 
@@ -127,6 +132,7 @@ class NoiseLevel:
     windows: int
     not_judged: str = ""        # why the test was not run, if it was not
     slope: float = 0.0          # d ln σ² / d covariate of the fitted law
+    slewing: int = 0            # of ``windows``, those inside a constant-acceleration slew
 
     @property
     def fires(self) -> bool:
@@ -139,7 +145,7 @@ class NoiseLevel:
             return f"noise level against |rate|, temperature and time not judged: {self.not_judged}"
         verdict = self.description if self.fires else "the white-noise level is steady"
         return (f"{verdict}: largest log-variance slope t² {self.statistic:.1f} ({self.covariate}) over "
-                f"{self.windows} steady windows, threshold {self.threshold:.1f} (noise_level.py)")
+                f"{self.windows} windows ({self.slewing} of them slewing), threshold {self.threshold:.1f} (noise_level.py)")
 
     @property
     def whole_account(self) -> float:
@@ -155,8 +161,9 @@ def noise_level_test(ctx: Context, after: Fit) -> NoiseLevel:
     if why:
         return NoiseLevel(0.0, math.inf, "", 1.0, "", 0, why)
     windows = _windows(ctx)
-    log_var, nu, used = _window_log_variances(ctx.resid_full(after), windows, ctx.log.table_rate_dps)
-    covariates = _covariates(ctx, windows, used)
+    steady, slewing = _window_classes(windows, ctx.log.table_rate_dps)
+    log_var, nu, used = _window_log_variances(ctx.resid_full(after), windows, steady | slewing)
+    covariates = _covariates(ctx, windows, used, slewing[used])
     if len(log_var) < 20 or not covariates:
         return NoiseLevel(0.0, math.inf, "", 1.0, "", len(log_var), "too few steady windows")
     weight = 1.0 / polygamma(1, nu / 2.0)
@@ -167,7 +174,7 @@ def noise_level_test(ctx: Context, after: Fit) -> NoiseLevel:
     cov = covariates[best]
     ratio, description = _describe(cov, float(slopes[best, 0]))
     return NoiseLevel(float(t2[best, 0]), threshold, cov.key, ratio, description, len(log_var),
-                      slope=float(slopes[best, 0]))
+                      slope=float(slopes[best, 0]), slewing=int(np.count_nonzero(slewing[used])))
 
 
 def judged_by_level(ctx: Context, after: Fit, found: list[FoundEffect], level: NoiseLevel) -> list[FoundEffect]:
@@ -205,6 +212,12 @@ def _bin_covariate(ctx: Context, key: str) -> np.ndarray:
         return np.log1p(np.abs(bins.mean(log.table_rate_dps)) / RATE_SCALE_DPS)
     if key == "temperature":
         return bins.mean(log.chamber_temp_c)
+    if key == "slewing":
+        windows = _windows(ctx)
+        _, slewing = _window_classes(windows, log.table_rate_dps)
+        per_sample = np.zeros(len(log.t_s))
+        per_sample[: windows.per_window * windows.count] = np.repeat(slewing.astype(float), windows.per_window)
+        return bins.mean(per_sample)
     return bins.centre_s / 3600.0
 
 
@@ -253,37 +266,49 @@ def _windows(ctx: Context) -> Windows:
     return Windows(per, n // per)
 
 
-def _window_log_variances(resid_dph: np.ndarray, windows: Windows, rate_dps: np.ndarray
-                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """ln of each steady window's variance about its own line, its ν, and which windows were used."""
-    r = windows.shape(resid_dph)
+def _window_classes(windows: Windows, rate_dps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(steady, slewing) per window: the rate constant, or changing at a constant acceleration.
+
+    A window that holds a rate step or a slew's start or end (a kink in the rate) is
+    neither: its residual carries the rate-dependent terms' kink, which no low-order
+    polynomial in time removes.
+    """
     rate = windows.shape(rate_dps)
-    moving = np.ptp(rate, axis=1) > RATE_CHANGE_DPS + 1e-6 * np.max(np.abs(rate), axis=1)
-    steady = ~moving
+    tol = RATE_CHANGE_DPS + 1e-6 * np.max(np.abs(rate), axis=1)
+    steady = np.ptp(rate, axis=1) <= tol
+    off_line = np.max(np.abs(_detrended(rate, order=1)), axis=1)
+    return steady, ~steady & (off_line <= 0.5 * tol)
+
+
+def _window_log_variances(resid_dph: np.ndarray, windows: Windows, keep: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """ln of each kept window's variance about its own quadratic, its ν, and which windows were used."""
+    r = windows.shape(resid_dph)
     m = windows.per_window
-    r = _detrended(r[steady])
+    r = _detrended(r[keep])
     # the window's robust σ: its median absolute residual (one partition; the median proper
     # averages two middle values, a second partition on 10 M samples for nothing)
     scale = 1.4826 * np.partition(np.abs(r), m // 2, axis=1)[:, m // 2: m // 2 + 1]
-    # a spike pulls its window's line too, so clip about the line and fit it again, twice
+    # a spike pulls its window's curve too, so clip about the curve and fit it again, twice
     for _ in range(2):
         r = _detrended(np.clip(r, -CLIP_SIGMA * scale, CLIP_SIGMA * scale))
-    nu = np.full(r.shape[0], float(m - 2))
+    nu = np.full(r.shape[0], float(m - 1 - DETREND_ORDER))
     ss = np.einsum("ij,ij->i", r, r)
     good = ss > 0
-    used = np.flatnonzero(steady)[good]
+    used = np.flatnonzero(keep)[good]
     # ln(s²) has mean ln σ² + ψ(ν/2) − ln(ν/2): a constant when ν is, so the slopes need no correction
     return np.log(ss[good] / nu[good]), nu[good], used
 
 
-def _detrended(r: np.ndarray) -> np.ndarray:
-    """Each row less its own least-squares line."""
+def _detrended(r: np.ndarray, order: int = DETREND_ORDER) -> np.ndarray:
+    """Each row less its own least-squares polynomial of ``order`` in the sample index."""
     k = np.arange(r.shape[1]) - 0.5 * (r.shape[1] - 1)
-    r = r - r.mean(axis=1, keepdims=True)
-    return r - np.outer(r @ k / (k @ k), k)
+    basis, _ = np.linalg.qr(np.vander(k / max(k[-1], 1.0), order + 1, increasing=True))
+    return r - (r @ basis) @ basis.T
 
 
-def _covariates(ctx: Context, windows: Windows, used: np.ndarray) -> list[Covariate]:
+def _covariates(ctx: Context, windows: Windows, used: np.ndarray, slewing: np.ndarray) -> list[Covariate]:
+    """The covariates per used window; ``slewing`` marks the used windows inside a slew."""
     log = ctx.log
     abs_rate = np.abs(windows.shape(log.table_rate_dps).mean(axis=1))[used]
     temp = windows.shape(log.chamber_temp_c).mean(axis=1)[used]
@@ -296,6 +321,9 @@ def _covariates(ctx: Context, windows: Windows, used: np.ndarray) -> list[Covari
         out.append(Covariate("temperature", temp, temp, "chamber temperature", "°C"))
     if hours.size:
         out.append(Covariate("time", hours, hours, "time in the record", "h"))
+    if min(np.count_nonzero(slewing), np.count_nonzero(~slewing)) >= MIN_CLASS_WINDOWS:
+        flag = slewing.astype(float)
+        out.append(Covariate("slewing", flag, flag, "the table slewing", ""))
     return out
 
 
@@ -322,7 +350,10 @@ def _describe(cov: Covariate, slope: float) -> tuple[float, str]:
     lo, hi = int(np.argmin(cov.shown)), int(np.argmax(cov.shown))
     ratio = math.exp(0.5 * slope * (cov.values[hi] - cov.values[lo]))
     verb = "grows" if ratio >= 1.0 else "falls"
-    if cov.key == "time":
+    if cov.key == "slewing":
+        text = (f"white-noise level {'higher' if ratio >= 1.0 else 'lower'} while the table slews "
+                f"(×{ratio:.3g} against steady rates)")
+    elif cov.key == "time":
         text = (f"white-noise level drifts over the record (×{ratio:.3g} from the start to "
                 f"{cov.shown[hi]:.2g} h)")
     else:
