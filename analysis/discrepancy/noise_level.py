@@ -102,6 +102,11 @@ QUANTIZATION_SHARE_MAX = 0.01
 #: Order of the polynomial in time removed from each window: a slew at constant acceleration
 #: turns an SF error into a line in time and a rate-dependent term's curvature into a parabola.
 DETREND_ORDER = 2
+#: A window whose variance exceeds this many times the median window's is left out: a kink in
+#: the output inside a slew (the rate crossing a dead zone's edge: 10σ dead_zone 2 deg/s left
+#: unmodelled on Q2 fired 20 of 20 before) is no noise level. On noise alone (ν = 7) a window
+#: passes it with probability about 1e-24, and a noise level may grow 4.5-fold and stay in.
+OUTLYING_VARIANCE_RATIO = 20.0
 #: The slewing covariate needs at least this many slewing and this many other windows.
 MIN_CLASS_WINDOWS = 20
 #: |rate| scale of the logarithmic rate covariate, deg/s.
@@ -294,7 +299,7 @@ def _window_log_variances(resid_dph: np.ndarray, windows: Windows, keep: np.ndar
         r = _detrended(np.clip(r, -CLIP_SIGMA * scale, CLIP_SIGMA * scale))
     nu = np.full(r.shape[0], float(m - 1 - DETREND_ORDER))
     ss = np.einsum("ij,ij->i", r, r)
-    good = ss > 0
+    good = (ss > 0) & (ss <= OUTLYING_VARIANCE_RATIO * np.median(ss))
     used = np.flatnonzero(keep)[good]
     # ln(s²) has mean ln σ² + ψ(ν/2) − ln(ν/2): a constant when ν is, so the slopes need no correction
     return np.log(ss[good] / nu[good]), nu[good], used
