@@ -48,11 +48,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import fft as sp_fft
 
-from gyrocal.analysis.discrepancy.candidates import PERIODIC
+from gyrocal.analysis.discrepancy.candidates import PERIODIC, QUANTIZATION
 from gyrocal.analysis.discrepancy.context import Context
 from gyrocal.analysis.discrepancy.lookalikes import real_probability
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.analysis.discrepancy.periodic import max_exponential_score, sine_dph
+from gyrocal.analysis.discrepancy.quantization import line_within_quantization
 from gyrocal.analysis.discrepancy.result import FoundEffect
 from gyrocal.analysis.discrepancy.scoring import Fit
 from gyrocal.analysis.discrepancy.segments import RATE_CHANGE_DPS
@@ -69,6 +70,8 @@ RATE_QUANTILES = (0.5, 0.75, 0.9)
 #: span (s) over which it is read.
 TEMP_RATE_C_PER_MIN = 0.1
 TEMP_RATE_SPAN_S = 60.0
+#: Lowest level (over the noise model's PSD) a part's periodogram is divided by.
+MIN_LEVEL = 0.5
 #: Fewer band bins than this: nothing is judged.
 _MIN_BAND_BINS = 32
 
@@ -90,6 +93,7 @@ class BandedLine:
     phrase: str
     freq_hz: float
     power: float           # the part's normalised power at the line (Exp(1) under noise)
+    amplitude_dph: float   # the line's amplitude where the part's weight is 1
     whole_power: float     # the whole record's at the same frequency
     n_cells: float         # parts × band bins (the union bound's count)
     n_parts: int
@@ -135,8 +139,10 @@ def banded_line(ctx: Context, after: Fit, found: list[FoundEffect]
     log = ctx.log
     line = banded_scan(high_passed(resid, ctx.bins.samples_per_bin), ctx.fs_hz, ctx.noise,
                        0.5 / ctx.bins.width_s, record_parts(log.table_rate_dps, log.chamber_temp_c, ctx.fs_hz))
-    if line is None or not line.part_only:
-        return found, None
+    pulse = after.model.effect(QUANTIZATION)
+    if line is None or not line.part_only or (pulse is not None and line_within_quantization(
+            line.amplitude_dph, line.freq_hz, pulse["pulse_arcsec"])):
+        return found, None      # none, or the pulse counter's beat (bounded in angle), as periodic.py's search
     margin = 2.0 / (log.t_s[-1] - log.t_s[0])
     whole = 1.0 - real_probability(line.score, line.threshold)
     return [replace(f, probability=f.probability * whole)
@@ -194,20 +200,31 @@ def banded_scan(resid_dph: np.ndarray, fs_hz: float, noise: NoiseModel, f_lo_hz:
     if np.count_nonzero(band) < _MIN_BAND_BINS or not parts:
         return None
     psd = noise.psd_two_sided(f[band], fs_hz)
-    best: tuple[float, int, Part] | None = None
+    best: tuple[float, int, Part, float] | None = None
     for part in parts:
-        ratio = _normalised(r * part.weight, float(part.weight @ part.weight), fs_hz, psd, band)
+        ratio, level = _normalised(r * part.weight, float(part.weight @ part.weight), fs_hz, psd, band)
         k = int(np.argmax(ratio))
         if best is None or ratio[k] > best[0]:
-            best = (float(ratio[k]), k, part)
+            best = (float(ratio[k]), k, part, level)
     assert best is not None
-    power, k, part = best
-    whole = _normalised(r, float(n), fs_hz, psd, band)
-    return BandedLine(part.key, part.phrase, float(f[band][k]), power, float(whole[k]),
+    power, k, part, level = best
+    whole, _ = _normalised(r, float(n), fs_hz, psd, band)
+    # a sine A·w(t) puts |Σ w·r·e|² = (A·Σw²/2)² at its frequency: A from the normalised power
+    sum_w2 = float(part.weight @ part.weight)
+    amplitude = 2.0 * math.sqrt(power * level * fs_hz * float(psd[k]) / sum_w2)
+    return BandedLine(part.key, part.phrase, float(f[band][k]), power, amplitude, float(whole[k]),
                       float(len(parts) * np.count_nonzero(band)), len(parts))
 
 
-def _normalised(x: np.ndarray, sum_w2: float, fs_hz: float, psd: np.ndarray, band: np.ndarray) -> np.ndarray:
-    """|FFT|² over Σw²·fs·PSD in the band, re-levelled by its median (Exp(1) bins under noise)."""
+def _normalised(x: np.ndarray, sum_w2: float, fs_hz: float, psd: np.ndarray, band: np.ndarray
+                ) -> tuple[np.ndarray, float]:
+    """|FFT|² over Σw²·fs·PSD in the band, re-levelled by its median (Exp(1) bins under noise), and the level.
+
+    The level is not taken below ``MIN_LEVEL`` of the noise model's: a part where the
+    output holds still (a dead zone at rest) has almost no noise, and its tiny median
+    would blow any leftover of the model's own slow terms up into a "line" (10σ
+    dead_zone unmodelled: 20 of 20 fired at 0.18 Hz "only while the table is at rest").
+    """
     power = np.abs(sp_fft.rfft(x, workers=1)[band]) ** 2 / (sum_w2 * fs_hz) / psd
-    return power * (math.log(2.0) / float(np.median(power)))
+    level = max(float(np.median(power)) / math.log(2.0), MIN_LEVEL)
+    return power / level, level
