@@ -206,7 +206,7 @@ def banded_scan(resid_dph: np.ndarray, fs_hz: float, noise: NoiseModel, f_lo_hz:
     psd = psd * _shape(whole_power / psd, f[band])
     best: tuple[float, int, Part, float] | None = None
     for part in parts:
-        ratio, level = _normalised(r * part.weight, part.weight, fs_hz, psd, band)
+        ratio, level = _normalised((r * part.weight).astype(np.float32), part.weight, fs_hz, psd, band)
         k = int(np.argmax(ratio))
         if best is None or ratio[k] > best[0]:
             best = (float(ratio[k]), k, part, level)
@@ -255,12 +255,13 @@ def _normalised(x: np.ndarray, weight: np.ndarray, fs_hz: float, psd: np.ndarray
     output holds still (a dead zone at rest) has almost no noise, and its tiny median
     would blow any leftover of the model's own slow terms up into a "line".
     """
+    # single precision: half the CPU of the 2 FFTs per part (0.53 → 0.3 s on P2), errors ~1e-6 of a bin
     spectrum = sp_fft.rfft(x, workers=1)
     k = np.flatnonzero(band)
-    big_x = spectrum[k]
+    big_x = spectrum[k].astype(complex)
     w2 = weight * weight
     s_w2 = float(np.sum(w2))
-    squared = sp_fft.rfft(w2, workers=1)
+    squared = sp_fft.rfft(w2.astype(np.float32), workers=1)
     m = 2 * k
     c = np.where(m <= x.size // 2, squared[np.minimum(m, squared.size - 1)],
                  np.conj(squared[np.clip(x.size - m, 0, squared.size - 1)]))
