@@ -50,6 +50,7 @@ from scipy import fft as sp_fft
 
 from gyrocal.analysis.discrepancy.candidates import PERIODIC, QUANTIZATION
 from gyrocal.analysis.discrepancy.context import Context
+from gyrocal.analysis.discrepancy.line_drift import window
 from gyrocal.analysis.discrepancy.lookalikes import real_probability
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.analysis.discrepancy.periodic import max_exponential_score, sine_dph
@@ -139,8 +140,12 @@ def banded_line(ctx: Context, after: Fit, found: list[FoundEffect]
     if spec is not None:
         resid = resid + sine_dph(spec["freq_hz"], spec["amplitude_dph"], ctx.log.t_s)
     log = ctx.log
-    line = banded_scan(high_passed(resid, ctx.bins.samples_per_bin), ctx.fs_hz, ctx.noise,
-                       0.5 / ctx.bins.width_s, record_parts(log.table_rate_dps, log.chamber_temp_c, ctx.fs_hz))
+    # a record over 2^20 samples: the window with the widest temperature span, as line_drift.py
+    # (chosen from the temperature alone; 10 M samples took 13 s CPU whole, 27 FFTs of 10 M)
+    cut = slice(*window(log.chamber_temp_c, len(resid)))
+    line = banded_scan(high_passed(resid[cut], ctx.bins.samples_per_bin), ctx.fs_hz, ctx.noise,
+                       0.5 / ctx.bins.width_s,
+                       record_parts(log.table_rate_dps[cut], log.chamber_temp_c[cut], ctx.fs_hz))
     pulse = after.model.effect(QUANTIZATION)
     if line is None or not line.part_only or (pulse is not None and line_within_quantization(
             line.amplitude_dph, line.freq_hz, pulse["pulse_arcsec"])):
