@@ -24,15 +24,29 @@ leak across the band). Divided by Σw²·fs·PSD and by its median over the band
 (a) Whether there is a line: the largest normalised power over every part and
 every frequency from the bins' Nyquist to the record's, against the union
 bound over all those cells (``max_exponential_score``), at ``ALPHA_BANDED`` =
-0.5 %, what this test may add to the family-wise false alarms. The bound is
-conservative (a part's bins are correlated through its gaps); the measured
-rate is in benchmarks/validate_banded_line.py.
+0.2 % nominal. At 0.5 % nominal it fired on 6 of 400 effect-free draws (P1,
+Q2, Q3): the threshold sits near 17–19 Exp(1) units, where a level a few per
+cent off multiplies the tail (e^(s·δ)); the PSD's shape read from the whole
+record (``_shape``) and the non-circular covariance (``_normalised``) did not
+remove it on P1, so the bound is set lower to keep the measured rate within
+the 0.5 % this test may add.
 (b) Whether it is only in part: the part's power (½Δχ² of a sine fitted there
 alone) must beat the whole record's at the same frequency (½Δχ² of the
 catalogue's constant sine, the same two parameters) by ln(parts/``PART_ALPHA``),
 the union bound over the parts tried. A constant line gives each part only its
 share p of the whole record's power, so it never passes; periodic_interference
 keeps it.
+
+Measured (benchmarks/validate_banded_line.py, the test on the base refit):
+effect-free controls fired 1 of 700 (P1, Q2, Q3 200 each, Q1 100); 10σ (‖s‖/σ)
+lines found as part-only: ∝ |ω| at 0.29·fs 50 of 50 on P1, Q1, Q2, Q3 each;
+∝ |ω|⁶ 25 of 50 on P1 (5 Hz: few top-rate samples), 50 of 50 on Q1–Q3; only
+while cooling 50 of 50 on all four; a constant 10σ line part-only 0 of 200.
+CPU 0.004–0.05 s on those, 0.39 s on P2 (930,000 samples, 27 single-precision
+FFTs), 0.3 s on 10 M samples (the ``window``). In the workflow, 10σ
+periodic_interference, markov_bias (τ 30, 300 s), sf_nonlinearity_quadratic/
+cubic, temp_rate_bias and controls on P1 and Q2 (2 seeds each): 28 of 28 runs
+unchanged.
 
 When both hold the result is unexplained, ``where`` gives the frequency and
 the part, and a periodic_interference named within two Fourier bins of the
