@@ -64,7 +64,7 @@ from scipy import fft as sp_fft
 
 from gyrocal.analysis.discrepancy.candidates import PERIODIC, QUANTIZATION
 from gyrocal.analysis.discrepancy.context import Context
-from gyrocal.analysis.discrepancy.line_drift import window
+from gyrocal.analysis.discrepancy.line_drift import DriftLine, window
 from gyrocal.analysis.discrepancy.lookalikes import real_probability
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.analysis.discrepancy.periodic import max_exponential_score, sine_dph
@@ -141,11 +141,17 @@ class BandedLine:
                 f"threshold {self.threshold:.1f})")
 
 
-def banded_line(ctx: Context, after: Fit, found: list[FoundEffect]
+def banded_line(ctx: Context, after: Fit, found: list[FoundEffect], drift: DriftLine | None = None
                 ) -> tuple[list[FoundEffect], BandedLine | None]:
     """After the last refit: a line in part of the record, and the named effects it leaves.
 
-    Returns the line only when it is present and only in part; a named
+    Returns the line only when it is present, only in part, and not a drifting line
+    found by line_drift.py (``drift``) seen in one part: a drift whose frequencies
+    cover the line and whose coherent power is at least the part's is the fuller
+    account (a line drifting 0.15 %/°C showed as 24 in one quarter against 68 along
+    its track). The converse happens too: an intermittent line can read as a spurious
+    drift (a cooling-only line: −5.2 %/hour at power 28 against 46 in its part),
+    and then this line is kept and said first. A named
     periodic_interference within two Fourier bins of it then has its probability
     multiplied by ``1 − real_probability(score, threshold)``.
     """
@@ -162,13 +168,26 @@ def banded_line(ctx: Context, after: Fit, found: list[FoundEffect]
                        record_parts(log.table_rate_dps[cut], log.chamber_temp_c[cut], ctx.fs_hz))
     pulse = after.model.effect(QUANTIZATION)
     if line is None or not line.part_only or (pulse is not None and line_within_quantization(
-            line.amplitude_dph, line.freq_hz, pulse["pulse_arcsec"])):
+            line.amplitude_dph, line.freq_hz, pulse["pulse_arcsec"])) or _drift_covers(ctx, drift, line):
         return found, None      # none, or the pulse counter's beat (bounded in angle), as periodic.py's search
     margin = 2.0 / (log.t_s[-1] - log.t_s[0])
     whole = 1.0 - real_probability(line.score, line.threshold)
     return [replace(f, probability=f.probability * whole)
             if f.name == PERIODIC and abs(f.parameters.get("freq_hz", math.nan) - line.freq_hz) <= margin
             else f for f in found], line
+
+
+def _drift_covers(ctx: Context, drift: DriftLine | None, line: BandedLine) -> bool:
+    """Whether the drifting line crosses the line's frequency (two bins' margin) with at least its power."""
+    if drift is None or drift.power < line.power:
+        return False
+    freq_hz = line.freq_hz
+    log = ctx.log
+    temp = log.sensor_temp_c if log.sensor_temp_c is not None else log.chamber_temp_c
+    x = np.asarray(temp if drift.covariate == "temperature" else log.t_s - log.t_s[0], dtype=float)
+    lo, hi = drift.span_hz(x - float(np.mean(x)))
+    margin = 2.0 / (log.t_s[-1] - log.t_s[0])
+    return lo - margin <= freq_hz <= hi + margin
 
 
 def high_passed(resid_dph: np.ndarray, per_bin: int) -> np.ndarray:

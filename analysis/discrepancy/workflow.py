@@ -371,7 +371,7 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     level = noise_level_test(ctx, after)
     found = judged_by_level(ctx, after, found, level)
     found, drift = drifting_line(ctx, after, found)   # line_drift.py: a line the fixed-line search smears
-    found, banded = banded_line(ctx, after, found)   # banded_line.py: a line it dilutes (part of the record)
+    found, banded = banded_line(ctx, after, found, drift)   # banded_line.py: a line it dilutes (part of the record)
     split = split_check(ctx, after, found)   # split_check.py: a named effect whose size differs by part
     found = judged_by_split(found, split)
     structure_left = (search.preempted is not None or search.nonstationary is not None or test.inadequate
