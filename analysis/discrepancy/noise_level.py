@@ -101,6 +101,8 @@ from gyrocal.analysis.discrepancy.scoring import (
 from gyrocal.analysis.discrepancy.segments import RATE_CHANGE_DPS
 from gyrocal.analysis.discrepancy.signatures import effect_columns
 
+#: Seed of the test's own null draws (with the number of windows).
+NULL_STREAM = 2911
 #: Family-wise false-alarm rate this test may add.
 ALPHA_NOISE_LEVEL = 0.005
 #: Effect-free draws of the covariates' slopes for the threshold (cheap: one normal vector each).
@@ -191,7 +193,9 @@ def noise_level_test(ctx: Context, after: Fit) -> NoiseLevel:
     x = np.column_stack([c.values for c in covariates])
     t2, slopes = _slope_t2(x, log_var[:, None], weight)
     best = int(np.argmax(t2[:, 0]))
-    threshold = _family_threshold(x, weight, ctx.rng)
+    # its own stream, seeded from the data's size: the family's width (4 or 5 covariates) must
+    # not move the draws of the tests after it (a split-check case sat on its threshold)
+    threshold = _family_threshold(x, weight, np.random.default_rng([NULL_STREAM, len(log_var)]))
     cov = covariates[best]
     ratio, description = _describe(cov, float(slopes[best, 0]))
     return NoiseLevel(float(t2[best, 0]), threshold, cov.key, ratio, description, len(log_var),
