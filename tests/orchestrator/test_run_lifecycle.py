@@ -43,6 +43,7 @@ def test_a_signal_at_every_phase_exits_3_quietly_and_resumes_to_a_verified_run(h
                                                                                  capsys,
                                                                                  monkeypatch,
                                                                                  fork_server):
+    without_report_figures(monkeypatch)      # figures are not the point, here nor below
     procedure = short_procedure(h, tmp_path)
     reference = tmp_path / "reference"
     assert main(["run", str(procedure), "--sim", "--out", str(reference), "--seed", "5",
@@ -56,7 +57,6 @@ def test_a_signal_at_every_phase_exits_3_quietly_and_resumes_to_a_verified_run(h
     points += [(f"after:{completed}", "SIGTERM" if completed % 2 else "SIGINT"),
                (f"after:{len(names)}", "SIGTERM" if len(names) % 2 else "SIGINT"),
                (f"before:{steps_done + 1}", "SIGINT"), (f"before:{steps_done + 1}", "SIGTERM")]
-    without_report_figures(monkeypatch)      # the resumes below: figures are not the point
     for at, name in points:
         _signal_resume_verify(fork_server, h, procedure, tmp_path / "s" / f"{at.replace(':', '-')}"
                               f"-{name}", at, name, completed, capsys)
