@@ -33,7 +33,7 @@ JOBS ?= $(shell echo $$(( 2 * $$(nproc 2>/dev/null || echo 1) )))
 SOURCES := gyrocal models instruments record analysis metrology orchestrator reports app tests
 test: $(STAMP) browser
 	$(VENV)/bin/ruff check .
-	@$(PY) -m compileall -q -j 0 $(SOURCES) > /dev/null
+	@$(PY) -m compileall -q -j 0 $(SOURCES)
 	$(PY) -m pytest -q -n $(JOBS) --dist loadscope --no-loadscope-reorder
 
 # The live page's test drives a real headless Chromium (Debian's chromium + chromium-driver).
