@@ -118,7 +118,10 @@ SETS = {
                 "this set was built by someone who read neither the workflow's internals nor its tests' "
                 "detector logic and ran no analysis on these cases (only the generators, for sizes and "
                 "digests); nobody changing the workflow read its generator, and no run of it was read before "
-                "the run below (none was made before it, not even a smoke)."),
+                "the run below other than one run, the same day, of the workflow as it was before this session's "
+                "four new tests (outliers, noise while slewing, a line in part of the record, rate-history probes) "
+                "were merged; that run was read by the coordinator only, the tests were finished by people who "
+                "had not seen it, and nothing was changed between the two runs."),
 }
 
 
