@@ -7,9 +7,6 @@ final refit leaves when nothing is named) and runs the test. Cases:
 * ``control``: nothing hidden (the false-alarm rate; ≤ 0.5 % is the budget);
 * ``effect``: white noise σ0·(1 + k|ω|) at expected likelihood ratio 10²
   (``tests/support/noise_level_cases.py``; ``--snr`` for another size), the detection rate;
-* ``slew``: white noise raised by a factor while the table slews (σ0 elsewhere), sized to
-  expected likelihood ratio 10² (``noise_level_cases.sized_slew_noise``); counted found only
-  when the slewing covariate is the one named;
 * a catalogue effect at 10σ (or dead_zone 2 deg/s, quantization 1″), *not*
   in the refitted model, so the test sees it raw: it must not fire.
 
@@ -63,7 +60,7 @@ def profile(name: str) -> scenarios.Profile:
 
 
 def hidden_of(case: str, prof: scenarios.Profile) -> list[EffectSpec]:
-    if case in ("control", "effect", "slew"):
+    if case in ("control", "effect"):
         return []
     if case == "quantization":
         return [EffectSpec("quantization", {"pulse_arcsec": 1.0})]
@@ -78,13 +75,10 @@ def run(pname: str, case: str, draws: int, seed0: int, snr: float = 10.0) -> tup
     """Fires out of ``draws``, and the test's mean CPU seconds."""
     prof = profile(pname)
     k = cases.sized_noise_growth(snr, prof) if case == "effect" else 0.0
-    factor = cases.sized_slew_noise(snr, prof) if case == "slew" else 1.0
     hidden = hidden_of(case, prof)
     fires, cpu = 0, 0.0
     for seed in range(seed0, seed0 + draws):
         extra = cases.noise_growth_dph(k, prof, seed) if case == "effect" else None
-        if case == "slew":
-            extra = cases.slew_noise_dph(factor, prof, seed)
         log = scenarios.as_measured_log(scenarios.simulate_log(prof, hidden, seed, extra_dph=extra))
         model = scenarios.nominal_model()
         if case == "quantization":              # the workflow names it from the output lattice first
@@ -93,8 +87,7 @@ def run(pname: str, case: str, draws: int, seed0: int, snr: float = 10.0) -> tup
         ctx.use_noise(NoiseModel.of_model(model))
         after = ctx.fit(model)
         start = time.process_time()
-        level = noise_level_test(ctx, after)
-        fires += level.fires and (case != "slew" or level.covariate == "slewing")
+        fires += noise_level_test(ctx, after).fires
         cpu += time.process_time() - start
     return fires, cpu / draws
 

@@ -31,10 +31,7 @@
    (line_drift.py), which the fixed-line search smears over many bins and
    passes over: when one is there, the result is unexplained with the line
    and its drift in ``where``, and a periodic_interference named within its
-   frequencies loses its claim. Nor a line present in part of the record only
-   (banded_line.py: at high |rate|, while cooling, in one quarter), which the
-   whole-record spectrum dilutes: the same result, with the line and the part.
-   Nor single-sample outliers and spikes, which the
+   frequencies loses its claim. Nor single-sample outliers and spikes, which the
    scatter test clips (outliers.py reads the tails of the full-rate residual, with
    the same result). Nor whether a named effect keeps one size over the record
    (split_check.py): a catalogue law fitted to foreign structure needs
@@ -69,7 +66,6 @@ from gyrocal.analysis.discrepancy.arbitration import (
     unless_nonstationary,
     unless_not_gauss_markov,
 )
-from gyrocal.analysis.discrepancy.banded_line import banded_line
 from gyrocal.analysis.discrepancy.candidates import (
     KINDS,
     PERIODIC,
@@ -370,14 +366,13 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     found, test, last_probe = _adequacy_pass(ctx, after, found)
     level = noise_level_test(ctx, after)
     found = judged_by_level(ctx, after, found, level)
-    found, drift = drifting_line(ctx, after, found)   # line_drift.py: a line the fixed-line search smears
-    found, banded = banded_line(ctx, after, found, drift)   # banded_line.py: a line it dilutes (part of the record)
+    found, drift = drifting_line(ctx, after, found)
     split = split_check(ctx, after, found)   # split_check.py: a named effect whose size differs by part
     found = judged_by_split(found, split)
     structure_left = (search.preempted is not None or search.nonstationary is not None or test.inadequate
                       or metrics["g1_segment_mean"].after > g1_quantile(ctx.whitener, after.basis, geometry,
                                                                        UNEXPLAINED_LEVEL))
-    unexplained = structure_left or level.fires or drift is not None or banded is not None or split.fires
+    unexplained = structure_left or level.fires or drift is not None or split.fires
     signals = _signals(ctx, after.model)
     where, notes = "", list(state.notes)
     if test.inadequate and test.probe is not None:
@@ -390,9 +385,10 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
     if level.fires:
         where = f"{level.description}; {where}" if where else level.description
     notes.append(level.note)
-    for text in (drift.describe() if drift is not None else "", banded.describe() if banded is not None else "",
-                 split.describe() if split.fires else ""):
-        where = f"{text}; {where}" if text and where else text or where
+    if drift is not None:   # line_drift.py: a line the fixed-line search smears over many bins
+        where = f"{drift.describe()}; {where}" if where else drift.describe()
+    if split.fires:
+        where = f"{split.describe()}; {where}" if where else split.describe()
     return with_spikes(ctx, after, DiscrepancyResult(   # outliers.py: single-sample tails
         found, unexplained, where, metrics, primary, model, after.model, noise.estimate,
         list(search.iterations), ctx.bins, ctx.segments, np.unique(seg_of_bin), geometry,

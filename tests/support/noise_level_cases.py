@@ -47,34 +47,3 @@ def noise_growth_dph(k_per_dps: float, profile: Profile, seed: int, nominal: Gyr
     sigma0 = NoiseModel.of_model(nominal or nominal_model()).white_sigma_dph(profile.fs_hz)
     extra_sd = sigma0 * np.sqrt((1.0 + k_per_dps * np.abs(profile.table_rate_dps)) ** 2 - 1.0)
     return extra_sd * np.random.default_rng([seed, 2929]).standard_normal(len(profile.t_s))
-
-
-def slewing_samples(profile: Profile) -> np.ndarray:
-    """True where the table's rate is changing (the profile's constant-acceleration slews)."""
-    rate = profile.table_rate_dps
-    return np.abs(np.diff(rate, prepend=rate[0])) > 1e-9
-
-
-def expected_lr_slew(factor: float, profile: Profile) -> float:
-    """E[2 ln LR] of σ0·factor while slewing (σ0 elsewhere) against σ0 throughout."""
-    r = factor * factor
-    return float(np.count_nonzero(slewing_samples(profile)) * (r - 1.0 - math.log(r)))
-
-
-def sized_slew_noise(snr: float, profile: Profile) -> float:
-    """The factor on σ0 while slewing whose expected likelihood ratio is snr² (bisection)."""
-    lo, hi = 1.0, 10.0
-    for _ in range(80):
-        mid = 0.5 * (lo + hi)
-        if expected_lr_slew(mid, profile) < snr * snr:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
-
-
-def slew_noise_dph(factor: float, profile: Profile, seed: int, nominal: GyroModel | None = None) -> np.ndarray:
-    """Extra white noise (deg/h per sample) that raises σ0 to factor·σ0 while the table slews."""
-    sigma0 = NoiseModel.of_model(nominal or nominal_model()).white_sigma_dph(profile.fs_hz)
-    extra_sd = sigma0 * math.sqrt(max(factor * factor - 1.0, 0.0)) * slewing_samples(profile)
-    return extra_sd * np.random.default_rng([seed, 2930]).standard_normal(len(profile.t_s))
