@@ -11,9 +11,6 @@ what it does. None of this runs the workflow.
 
 from __future__ import annotations
 
-import dataclasses
-import hashlib
-
 import discrepancy_fresh as fresh_r
 import discrepancy_fresh_s as fresh_s
 import discrepancy_fresh_t as fresh_t
@@ -21,11 +18,19 @@ import discrepancy_fresh_u as fresh_u
 import discrepancy_scenarios as scenarios
 import numpy as np
 import pytest
-from discrepancy_heldout import MAX_BINS, HeldOutSet
+from discrepancy_heldout import MAX_BINS
+from heldout_pinning import (
+    EARLIER,
+    case_key,
+    default_cases,
+    design_parts,
+    digest,
+    fs_and_duration,
+    unsized,
+)
 
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.analysis.discrepancy.scoring import gls_fit
-from gyrocal.models.gyro_model import EffectSpec
 
 U = fresh_u.SET
 
@@ -36,88 +41,33 @@ DESIGN_SHA256 = "a8950af62dcc34cbfa707c94978a2571f760cdc5383caf8932f58765836432d
 CASES_SHA256 = "433c211845e918152fbc84e1104eab4a9401a42ebbf17307f557bb029196cdf5"
 SIZED_CASES_SHA256 = "7548761672725c9075fc38bdf0a4ecd16239698d49941daff0d2a58b25fcab93"
 
-#: (sample rate Hz, duration s) of the earlier sets P1–P3, Q1–Q3 (as in test_fresh_validation_set_t.py)
-EARLIER = {"P1": (5.0, 3600.0), "P2": (100.0, 9300.0), "P3": (200.0, 7200.0),
-           "Q1": (20.0, 5400.0), "Q2": (50.0, 2700.0), "Q3": (10.0, 10800.0)}
-
-
-def _fs_and_duration(prof: scenarios.Profile) -> tuple[float, float]:
-    return round(prof.fs_hz, 6), round(prof.t_s[-1] + 1.0 / prof.fs_hz, 3)
-
-
-def _digest(parts: list[bytes]) -> str:
-    h = hashlib.sha256()
-    for part in parts:
-        h.update(len(part).to_bytes(8, "little") + part)
-    return h.hexdigest()
-
-
-def _array_bytes(x: np.ndarray) -> bytes:
-    """As float32 (7 significant digits): the values, not the last bit of a library's arithmetic."""
-    return np.asarray(x, dtype=np.float32).tobytes()
-
-
-def _design_parts() -> list[bytes]:
-    parts = [repr((U.name, U.seed_base, U.shape_stream)).encode()]
-    for name, prof in U.profiles.items():
-        p = U.profile(name)
-        parts += [repr(dataclasses.replace(prof, build=None)).encode(),
-                  _array_bytes(p.t_s), _array_bytes(p.table_rate_dps), _array_bytes(p.chamber_temp_c)]
-        for uname, unknown in U.unknown.items():
-            parts.append(repr((uname, unknown.sizing, unknown.with_effect, unknown.shape.__name__)).encode())
-            if prof.runs_unknown(uname):
-                parts.append(_array_bytes(unknown.shape(p, U.shape_rng(U.seed_base + 500))))
-    return parts
-
-
-class _UnsizedSet(HeldOutSet):
-    """The set with each catalogue effect left at its SNR instead of sized: the case list without the sizing
-    (the sizes are pinned by the slow test below)."""
-
-    def catalogue_spec(self, name: str, pname: str, snr: float) -> EffectSpec:
-        return EffectSpec(name, {"snr": snr})
-
-
-def _case_key(case, sized: bool) -> bytes:
-    hidden = [(h.name, sorted((k, float(f"{v:.3g}")) for k, v in h.params.items()) if sized else None)
-              for h in case.hidden]
-    return repr((case.group, case.label, case.profile, case.seed, case.unknown, case.snr, hidden)).encode()
-
-
-def _default_cases(held: HeldOutSet) -> list:
-    cases = []
-    for name, (seeds, controls, unknown_seeds, near) in DEFAULT_COUNTS.items():
-        cases += held.cases(seeds, controls, unknown_seeds, profiles=(name,), near_seeds=near)
-    return cases
-
-
 def test_the_set_design_is_pinned():
     """Procedures, unknown shapes (at the first unknown seed) and every parameter of the set."""
-    assert _digest(_design_parts()) == DESIGN_SHA256
+    assert digest(design_parts(U)) == DESIGN_SHA256
 
 
 def test_the_case_list_is_pinned():
-    unsized = _UnsizedSet(**{f.name: getattr(U, f.name) for f in dataclasses.fields(HeldOutSet)})
-    cases = _default_cases(unsized)
+    unsized_set = unsized(U)
+    cases = default_cases(unsized_set, DEFAULT_COUNTS)
     assert len(cases) == 322
-    assert _digest([_case_key(c, sized=False) for c in cases]) == CASES_SHA256
+    assert digest([case_key(c, sized=False) for c in cases]) == CASES_SHA256
 
 
 @pytest.mark.slow
 def test_the_case_list_with_its_sizes_is_pinned():
     """Every hidden effect's size to 3 significant digits (the sizing of every catalogue effect, ≈ 10 s)."""
-    assert _digest([_case_key(c, sized=True) for c in _default_cases(U)]) == SIZED_CASES_SHA256
+    assert digest([case_key(c, sized=True) for c in default_cases(U, DEFAULT_COUNTS)]) == SIZED_CASES_SHA256
 
 
 def test_sample_rates_and_durations_are_new_to_every_earlier_set():
     earlier = dict(EARLIER)
-    earlier.update({name: _fs_and_duration(fresh_r.profile(name)) for name in fresh_r.PROFILES})
+    earlier.update({name: fs_and_duration(fresh_r.profile(name)) for name in fresh_r.PROFILES})
     for held in (fresh_s.SET, fresh_t.SET):
-        earlier.update({name: _fs_and_duration(held.profile(name)) for name in held.profiles})
-    assert [_fs_and_duration(U.profile(n)) for n in U.profiles] == [(500.0, 720.0), (12.0, 12600.0),
+        earlier.update({name: fs_and_duration(held.profile(name)) for name in held.profiles})
+    assert [fs_and_duration(U.profile(n)) for n in U.profiles] == [(500.0, 720.0), (12.0, 12600.0),
                                                                    (1.25, 54000.0)]
     for name in U.profiles:
-        fs_hz, duration_s = _fs_and_duration(U.profile(name))
+        fs_hz, duration_s = fs_and_duration(U.profile(name))
         assert fs_hz not in {fs for fs, _ in earlier.values()}, name
         assert duration_s not in {d for _, d in earlier.values()}, name
 
