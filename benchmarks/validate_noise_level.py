@@ -94,13 +94,7 @@ def run(pname: str, case: str, draws: int, seed0: int, snr: float = 10.0) -> tup
 
 def timing(n_samples: int) -> None:
     fs = 250.0
-    prof = scenarios.procedure_profile(n_samples / fs, fs, ramps_c_per_min=(1.0, 2.0, 1.0), dwell_s=60.0,
-                                       static_s=600.0)
-    log = scenarios.as_measured_log(scenarios.simulate_log(prof, [], 1))
-    model = scenarios.nominal_model()
-    ctx = Context(model, log, 1, 300, 2000)
-    ctx.use_noise(NoiseModel.of_model(model))
-    after = ctx.fit(model)
+    log, ctx, after = scenarios.refitted_effect_free(n_samples, fs)
     start = time.process_time()
     ctx.resid_full(after)
     resid = time.process_time() - start

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gyrocal.analysis.discrepancy.context import Context
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.analysis.discrepancy.scoring import Whitener, gls_fit
 from gyrocal.analysis.discrepancy.segments import make_bins
@@ -340,3 +341,16 @@ def analyse_scenario(profile: Profile, hidden: list[EffectSpec], seed: int, max_
     samples = simulate_log(profile, hidden, seed, extra_dph=extra_dph)
     return analyse(nominal_model(), as_measured_log(samples), seed=seed, n_null=n_null,
                    max_bins=max_bins)
+
+
+def refitted_effect_free(n_samples: int, fs_hz: float = 250.0):
+    """An effect-free log of ``n_samples`` (the overnight folder's rate by default) and the nominal
+    model refitted to it, as the workflow's last refit leaves a record where nothing is named:
+    what the benchmarks time a residual test on. Returns (log, context, fit)."""
+    prof = procedure_profile(n_samples / fs_hz, fs_hz, ramps_c_per_min=(1.0, 2.0, 1.0), dwell_s=60.0,
+                             static_s=600.0)
+    log = as_measured_log(simulate_log(prof, [], 1))
+    model = nominal_model()
+    ctx = Context(model, log, 1, 300, 2000)
+    ctx.use_noise(NoiseModel.of_model(model))
+    return log, ctx, ctx.fit(model)
