@@ -94,14 +94,9 @@ def run(pname: str, case: str, draws: int, seed0: int, snr: float = 10.0) -> tup
 
 def timing(n_samples: int) -> None:
     fs = 250.0
-    log, ctx, after = scenarios.refitted_effect_free(n_samples, fs)
-    start = time.process_time()
-    ctx.resid_full(after)
-    resid = time.process_time() - start
-    start = time.process_time()
-    level = noise_level_test(ctx, after)
-    print(f"{len(log):,} samples at {fs:g} Hz: the test {time.process_time() - start:.2f} CPU-s "
-          f"(of which the full-rate residual {resid:.2f} s), {level.windows} windows, fires {level.fires}")
+    level, test_s, resid_s, n = scenarios.timed_residual_test(noise_level_test, n_samples, fs)
+    print(f"{n:,} samples at {fs:g} Hz: the test {test_s:.2f} CPU-s "
+          f"(after the full-rate residual, {resid_s:.2f} s), {level.windows} windows, fires {level.fires}")
 
 
 def main() -> None:

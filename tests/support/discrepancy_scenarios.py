@@ -19,6 +19,7 @@ levels its threshold swallows; markov_bias by its σ.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -354,3 +355,16 @@ def refitted_effect_free(n_samples: int, fs_hz: float = 250.0):
     ctx = Context(model, log, 1, 300, 2000)
     ctx.use_noise(NoiseModel.of_model(model))
     return log, ctx, ctx.fit(model)
+
+
+def timed_residual_test(test, n_samples: int, fs_hz: float = 250.0):
+    """``test(context, fit)`` on :func:`refitted_effect_free`'s record, timed apart from the full-rate
+    residual it reads (computed first, as the workflow has it by then). Returns (the test's result,
+    its CPU s, the residual's CPU s, the record's samples)."""
+    log, ctx, after = refitted_effect_free(n_samples, fs_hz)
+    start = time.process_time()
+    ctx.resid_full(after)
+    resid_s = time.process_time() - start
+    start = time.process_time()
+    result = test(ctx, after)
+    return result, time.process_time() - start, resid_s, len(log)
