@@ -35,9 +35,7 @@ import noise_level_cases as cases  # noqa: E402
 from threadpoolctl import threadpool_limits
 from validate_discrepancy_outside import PROFILES  # noqa: E402
 
-from gyrocal.analysis.discrepancy.context import Context
 from gyrocal.analysis.discrepancy.noise_level import noise_level_test
-from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.models.gyro_model import EffectSpec
 
 OWN_PROFILES = {
@@ -79,13 +77,10 @@ def run(pname: str, case: str, draws: int, seed0: int, snr: float = 10.0) -> tup
     fires, cpu = 0, 0.0
     for seed in range(seed0, seed0 + draws):
         extra = cases.noise_growth_dph(k, prof, seed) if case == "effect" else None
-        log = scenarios.as_measured_log(scenarios.simulate_log(prof, hidden, seed, extra_dph=extra))
         model = scenarios.nominal_model()
         if case == "quantization":              # the workflow names it from the output lattice first
             model = model.with_effect(hidden[0])
-        ctx = Context(model, log, seed, 300, 1000)
-        ctx.use_noise(NoiseModel.of_model(model))
-        after = ctx.fit(model)
+        ctx, after = scenarios.base_refit(prof, seed, hidden, extra, model=model)
         start = time.process_time()
         fires += noise_level_test(ctx, after).fires
         cpu += time.process_time() - start

@@ -42,8 +42,6 @@ from threadpoolctl import threadpool_limits
 from validate_noise_level import hidden_of, profile  # noqa: E402
 
 import gyrocal.analysis.discrepancy.workflow as workflow_module
-from gyrocal.analysis.discrepancy.context import Context
-from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.analysis.discrepancy.outliers import spike_test, spikes_in
 
 SPIKE_CASES = ("control", "outliers", "doubled", "doubled_small")
@@ -67,14 +65,10 @@ def run(pname: str, case: str, draws: int, seed0: int) -> tuple[int, float, str]
     hidden = [] if case.split(":")[0] in SPIKE_CASES else hidden_of(case, prof)
     fires, cpu, said = 0, 0.0, ""
     for seed in range(seed0, seed0 + draws):
-        log = scenarios.as_measured_log(scenarios.simulate_log(prof, hidden, seed,
-                                                               extra_dph=extra_of(case, prof, seed)))
         model = scenarios.nominal_model()
         if case == "quantization":              # the workflow names it from the output lattice first
             model = model.with_effect(hidden[0])
-        ctx = Context(model, log, seed, 300, 1000)
-        ctx.use_noise(NoiseModel.of_model(model))
-        after = ctx.fit(model)
+        ctx, after = scenarios.base_refit(prof, seed, hidden, extra_of(case, prof, seed), model=model)
         start = time.process_time()
         spikes = spike_test(ctx, after)
         cpu += time.process_time() - start

@@ -427,13 +427,7 @@ def decaying_step_probe(fit: Fit, whitener: Whitener, x: ProbeInputs, z: np.ndar
     top = max(duration_s / 3.0, 6.0 * width_s)
     taus = np.geomspace(min(3.0 * width_s, top / 2.0), top, DECAY_TAUS)
     pairs = [(float(t0), float(tau)) for t0 in starts for tau in taus]
-    columns = np.column_stack([probe_columns(ProbeKind.DECAYING_STEP, t0, x, tau)[:, 0] for t0, tau in pairs])
-    best = _best_column(columns, fit, whitener, z, alpha)
-    if best is None:
-        return None
-    k, threshold, null, count = best
-    t0, tau = pairs[k]
-    return _fitted(ProbeKind.DECAYING_STEP, t0, x, fit, whitener, threshold, count, null, tau)
+    return _best_of_grid(ProbeKind.DECAYING_STEP, pairs, x, fit, whitener, z, alpha)
 
 
 def spin_heat_probe(fit: Fit, whitener: Whitener, x: ProbeInputs, z: np.ndarray,
@@ -443,13 +437,20 @@ def spin_heat_probe(fit: Fit, whitener: Whitener, x: ProbeInputs, z: np.ndarray,
     top = max(duration_s / 3.0, 6.0 * x.step_s)
     taus = np.geomspace(min(3.0 * x.step_s, top / 2.0), top, SPIN_TAUS)
     pairs = [(power, float(tau)) for power in (1.0, 2.0) for tau in taus]
-    columns = np.column_stack([probe_columns(ProbeKind.SPIN_HEAT, p, x, tau)[:, 0] for p, tau in pairs])
+    return _best_of_grid(ProbeKind.SPIN_HEAT, pairs, x, fit, whitener, z, alpha)
+
+
+def _best_of_grid(kind: ProbeKind, grid: list[tuple[float, float]], x: ProbeInputs, fit: Fit,
+                  whitener: Whitener, z: np.ndarray, alpha: float) -> Probe | None:
+    """The best single column over a grid of (where, τ) shapes of a two-parameter probe, its
+    threshold from the same null draws as every probe's (one matrix product for the grid)."""
+    columns = np.column_stack([probe_columns(kind, where, x, tau)[:, 0] for where, tau in grid])
     best = _best_column(columns, fit, whitener, z, alpha)
     if best is None:
         return None
     k, threshold, null, count = best
-    power, tau = pairs[k]
-    return _fitted(ProbeKind.SPIN_HEAT, power, x, fit, whitener, threshold, count, null, tau)
+    where, tau = grid[k]
+    return _fitted(kind, where, x, fit, whitener, threshold, count, null, tau)
 
 
 def _one_shape(kind: ProbeKind, x: ProbeInputs, fit: Fit, whitener: Whitener, z: np.ndarray,

@@ -27,7 +27,7 @@ import numpy as np
 
 from gyrocal.analysis.discrepancy.context import Context
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
-from gyrocal.analysis.discrepancy.scoring import Whitener, gls_fit
+from gyrocal.analysis.discrepancy.scoring import Fit, Whitener, gls_fit
 from gyrocal.analysis.discrepancy.segments import make_bins
 from gyrocal.analysis.discrepancy.signatures import DesignBuilder, placeholder_spec
 from gyrocal.models.gyro_model import EffectSpec, GyroModel, parse_model
@@ -344,27 +344,30 @@ def analyse_scenario(profile: Profile, hidden: list[EffectSpec], seed: int, max_
                    max_bins=max_bins)
 
 
-def refitted_effect_free(n_samples: int, fs_hz: float = 250.0):
-    """An effect-free log of ``n_samples`` (the overnight folder's rate by default) and the nominal
-    model refitted to it, as the workflow's last refit leaves a record where nothing is named:
-    what the benchmarks time a residual test on. Returns (log, context, fit)."""
-    prof = procedure_profile(n_samples / fs_hz, fs_hz, ramps_c_per_min=(1.0, 2.0, 1.0), dwell_s=60.0,
-                             static_s=600.0)
-    log = as_measured_log(simulate_log(prof, [], 1))
-    model = nominal_model()
-    ctx = Context(model, log, 1, 300, 2000)
+def base_refit(prof: Profile, seed: int, hidden: list[EffectSpec] | None = None,
+               extra_dph: np.ndarray | None = None, *, model: GyroModel | None = None,
+               max_bins: int = 1000) -> tuple[Context, Fit]:
+    """A simulated log of ``prof`` (``hidden`` effects plus ``extra_dph``) and ``model`` (the
+    nominal one by default) refitted to it with the model's noise, as the workflow's last refit
+    leaves a record where nothing more is named: what a residual test is judged on by itself
+    (tests and benchmarks of the noise-level and spike tests). Returns (context, fit)."""
+    log = as_measured_log(simulate_log(prof, list(hidden or []), seed, extra_dph=extra_dph))
+    model = nominal_model() if model is None else model
+    ctx = Context(model, log, seed, 300, max_bins)
     ctx.use_noise(NoiseModel.of_model(model))
-    return log, ctx, ctx.fit(model)
+    return ctx, ctx.fit(model)
 
 
 def timed_residual_test(test, n_samples: int, fs_hz: float = 250.0):
-    """``test(context, fit)`` on :func:`refitted_effect_free`'s record, timed apart from the full-rate
-    residual it reads (computed first, as the workflow has it by then). Returns (the test's result,
-    its CPU s, the residual's CPU s, the record's samples)."""
-    log, ctx, after = refitted_effect_free(n_samples, fs_hz)
+    """``test(context, fit)`` on an effect-free record of ``n_samples`` (the overnight folder's rate
+    by default), timed apart from the full-rate residual it reads (computed first, as the workflow
+    has it by then). Returns (the test's result, its CPU s, the residual's CPU s, the samples)."""
+    prof = procedure_profile(n_samples / fs_hz, fs_hz, ramps_c_per_min=(1.0, 2.0, 1.0), dwell_s=60.0,
+                             static_s=600.0)
+    ctx, after = base_refit(prof, 1, max_bins=2000)
     start = time.process_time()
     ctx.resid_full(after)
     resid_s = time.process_time() - start
     start = time.process_time()
     result = test(ctx, after)
-    return result, time.process_time() - start, resid_s, len(log)
+    return result, time.process_time() - start, resid_s, len(ctx.log)

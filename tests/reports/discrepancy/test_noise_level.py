@@ -41,11 +41,8 @@ def profile() -> scenarios.Profile:
 
 def level_alone(seed: int, extra_dph: np.ndarray | None = None, hidden: list[EffectSpec] | None = None):
     """The noise-level test alone on the base refit of a simulated log (no effect search)."""
-    log = scenarios.as_measured_log(scenarios.simulate_log(profile(), hidden or [], seed, extra_dph=extra_dph))
-    model = scenarios.nominal_model()
-    ctx = Context(model, log, seed, 300, MAX_BINS)
-    ctx.use_noise(NoiseModel.of_model(model))
-    return noise_level_test(ctx, ctx.fit(model))
+    ctx, fit = scenarios.base_refit(profile(), seed, hidden, extra_dph, max_bins=MAX_BINS)
+    return noise_level_test(ctx, fit)
 
 
 def test_the_sizing_gives_the_expected_likelihood_ratio():

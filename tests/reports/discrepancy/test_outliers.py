@@ -46,11 +46,8 @@ def profile() -> scenarios.Profile:
 
 def spikes_alone(seed: int, extra_dph: np.ndarray | None = None, hidden: list[EffectSpec] | None = None):
     """The spike test alone on the base refit of a simulated log (no effect search)."""
-    log = scenarios.as_measured_log(scenarios.simulate_log(profile(), hidden or [], seed, extra_dph=extra_dph))
-    model = scenarios.nominal_model()
-    ctx = Context(model, log, seed, 300, MAX_BINS)
-    ctx.use_noise(NoiseModel.of_model(model))
-    return spike_test(ctx, ctx.fit(model))
+    ctx, fit = scenarios.base_refit(profile(), seed, hidden, extra_dph, max_bins=MAX_BINS)
+    return spike_test(ctx, fit)
 
 
 @pytest.mark.timeout(120)
