@@ -168,6 +168,13 @@ class HeldOutSet:
     unknown: dict[str, Unknown]
     seed_base: int
     shape_stream: int
+    #: 0: every profile draws the same noise for a seed (R–U); else profile i's runs are seeded
+    #: + i·stride, so one rare noise draw is not counted on every profile (V)
+    profile_seed_stride: int = 0
+
+    def run_seed(self, pname: str, offset: int) -> int:
+        """The seed of a run ``offset`` above the base on profile ``pname`` (see ``profile_seed_stride``)."""
+        return self.seed_base + offset + self.profile_seed_stride * tuple(self.profiles).index(pname)
 
     @cache  # noqa: B019 (a set lives as long as the process; its profiles are built once)
     def profile(self, name: str) -> scenarios.Profile:
@@ -187,22 +194,22 @@ class HeldOutSet:
 
     def effect_cases(self, pname: str, seeds: int, snr: float = 10.0) -> list[Case]:
         """Every catalogue effect the profile can show, alone, at ``snr``."""
-        prof, base, cases = self.profiles[pname], self.seed_base, []
+        prof, cases = self.profiles[pname], []
         if seeds == 0:
             return cases
         for name in prof.sized:
             spec = self.catalogue_spec(name, pname, snr)
-            cases += [Case("effect", f"{name} ({snr:g}σ)", pname, (spec,), base + s, snr=snr) for s in range(seeds)]
+            cases += [Case("effect", f"{name} ({snr:g}σ)", pname, (spec,), self.run_seed(pname, s), snr=snr) for s in range(seeds)]
         for tau in prof.markov_taus_s:
             spec = scenarios.sized_markov(snr, tau, self.profile(pname))
-            cases += [Case("effect", f"markov_bias τ {tau:g} s ({snr:g}σ)", pname, (spec,), base + 100 + s,
+            cases += [Case("effect", f"markov_bias τ {tau:g} s ({snr:g}σ)", pname, (spec,), self.run_seed(pname, 100 + s),
                            snr=snr) for s in range(seeds)]
         if snr == 10.0:
             spec = EffectSpec("dead_zone", {"threshold_dps": prof.dead_zone_dps})
-            cases += [Case("effect", f"dead_zone {prof.dead_zone_dps:g} deg/s", pname, (spec,), base + 200 + s)
+            cases += [Case("effect", f"dead_zone {prof.dead_zone_dps:g} deg/s", pname, (spec,), self.run_seed(pname, 200 + s))
                       for s in range(seeds)]
             spec = EffectSpec("quantization", {"pulse_arcsec": prof.pulse_arcsec})
-            cases += [Case("effect", f"quantization {prof.pulse_arcsec:g}″", pname, (spec,), base + 300 + s)
+            cases += [Case("effect", f"quantization {prof.pulse_arcsec:g}″", pname, (spec,), self.run_seed(pname, 300 + s))
                       for s in range(seeds)]
         return cases
 
@@ -215,12 +222,12 @@ class HeldOutSet:
             cases += self.effect_cases(pname, seeds)
             if near_seeds:
                 cases += self.effect_cases(pname, near_seeds, near_snr)
-            cases += [Case("control", "control", pname, (), self.seed_base + 400 + s) for s in range(controls)]
+            cases += [Case("control", "control", pname, (), self.run_seed(pname, 400 + s)) for s in range(controls)]
             for name, unknown in self.unknown.items():
                 if not self.profiles[pname].runs_unknown(name) or unknown_seeds == 0:
                     continue
                 hidden = (self.catalogue_spec(unknown.with_effect, pname, 10.0),) if unknown.with_effect else ()
-                cases += [Case("unknown", name, pname, hidden, self.seed_base + 500 + s, name)
+                cases += [Case("unknown", name, pname, hidden, self.run_seed(pname, 500 + s), name)
                           for s in range(unknown_seeds)]
         return cases
 
