@@ -129,8 +129,8 @@ SETS = {
                 "had not seen them, and the one change since (two of the four withdrawn, for failing our own "
                 "regression tests) was not made for anything the set showed."),
     # 313 runs, never smoked (its builder ran no analysis on it). Estimated from T's run (median CPU s per
-    # run T1 2.3 at 375 k samples, T2 1.4 at 144 k, T3 1.3 at 130 k) and R3's ≈ 1 at 43 k: V1 ≈ 1.3
-    # (135 k) × 121 runs, V2 ≈ 1.6 (192 k) × 54, V3 ≈ 0.9 (57.6 k) × 138 ≈ 6.1 CPU-min + ≈ 10 CPU-s sizing
+    # run T1 2.3 at 375 k samples, T2 1.4 at 144 k, T3 1.3 at 130 k) and R3's ≈ 1 at 43 k: V1 ≈ 1.2
+    # (115 k) × 121 runs, V2 ≈ 1.4 (154 k) × 54, V3 ≈ 0.9 (46 k) × 138 ≈ 5.8 CPU-min + ≈ 10 CPU-s sizing
     # the cases: ≈ 3.5 min wall on 2 idle cores, ≈ 5 loaded
     "V": SetRun(fresh_v.SET, "<!-- fresh-held-out-v:begin -->", "<!-- fresh-held-out-v:end -->",
                 "Fifth held-out set: profiles V1–V3, new families outside the catalogue (issue 29)",

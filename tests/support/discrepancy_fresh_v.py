@@ -7,11 +7,11 @@ workflow's internals or running it on these cases. Whoever changes the
 workflow should not read this file.
 
 * three procedures unlike P1–P3, Q1–Q3, R1–R3, S1–S3, T1–T3 and U1–U3
-  (``PROFILES``): V1, 45 min at 50 Hz, a 12-min cold soak at −20 °C then a
+  (``PROFILES``): V1, 48 min at 40 Hz, a 12-min cold soak at −20 °C then a
   slow linear warm-up to 40 °C (2 °C/min), every 5 min a ±2, ±20, ±100 deg/s
-  ladder of 10-s dwells; V2, 8 min at 400 Hz, a fine ladder of many small rates
+  ladder of 10-s dwells; V2, 8 min at 320 Hz, a fine ladder of many small rates
   (±0.5 … ±8 deg/s in 0.5 deg/s steps, 4-s dwells) while the chamber warms
-  28 → 36 °C and cools back to 31 °C; V3, 8 h at 2 Hz, cycling 10 ↔ 45 °C
+  28 → 36 °C and cools back to 31 °C; V3, 8 h at 1.6 Hz, cycling 10 ↔ 45 °C
   (1 °C/min ramps, 25-min holds), every 40 min a block of ±5, ±50 deg/s dwells
   and a 1 deg/s full turn;
 * families outside the catalogue that no earlier set had (``UNKNOWN``): mode
@@ -43,7 +43,7 @@ from discrepancy_heldout import FreshProfile, HeldOutSet, Unknown, scheduled_pro
 
 # --- the procedures ---------------------------------------------------------------------------
 
-V1_FS_HZ, V1_DURATION_S = 50.0, 2700.0
+V1_FS_HZ, V1_DURATION_S = 40.0, 2880.0
 V1_SOAK_S, V1_COLD_C, V1_WARM_C, V1_WARM_S = 720.0, -20.0, 40.0, 1800.0
 V1_LADDER = ((2.0, 10.0), (-2.0, 10.0), (20.0, 10.0), (-20.0, 10.0), (100.0, 10.0), (-100.0, 10.0))
 V1_STARTS_S = tuple(60.0 + 300.0 * k for k in range(9))
@@ -55,11 +55,11 @@ def v1_temp_c(t_s: np.ndarray) -> np.ndarray:
 
 
 def _v1() -> scenarios.Profile:
-    """45 min at 50 Hz on ``v1_temp_c``; every 5 min ±2, ±20, ±100 deg/s dwells of 10 s (100 deg/s²)."""
+    """48 min at 40 Hz on ``v1_temp_c``; every 5 min ±2, ±20, ±100 deg/s dwells of 10 s (100 deg/s²)."""
     return scheduled_profile(V1_DURATION_S, V1_FS_HZ, v1_temp_c, V1_LADDER, V1_STARTS_S, 100.0)
 
 
-V2_FS_HZ, V2_DURATION_S = 400.0, 480.0
+V2_FS_HZ, V2_DURATION_S = 320.0, 480.0
 V2_RUNGS_DPS = tuple(0.5 * k for k in range(1, 17))          # 0.5 … 8 deg/s
 V2_DWELL_S = 4.0
 V2_TEMP_KNOTS = ((0.0, 28.0), (300.0, 36.0), (480.0, 31.0))
@@ -72,13 +72,13 @@ def v2_temp_c(t_s: np.ndarray) -> np.ndarray:
 
 
 def _v2() -> scenarios.Profile:
-    """8 min at 400 Hz on ``v2_temp_c``: ±0.5 … ±8 deg/s in 0.5 deg/s steps, 4 s each, once from
+    """8 min at 320 Hz on ``v2_temp_c``: ±0.5 … ±8 deg/s in 0.5 deg/s steps, 4 s each, once from
     10 s (alternating signs), still for the rest; 20 deg/s²."""
     ladder = tuple((sign * r, V2_DWELL_S) for r in V2_RUNGS_DPS for sign in (1.0, -1.0))
     return scheduled_profile(V2_DURATION_S, V2_FS_HZ, v2_temp_c, ladder + ladder[::-1], (10.0,), 20.0)
 
 
-V3_FS_HZ, V3_DURATION_S = 2.0, 28800.0
+V3_FS_HZ, V3_DURATION_S = 1.6, 28800.0
 V3_LOW_C, V3_HIGH_C, V3_RAMP_C_PER_MIN, V3_HOLD_S = 10.0, 45.0, 1.0, 1500.0
 V3_BLOCK = ((5.0, 60.0), (-5.0, 60.0), (50.0, 40.0), (-50.0, 40.0), (1.0, 360.0))
 V3_BLOCK_STARTS_S = tuple(600.0 + 2400.0 * k for k in range(12))
@@ -94,7 +94,7 @@ def v3_temp_c(t_s: np.ndarray) -> np.ndarray:
 
 
 def _v3() -> scenarios.Profile:
-    """8 h at 2 Hz on ``v3_temp_c``; every 40 min ±5, ±50 deg/s dwells and a 1 deg/s full turn (10 deg/s²)."""
+    """8 h at 1.6 Hz on ``v3_temp_c``; every 40 min ±5, ±50 deg/s dwells and a 1 deg/s full turn (10 deg/s²)."""
     return scheduled_profile(V3_DURATION_S, V3_FS_HZ, v3_temp_c, V3_BLOCK, V3_BLOCK_STARTS_S, 10.0)
 
 
@@ -228,21 +228,21 @@ UNKNOWN: dict[str, Unknown] = {
 
 PROFILES: dict[str, FreshProfile] = {
     # the closest single catalogue effect leaves ≥ 4.5σ of 10 of every binned unknown on V1
-    "V1": FreshProfile("V1 (45 min, 50 Hz, 12-min cold soak at −20 °C then a linear warm-up to 40 °C at "
+    "V1": FreshProfile("V1 (48 min, 40 Hz, 12-min cold soak at −20 °C then a linear warm-up to 40 °C at "
                        "2 °C/min, held; every 5 min ±2, ±20, ±100 deg/s dwells of 10 s, 100 deg/s²)",
                        _v1, {"warmup_transient": {"tau_s": 400.0}, "table_angle_harmonic": {"phase_deg": 60.0},
                              "periodic_interference": {"freq_hz": 7.3}},
                        3.0, (60.0, 500.0), 1.0),
     # 8 min: the heat dose is a ramp there (1.1σ of 10 left beside bias_ramp), the logistic turn-on a
     # step with the temperature's turn (2.8σ beside temp_rate_bias); a 10-min refresh never happens
-    "V2": FreshProfile("V2 (8 min, 400 Hz, 28 → 36 °C over 5 min and back to 31 °C over 3; a fine ladder "
+    "V2": FreshProfile("V2 (8 min, 320 Hz, 28 → 36 °C over 5 min and back to 31 °C over 3; a fine ladder "
                        "±0.5 … ±8 deg/s in 0.5 deg/s steps of 4 s, up and back down, 20 deg/s²)",
                        _v2, {"warmup_transient": {"tau_s": 60.0}, "table_angle_harmonic": {"phase_deg": -20.0},
                              "periodic_interference": {"freq_hz": 61.7}},
                        0.8, (8.0, 90.0), 0.2, catalogue_alike=(DOSE, LOGISTIC), not_applicable=(REFRESH,)),
     # the hinge at 30 °C in a 10–45 °C cycle is close to a quadratic SF tempco (0.8σ of 10 left), the
     # heat dose to a ramp (2.9σ beside bias_ramp): both left out here, run on V1
-    "V3": FreshProfile("V3 (8 h, 2 Hz, cycling 10 ↔ 45 °C with 1 °C/min ramps and 25-min holds; every 40 min "
+    "V3": FreshProfile("V3 (8 h, 1.6 Hz, cycling 10 ↔ 45 °C with 1 °C/min ramps and 25-min holds; every 40 min "
                        "±5, ±50 deg/s dwells and a 1 deg/s full turn, 10 deg/s²)",
                        _v3, {"warmup_transient": {"tau_s": 1800.0}, "table_angle_harmonic": {"phase_deg": 150.0},
                              "periodic_interference": {"freq_hz": 0.37}},
