@@ -30,7 +30,7 @@ R2 and R3 (43 k samples); the defaults (430 runs) take about 14 CPU-min, about
 8 min wall on 2 idle cores. Set S: 300 runs, about 10 CPU-min, 4–6 min wall on 2
 cores (the smoke's figures are at ``SETS``). Set T: 318 runs, estimated at about 8.5 CPU-min.
 Set U: 322 runs, estimated at about 7.5 CPU-min (never run before its first real run; see ``SETS``).
-Set V: 313 runs, estimated at about 6.5 CPU-min (never run before its first real run; see ``SETS``).
+Set V: 310 runs, estimated at about 6.5 CPU-min (never run before its first real run; see ``SETS``).
 
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --workers 2
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --set S --workers 2
@@ -128,7 +128,7 @@ SETS = {
                 "rate-history probes); both were read by the coordinator only, the tests were finished by people who "
                 "had not seen them, and the one change since (two of the four withdrawn, for failing our own "
                 "regression tests) was not made for anything the set showed."),
-    # 313 runs, never smoked (its builder ran no analysis on it). Estimated from T's run (median CPU s per
+    # 310 runs, never smoked (its builder ran no analysis on it). Estimated from T's run (median CPU s per
     # run T1 2.3 at 375 k samples, T2 1.4 at 144 k, T3 1.3 at 130 k) and R3's ≈ 1 at 43 k: V1 ≈ 1.2
     # (115 k) × 121 runs, V2 ≈ 1.4 (154 k) × 54, V3 ≈ 0.9 (46 k) × 138 ≈ 5.8 CPU-min + ≈ 10 CPU-s sizing
     # the cases: ≈ 3.5 min wall on 2 idle cores, ≈ 5 loaded

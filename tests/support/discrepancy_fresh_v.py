@@ -232,7 +232,11 @@ PROFILES: dict[str, FreshProfile] = {
                        "2 °C/min, held; every 5 min ±2, ±20, ±100 deg/s dwells of 10 s, 100 deg/s²)",
                        _v1, {"warmup_transient": {"tau_s": 400.0}, "table_angle_harmonic": {"phase_deg": 60.0},
                              "periodic_interference": {"freq_hz": 7.3}},
-                       3.0, (60.0, 500.0), 1.0),
+                       3.0, (60.0, 500.0), 1.0,
+                       # the temperature only rises after the soak: no cooling branch, so a hysteresis
+                       # (a bias by the sign of the last temperature change) is a constant here and its
+                       # 10σ size is unbounded (2.3e14 deg/h); S1 leaves it out for the same reason
+                       unobservable=("temp_hysteresis",)),
     # 8 min: the heat dose is a ramp there (1.1σ of 10 left beside bias_ramp), the logistic turn-on a
     # step with the temperature's turn (2.8σ beside temp_rate_bias); a 10-min refresh never happens
     "V2": FreshProfile("V2 (8 min, 320 Hz, 28 → 36 °C over 5 min and back to 31 °C over 3; a fine ladder "
