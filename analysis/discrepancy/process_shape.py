@@ -225,7 +225,7 @@ def _windows(x: np.ndarray, width: int) -> np.ndarray:
     return y - y.mean(axis=0)
 
 
-def _simulated(spectrum: np.ndarray, n: int, rng: np.random.Generator, count: int) -> np.ndarray:
+def simulated(spectrum: np.ndarray, n: int, rng: np.random.Generator, count: int) -> np.ndarray:
     """``count`` stationary Gaussian series of length ``n`` with this bin spectrum (circulant embedding).
 
     ``spectrum`` is S at ω_k = 2πk/(2n), k = 0…n: a circulant of length 2n, of which the
@@ -269,7 +269,7 @@ def level_test(resid_bins: np.ndarray, spectrum: np.ndarray, tau_s: float, width
     width = max(min(int(round(WINDOW_FRACTION * tau_s / width_s)), n // MIN_WINDOWS), -(-n // MAX_WINDOWS), 1)
     if n // width < MIN_WINDOWS:
         return 0.0, math.inf, width, two_level_fit(_windows(resid_bins[:, None], width), 0)
-    draws = [_windows(_detrended(_simulated(spectrum, n, rng, CHUNK)), width)
+    draws = [_windows(_detrended(simulated(spectrum, n, rng, CHUNK)), width)
              for _ in range(SHAPE_DRAWS // CHUNK)]
     y = np.hstack([_windows(_detrended(resid_bins[:, None]), width)] + draws)
     y = y / np.std(y, axis=0)

@@ -1,0 +1,309 @@
+"""Whether the slow state a Markov bias would name is tied to what the rig logged.
+
+A Gauss–Markov bias is a stationary random process: it follows no input of the
+procedure except by chance. Slow structure that is not one can still fit its
+spectrum, and on a short record, where τ is comparable to the record, it
+imitates any slow curve: on issue 29's fourth held-out set the 12-minute, 500 Hz
+thermal shock named markov_bias at ≥ 0.8 for seven kinds of deterministic or
+input-driven structure (a bias ∝ d²T/dt², an offset while the table turns, a
+random walk advancing only while it turns, a Markov σ growing with temperature,
+a bias in one 15° sector of the table angle, an unlogged second axis indexed
+five times, vibration rectified in |ω|), past the stationarity test, the probes
+and the level and flicker tests (process_shape.py).
+
+So before a Markov bias is named, its reading is held against a small library of
+what the log carries, on window means of the one-second residual (at most
+``MAX_WINDOWS`` windows):
+
+* in the mean: d²T/dt² and dT/dt of the chamber, the table turning, the time it
+  has spent turning, bands of |ω|, 15° sectors of the table angle, each a
+  profile likelihood ratio against the Markov reading alone (the process's
+  variance and τ, and the common scale, profiled on a grid about the fit; the
+  base's columns, bias, time, T, ω and ω·ΔT, fitted in both);
+* in the increments: the innovations of the Markov reading (Cholesky of its
+  window-mean covariance) whose variance follows chamber T, the turning or
+  |ω| (Koenker's score test), or whose tails show jumps (kurtosis).
+
+Each statistic is turned into an asymptotic p-value and the smallest of them is
+the test statistic; its limit is the ``COVARIATE_ALPHA`` point of the same
+smallest p-value on a parametric bootstrap of the fitted Markov reading
+(``COVARIATE_DRAWS`` draws of its spectrum, circulant embedding, from their own
+generator), so a true Markov bias is refused in about ``COVARIATE_ALPHA`` of
+records whatever the library's size. The test runs only when a Markov bias is
+about to be named.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg, signal, stats
+
+from gyrocal.analysis.discrepancy.arbitration import next_best_or_none
+from gyrocal.analysis.discrepancy.context import Context
+from gyrocal.analysis.discrepancy.noise_model import NoiseModel
+from gyrocal.analysis.discrepancy.process_shape import simulated
+from gyrocal.analysis.discrepancy.scoring import EffectScores, Fit, order_statistic_quantile
+from gyrocal.analysis.discrepancy.segments import Bins
+from gyrocal.analysis.discrepancy.stochastic import (
+    MARKOV,
+    StochasticCandidate,
+    fine_bins,
+    gm_bin_spectrum,
+    noise_bin_spectra,
+)
+
+#: Level of the test: a true Markov bias is refused in about this fraction of records.
+COVARIATE_ALPHA = 0.005
+#: Parametric-bootstrap draws of the fitted Markov reading, and their generator's seed.
+COVARIATE_DRAWS = 400
+COVARIATE_SEED = 2931
+#: At most this many windows of the one-second residual (the covariance is dense).
+MAX_WINDOWS = 200
+#: The profile grid: τ about the fitted one; the process's variance relative to the fitted one.
+TAU_FACTORS = (0.25, 0.5, 1.0, 2.0, 4.0)
+VARIANCE_RATIOS = (0.02, 0.1, 0.3, 1.0, 3.0)
+#: Savitzky–Golay window (s) of the chamber temperature's derivatives, and |ω| still below (deg/s).
+SMOOTH_S = 61
+STILL_DPS = 0.05
+#: Edges (deg/s) of the |ω| bands, and the width (deg) of the table-angle sectors.
+RATE_EDGES_DPS = (STILL_DPS, 0.5, 2.0, 8.0, 30.0, 120.0, math.inf)
+SECTOR_DEG = 15.0
+
+
+@dataclass(frozen=True)
+class Family:
+    """One covariate of the library: what it is in words, and its columns (mean) or its z (variance)."""
+
+    key: str
+    words: str
+    columns: np.ndarray
+    #: "mean": columns in the mean; "variance": the z the innovations' variance is tested against
+    kind: str = "mean"
+
+
+@dataclass(frozen=True)
+class CovariateVerdict:
+    """The smallest p-value over the library, its limit, the family behind it; ``why`` when it fires."""
+
+    min_p: float
+    limit: float
+    family: str
+    why: str | None
+
+
+def _sectors(angle_deg: np.ndarray, index: np.ndarray, n_bins: int) -> np.ndarray:
+    """Fraction of each bin spent in each table-angle sector (bins × sectors)."""
+    count = int(round(360.0 / SECTOR_DEG))
+    sector = np.floor(np.mod(angle_deg, 360.0) / SECTOR_DEG).astype(np.int64) % count
+    return _fractions(sector, count, index, n_bins)
+
+
+def _fractions(code: np.ndarray, count: int, index: np.ndarray, n_bins: int) -> np.ndarray:
+    table = np.bincount(index * count + code[: index.size], minlength=n_bins * count)
+    table = table.reshape(n_bins, count).astype(float)
+    return table / np.maximum(table.sum(axis=1, keepdims=True), 1.0)
+
+
+def _derivatives(temp_bins: np.ndarray, width_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """dT/dt (°C/min) and d²T/dt² (°C/min²) of the binned chamber temperature, smoothed."""
+    n = temp_bins.size
+    window = min(max(int(SMOOTH_S / width_s), 5), n)
+    window -= 1 - window % 2            # odd
+    if window < 5:
+        return np.zeros(n), np.zeros(n)
+    step_min = width_s / 60.0
+    first = signal.savgol_filter(temp_bins, window, 3, deriv=1, delta=step_min)
+    second = signal.savgol_filter(temp_bins, window, 3, deriv=2, delta=step_min)
+    return first, second
+
+
+def library(ctx: Context, bins: Bins) -> tuple[np.ndarray, list[Family]]:
+    """The base's nuisance columns and the covariate families, on the one-second bins."""
+    log = ctx.log
+    index = np.arange(bins.n_samples) // bins.samples_per_bin
+    rate = bins.mean(log.table_rate_dps)
+    temp = bins.mean(log.chamber_temp_c)
+    abs_rate = np.abs(log.table_rate_dps)
+    turning = bins.mean((abs_rate > STILL_DPS).astype(float))
+    bands = _fractions(np.searchsorted(RATE_EDGES_DPS, abs_rate, side="right"), len(RATE_EDGES_DPS) + 1,
+                       index, bins.n_bins)[:, 1:]
+    sectors = _sectors(ctx.builder.history.angle_deg, index, bins.n_bins)
+    first, second = _derivatives(temp, bins.width_s)
+    t = bins.centre_s - bins.centre_s.mean()
+    nuisance = np.column_stack([np.ones(bins.n_bins), t, temp, rate, rate * (temp - temp.mean())])
+    # time spent turning is only informative where the table is also still at times
+    turned = np.cumsum(turning) * bins.width_s
+    families = [
+        Family("d2T", "slow structure following d²T/dt² of the chamber temperature", second[:, None]),
+        Family("dT", "slow structure following dT/dt of the chamber temperature", first[:, None]),
+        Family("turning", "a bias while the table turns", turning[:, None]),
+        Family("turned", "a bias growing with the time the table has spent turning", turned[:, None]),
+        Family("bands", "a bias that depends on |table rate| by band", bands),
+        Family("sectors", "a bias that depends on the table angle by 15° sector", sectors),
+        Family("var_T", "a random process whose size changes with chamber temperature", temp, "variance"),
+        Family("var_turning", "a random process that moves at another pace while the table turns",
+               turning, "variance"),
+        Family("var_rate", "a random process whose size changes with |table rate|",
+               np.log1p(bins.mean(abs_rate)), "variance"),
+    ]
+    return nuisance, families
+
+
+def _windows(x: np.ndarray, width: int) -> np.ndarray:
+    m = x.shape[0] // width
+    return x[: m * width].reshape(m, width, *x.shape[1:]).mean(axis=1)
+
+
+def _window_covariance(spectrum: np.ndarray, n: int, width: int, m: int) -> np.ndarray:
+    """Toeplitz covariance of ``m`` window means (``width`` bins each) of the circulant process."""
+    acov = np.fft.irfft(np.where(np.arange(spectrum.size) == 0, 0.0, spectrum), 2 * n)[:n]
+    d = np.arange(-(width - 1), width)
+    weights = (width - np.abs(d)) / float(width * width)
+    lags = np.abs(np.arange(m)[:, None] * width + d[None, :])
+    return linalg.toeplitz(acov[np.minimum(lags, n - 1)] @ weights)
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The Markov reading's spectra over the profile grid, at the 2n-circulant's frequencies."""
+
+    fitted: np.ndarray
+    spectra: list[np.ndarray]
+
+
+def _grid(noise: NoiseModel, bins: Bins, fs_hz: float, markov: StochasticCandidate) -> Grid:
+    n = bins.n_bins
+    omega = np.pi * np.arange(n + 1) / n
+    white_var, flicker, rest = noise_bin_spectra(noise, bins, fs_hz, omega)
+    base = markov.white_scale * white_var + markov.flicker_scale * flicker + rest
+    sigma, tau = markov.params["sigma_dph"], markov.params["tau_s"]
+    spectra = [base]
+    for factor in TAU_FACTORS:
+        unit = gm_bin_spectrum(sigma, tau * factor, bins.width_s, omega)
+        spectra += [base + ratio * unit for ratio in VARIANCE_RATIOS]
+    fitted = base + gm_bin_spectrum(sigma, tau, bins.width_s, omega)
+    clean = [np.where(np.isfinite(s), s, 0.0) for s in spectra]
+    return Grid(np.where(np.isfinite(fitted), fitted, 0.0), clean)
+
+
+def _orthonormal(columns: np.ndarray) -> np.ndarray:
+    q, r = np.linalg.qr(columns)
+    diag = np.abs(np.diag(r))
+    return q[:, diag > 1e-8 * max(float(diag.max(initial=0.0)), 1e-300)]
+
+
+@dataclass(frozen=True)
+class Profiled:
+    """Per family: the profile log-likelihood over the grid (columns: data, draws); H0's innovations."""
+
+    loglik: dict[str, np.ndarray]
+    dof: dict[str, int]
+    innovations: np.ndarray
+
+
+def _whiten(cov: np.ndarray, y: np.ndarray, nuisance: np.ndarray
+            ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, np.ndarray]:
+    """Cholesky factor, ½ log det, whitened data, the whitened base's basis, and the residual sum of squares."""
+    chol = np.linalg.cholesky(cov)
+    white = linalg.solve_triangular(chol, y, lower=True)
+    base = _orthonormal(linalg.solve_triangular(chol, nuisance, lower=True))
+    rss0 = np.sum(white * white, axis=0) - np.sum((base.T @ white) ** 2, axis=0)
+    return chol, float(np.sum(np.log(np.diag(chol)))), white, base, rss0
+
+
+def _profile(y: np.ndarray, nuisance: np.ndarray, families: list[Family], grid: Grid, n: int,
+             width: int) -> Profiled:
+    """Each mean family's and H0's concentrated log-likelihood, maximised over the grid."""
+    m = y.shape[0]
+    best: dict[str, np.ndarray] = {"": np.full(y.shape[1], -np.inf)}
+    dof: dict[str, int] = {}
+    innovations = np.zeros_like(y)
+    for spectrum in grid.spectra:
+        chol, half_logdet, white, base, rss0 = _whiten(_window_covariance(spectrum, n, width, m), y, nuisance)
+        ll0 = -0.5 * m * np.log(rss0 / m) - half_logdet
+        better = ll0 > best[""]
+        rest = white - base @ (base.T @ white)
+        innovations[:, better] = rest[:, better] / np.sqrt(rss0[better] / m)
+        best[""] = np.maximum(best[""], ll0)
+        for f in families:
+            if f.kind != "mean":
+                continue
+            q = _orthonormal(np.hstack([base, linalg.solve_triangular(chol, f.columns, lower=True)]))
+            dof[f.key] = q.shape[1] - base.shape[1]
+            if dof[f.key] == 0:
+                continue
+            rss = rss0 + np.sum((base.T @ white) ** 2, axis=0) - np.sum((q.T @ white) ** 2, axis=0)
+            ll = -0.5 * m * np.log(rss / m) - half_logdet
+            best[f.key] = np.maximum(best.get(f.key, ll), ll)
+    return Profiled(best, dof, innovations)
+
+
+def _p_values(profiled: Profiled, families: list[Family], z_windows: dict[str, np.ndarray]
+              ) -> dict[str, np.ndarray]:
+    """Asymptotic p-values of every family (and of jumps) for the data and each draw."""
+    out: dict[str, np.ndarray] = {}
+    e = profiled.innovations
+    m = e.shape[0]
+    for f in families:
+        if f.kind == "variance":
+            z = z_windows[f.key]
+            z = z - z.mean()
+            if not float(z @ z) > 0:
+                continue
+            u = e * e
+            u = u - u.mean(axis=0)
+            r2 = (z @ u) ** 2 / (float(z @ z) * np.maximum(np.sum(u * u, axis=0), 1e-300))
+            out[f.key] = stats.chi2.sf(m * r2, 1)
+        elif profiled.dof.get(f.key, 0) > 0 and f.key in profiled.loglik:
+            lr = np.maximum(2.0 * (profiled.loglik[f.key] - profiled.loglik[""]), 0.0)
+            out[f.key] = stats.chi2.sf(lr, profiled.dof[f.key])
+    kurtosis = np.mean(e**4, axis=0) / np.maximum(np.mean(e * e, axis=0) ** 2, 1e-300)
+    out["jumps"] = stats.norm.sf((kurtosis - 3.0) / math.sqrt(24.0 / m))
+    return out
+
+
+JUMPS = "slow structure that moves in jumps (steps or pulses), not a Gaussian wander"
+
+
+def covariate_test(ctx: Context, fit: Fit, markov: StochasticCandidate) -> CovariateVerdict:
+    """The library against the Markov reading on the one-second residual; ``why`` says what it follows."""
+    bins = fine_bins(ctx.log.t_s, ctx.fs_hz)
+    n = bins.n_bins
+    width = max(1, -(-n // MAX_WINDOWS))
+    if n // width < 24:
+        return CovariateVerdict(1.0, 0.0, "", None)
+    nuisance, families = library(ctx, bins)
+    grid = _grid(ctx.noise, bins, ctx.fs_hz, markov)
+    rng = np.random.default_rng(COVARIATE_SEED)
+    draws = simulated(grid.fitted, n, rng, COVARIATE_DRAWS)
+    resid = bins.mean(ctx.resid_full(fit))
+    y = _windows(np.column_stack([resid, draws]), width)
+    windows = {f.key: _windows(f.columns, width) for f in families}
+    windowed = [Family(f.key, f.words, windows[f.key], f.kind) for f in families]
+    profiled = _profile(y, _windows(nuisance, width), windowed, grid, n, width)
+    p = _p_values(profiled, windowed, windows)
+    keys = list(p)
+    matrix = np.vstack([p[k] for k in keys])
+    min_p = matrix.min(axis=0)
+    limit = -order_statistic_quantile(-min_p[1:], 1.0 - COVARIATE_ALPHA)
+    key = keys[int(np.argmin(matrix[:, 0]))]
+    words = JUMPS if key == "jumps" else next(f.words for f in families if f.key == key)
+    why = None
+    if min_p[0] < limit:
+        why = (f"{words}, which a Markov bias (σ {markov.params['sigma_dph']:.3g} deg/h, τ "
+               f"{markov.params['tau_s']:.0f} s) would absorb: tied to what the rig logged (p "
+               f"{min_p[0]:.2g}, limit {limit:.2g} at α = {COVARIATE_ALPHA:g} on {COVARIATE_DRAWS} draws "
+               "of the Markov fit)")
+    return CovariateVerdict(float(min_p[0]), float(limit), key, why)
+
+
+def unless_tied_to_covariates(ctx: Context, fit: Fit, markov: StochasticCandidate, ranked: dict[str, float],
+                              scores: dict[str, EffectScores]) -> tuple[str | None, str | None]:
+    """(MARKOV, None) if the Markov reading follows nothing the rig logged; else (the next best or None, why)."""
+    verdict = covariate_test(ctx, fit, markov)
+    if verdict.why is None:
+        return MARKOV, None
+    return next_best_or_none(ctx, fit, ranked, scores), verdict.why
