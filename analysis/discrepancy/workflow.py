@@ -8,7 +8,9 @@
 3. Score every catalogue effect the model lacks (shape parameters by grid and
    a bounded scalar search), periodic interference on the full-rate spectrum,
    a Gauss–Markov bias by the Whittle likelihood of the whole residual
-   (stochastic.py; an accepted one joins the noise model and the whitening),
+   (stochastic.py; an accepted one joins the noise model and the whitening;
+   named only if stationary, Gauss–Markov in shape, process_shape.py, and tied
+   to nothing the rig logged, markov_covariates.py),
    and the out-of-catalogue probes (probes.py: a bias step, a scale-factor step,
    a slow sinusoid of unknown period), which compete on equal footing.
 4. Calibrate the acceptance threshold by simulation: effect-free data from

@@ -61,7 +61,7 @@ def test_a_true_markov_bias_on_the_short_shock_is_still_named_first(tau_s):
 
 @pytest.mark.timeout(300)
 def test_the_test_refuses_few_true_markov_records():
-    """20 records of a 10σ Markov bias (τ 40 s) on the shock profile: at α = 0.5 %, at most one refused.
+    """20 records of a 10σ Markov bias (τ 40 s) on the shock profile: at α ≤ 0.5 %, at most one refused.
 
     (benchmarks/markov_covariates_calibration.py measures the level on 200 records a case.)
     """
@@ -73,7 +73,7 @@ def test_the_test_refuses_few_true_markov_records():
         verdict = covariate_test(ctx, fit, markov_test(ctx, fit))
         assert 0.0 < verdict.limit < 0.05 and 0.0 <= verdict.min_p <= 1.0
         refused += verdict.why is not None
-    assert COVARIATE_ALPHA == 0.005
+    assert COVARIATE_ALPHA <= 0.005
     assert refused <= 1
 
 
