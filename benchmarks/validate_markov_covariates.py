@@ -6,7 +6,7 @@ a logged covariate (tests/support/markov_covariate_cases.UNKNOWNS) on the own
 (τ short and long) on the shock profile, P1, Q1 and Q2; (c) effect-free controls.
 Prints one line per run: what was named (probability), `unexplained`, the
 covariate test's verdict when it ran, CPU. Run it on two trees (before / after a
-change) with the same seeds to compare.
+change), or with ``--before`` (the covariate test's hook let through), with the same seeds.
 
     .venv/bin/python benchmarks/validate_markov_covariates.py --part unknowns --seeds 2
     .venv/bin/python benchmarks/validate_markov_covariates.py --part markov --seeds 2
@@ -47,8 +47,18 @@ def profile(name: str) -> scenarios.Profile:
     return outside.profile(name)
 
 
-def run(job: tuple[str, str, str, int]) -> str:
-    part, pname, what, seed = job
+def _without_covariate_test() -> None:
+    """The workflow as it was before markov_covariates.py: its hook lets every Markov reading pass."""
+    from gyrocal.analysis.discrepancy import workflow  # lazy: patched in the worker process only
+    from gyrocal.analysis.discrepancy.stochastic import MARKOV
+
+    workflow.unless_tied_to_covariates = lambda *args: (MARKOV, None)
+
+
+def run(job: tuple[str, str, str, int, bool]) -> str:
+    part, pname, what, seed, before = job
+    if before:
+        _without_covariate_test()
     prof = profile(pname)
     hidden: list[EffectSpec] = []
     extra = None
@@ -65,16 +75,16 @@ def run(job: tuple[str, str, str, int]) -> str:
             f"cpu {cpu:.1f}|{covariate[:220]}|where: {result.where[:160]}")
 
 
-def jobs(args) -> list[tuple[str, str, str, int]]:
+def jobs(args) -> list[tuple[str, str, str, int, bool]]:
     out = []
     for pname in args.profiles.split(","):
         for k in range(args.seeds):
             if args.part == "unknowns":
-                out += [("unknowns", pname, name, UNKNOWN_SEED0 + k) for name in cases.UNKNOWNS]
+                out += [("unknowns", pname, name, UNKNOWN_SEED0 + k, args.before) for name in cases.UNKNOWNS]
             elif args.part == "markov":
-                out += [("markov", pname, str(tau), MARKOV_SEED0 + k) for tau in MARKOV_TAUS_S[pname]]
+                out += [("markov", pname, str(tau), MARKOV_SEED0 + k, args.before) for tau in MARKOV_TAUS_S[pname]]
             else:
-                out.append(("controls", pname, "-", CONTROL_SEED0 + k))
+                out.append(("controls", pname, "-", CONTROL_SEED0 + k, args.before))
     return out
 
 
@@ -84,6 +94,8 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=2)
     parser.add_argument("--profiles", default="shock")
     parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--before", action="store_true",
+                        help="without the covariate test (the workflow before markov_covariates.py)")
     args = parser.parse_args()
     start = time.time()
     with ProcessPoolExecutor(args.workers) as pool:
