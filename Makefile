@@ -6,12 +6,18 @@ STAMP := $(VENV)/.installed
 
 .PHONY: demo test lint bench clean browser
 
-# Quiet unless something fails: pip's and setuptools' output goes to $(VENV)/install.log,
-# which is printed only when the install fails.
+# Quiet unless something fails: the installers' output goes to $(VENV)/install.log, which is
+# printed only when the install fails. The project is installed by uv (from PyPI, into the
+# venv by pip; it resolves and links the ~100 wheels in parallel), or by pip when uv cannot be
+# had or fails. Measured on the 2-core machine, a fresh clone, caches warm: pip 38 s, uv 7-12 s
+# (uv's own install included; 7 s with a cold uv cache on a fast link).
+UV_PIP = $(VENV)/bin/uv pip install --python $(PY)
 $(STAMP): pyproject.toml
-	@echo "setting up $(VENV) (about 2 minutes; log: $(VENV)/install.log)"
+	@echo "setting up $(VENV) (under a minute from the installers' caches; log: $(VENV)/install.log)"
 	@$(PYTHON) -m venv $(VENV)
-	@{ $(PY) -m pip install --upgrade pip && $(PY) -m pip install -e '.[test]'; } \
+	@{ { $(PY) -m pip install 'uv>=0.5,<1' && $(UV_PIP) -e '.[test]'; } \
+		|| { echo "uv failed: installing with pip"; $(PY) -m pip install --upgrade pip \
+		     && $(PY) -m pip install -e '.[test]'; }; } \
 		> $(VENV)/install.log 2>&1 || { cat $(VENV)/install.log; echo "make: installing into $(VENV) failed (log above)"; exit 1; }
 	@touch $(STAMP)
 
