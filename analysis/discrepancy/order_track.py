@@ -1,0 +1,264 @@
+"""A line locked to the table angle at order k ≥ 2 (motor cogging): order tracking across rate dwells.
+
+A bias ∝ cos(k·θ − φ), θ the table angle (a drive motor's cogging, an encoder's
+line count, a bearing's balls), is a line whose frequency in time is k·|ω|/360
+Hz: a different one in every rate dwell. The fixed-line search (periodic.py)
+sees a few weak lines, each holding the power of one rate's dwells; the
+drifting-line search (line_drift.py) follows a frequency that moves slowly with
+temperature or time, not one that jumps with the table's rate; the catalogue's
+table_angle_harmonic is order 1 only. On the fourth held-out set (U1–U3) a
+cogging line cos 24θ at 10σ was neither named nor called unexplained on U2 and
+U3 (4 of 4 runs silent). Rotating-machinery analysis reads such a line in the
+order domain, against the shaft angle instead of time; so does this test.
+
+In every constant-rate turning dwell (segments.py: a segment whose rate is
+constant and not zero; consecutive ones at one rate joined) the full-rate
+residual of the last refit, less its mean and slope, is read at the
+frequencies k·|ω|/360 of every integer order k from 2 up (one chirp-z
+transform per dwell, exact at those frequencies): its complex amplitude
+against cos/sin(kθ), θ the dwell's table angle (a straight-line fit of the
+angle the model uses). An order enters from a dwell only where it is not
+aliased (k·|ω|/360 ≤ ``NYQUIST_USE`` of the Nyquist frequency) and completes at
+least ``MIN_CYCLES`` cycles there. The dwells' amplitudes are pooled
+coherently, each weighted by its inverse noise variance from the noise
+model's PSD at its frequency (times one level over all dwells, the median of
+their normalised periodograms, robust to the line itself, as periodic.py has
+it): under the noise model the pooled power of one order is Exp(1), and the
+coherent sum collects a line fixed to the angle from every dwell and rate
+while a fixed-frequency line, at another order in each rate and with no phase
+relation to θ from one dwell to the next, adds up incoherently.
+
+The threshold is the max over the orders tested: P(max of K Exp(1) > x) =
+1 − (1 − e^{−x})^K at ``ORDER_ALPHA`` = 0.5 % (the false alarms this test may
+add); neighbouring orders of a short dwell are correlated, which only makes
+the bound conservative. (No simulation is needed for that null: the
+statistic's distribution under the noise model is exact; effect-free records
+through the whole workflow measure what the bound leaves, in
+docs/discrepancy-validation.md.) Order 1 is table_angle_harmonic's and is not
+tested.
+
+When the line is there the result is ``unexplained``, ``where`` names the order,
+its amplitude and phase and the frequencies it took in the dwells; a named
+periodic_interference at one of those frequencies, and any named
+deterministic effect that no longer adds once the order line is taken out of
+the data, keep only ``1 − real_probability(score, threshold)`` of their
+probability (the adequacy test's odds rule).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.signal import czt
+
+from gyrocal.analysis.discrepancy.adequacy import NOT_JUDGED
+from gyrocal.analysis.discrepancy.candidates import PERIODIC
+from gyrocal.analysis.discrepancy.context import Context
+from gyrocal.analysis.discrepancy.lookalikes import real_probability
+from gyrocal.analysis.discrepancy.noise_model import NoiseModel
+from gyrocal.analysis.discrepancy.periodic import max_exponential_score
+from gyrocal.analysis.discrepancy.result import DiscrepancyResult, FoundEffect
+from gyrocal.analysis.discrepancy.scoring import Fit, gls_fit, score_from_delta
+from gyrocal.analysis.discrepancy.signatures import effect_columns
+
+#: False alarms the test may add (the max over every order tested).
+ORDER_ALPHA = 0.005
+#: Lowest order tested: order 1 is the catalogue's table_angle_harmonic.
+MIN_ORDER = 2
+#: Highest order tested (motor cogging and encoder lines sit well below).
+MAX_ORDER = 4096
+#: An order's frequency must be below this fraction of the Nyquist frequency (no aliasing, no
+#: anti-alias roll-off) and complete this many cycles in a dwell for the dwell to read it.
+NYQUIST_USE = 0.9
+MIN_CYCLES = 2.0
+#: Shortest turning dwell read (samples), and the smallest rate that counts as turning (deg/s).
+MIN_SAMPLES = 32
+MIN_RATE_DPS = 1e-3
+
+
+@dataclass(frozen=True)
+class Dwell:
+    """A constant-rate turning stretch of the record: samples [start, stop), rate, angle at start."""
+
+    start: int
+    stop: int
+    rate_dps: float
+    theta0_deg: float
+
+    @property
+    def n(self) -> int:
+        return self.stop - self.start
+
+    def orders(self, fs_hz: float) -> tuple[int, int]:
+        """(lowest, highest) order this dwell reads: enough cycles, not aliased, within the range."""
+        turns = abs(self.rate_dps) * self.n / fs_hz / 360.0
+        lo = max(MIN_ORDER, math.ceil(MIN_CYCLES / max(turns, 1e-12)))
+        hi = min(MAX_ORDER, math.floor(NYQUIST_USE * 0.5 * fs_hz * 360.0 / abs(self.rate_dps)))
+        return lo, hi
+
+
+@dataclass(frozen=True)
+class OrderLine:
+    """The strongest order of the pooled order spectrum and the test's figures."""
+
+    order: int
+    amplitude_dph: float
+    phase_deg: float
+    power: float                    # pooled coherent power (Exp(1) under the noise model)
+    n_orders: int                   # orders tested (the max's count)
+    n_dwells: int                   # dwells that read this order
+    rates_dps: tuple[float, ...]    # the distinct |rates| of those dwells
+    spans_hz: tuple[tuple[float, float], ...]   # per dwell that read it: its frequency ± resolution
+
+    @property
+    def score(self) -> float:
+        return max_exponential_score(self.power, self.n_orders)
+
+    @property
+    def threshold(self) -> float:
+        return -math.log10(ORDER_ALPHA)
+
+    @property
+    def fires(self) -> bool:
+        return self.score > self.threshold
+
+    @property
+    def whole_account(self) -> float:
+        return 1.0 - real_probability(self.score, self.threshold)
+
+    def describe(self) -> str:
+        freqs = ", ".join(f"{self.order * r / 360.0:.3g} Hz at {r:g} deg/s" for r in self.rates_dps[:4])
+        more = "" if len(self.rates_dps) <= 4 else f" and {len(self.rates_dps) - 4} more rates"
+        return (f"a line locked to the table angle at order {self.order} (bias {self.amplitude_dph:.3g} deg/h·"
+                f"cos({self.order}θ − {self.phase_deg:.0f}°), {self.order} cycles per turn: {freqs}{more}; "
+                f"coherent over {self.n_dwells} turning dwells, power {self.power:.0f}; score {self.score:.1f}, "
+                f"threshold {self.threshold:.1f} over {self.n_orders} orders)")
+
+    def shape_dph(self, angle_deg: np.ndarray) -> np.ndarray:
+        return self.amplitude_dph * np.cos(np.deg2rad(self.order * np.asarray(angle_deg) - self.phase_deg))
+
+
+def turning_dwells(rate_dps: np.ndarray, angle_deg: np.ndarray, slices, fs_hz: float) -> list[Dwell]:
+    """Constant-rate turning segments (consecutive ones at one rate joined), angle by a line fit."""
+    runs: list[list[int]] = []
+    for s in slices:
+        r = rate_dps[s]
+        if r.size == 0 or np.ptp(r) > 1e-3 + 1e-6 * float(np.max(np.abs(r))) or abs(float(r[0])) < MIN_RATE_DPS:
+            continue
+        if runs and runs[-1][1] == s.start and rate_dps[runs[-1][0]] == r[0]:
+            runs[-1][1] = s.stop
+        else:
+            runs.append([s.start, s.stop])
+    dwells = []
+    for a, b in runs:
+        if b - a < MIN_SAMPLES:
+            continue
+        t = np.arange(b - a) / fs_hz
+        slope, theta0 = np.polyfit(t, np.asarray(angle_deg[a:b], dtype=float), 1)
+        dwells.append(Dwell(a, b, float(slope), float(theta0)))
+    return dwells
+
+
+def order_scan(resid_dph: np.ndarray, angle_deg: np.ndarray, rate_dps: np.ndarray, slices, fs_hz: float,
+               noise: NoiseModel) -> OrderLine | None:
+    """The pooled order spectrum of the residual's turning dwells and its strongest order (None: none read)."""
+    dwells = [d for d in turning_dwells(rate_dps, angle_deg, slices, fs_hz)
+              if d.orders(fs_hz)[0] <= d.orders(fs_hz)[1]]
+    if not dwells:
+        return None
+    parts = [_dwell_orders(np.asarray(resid_dph[d.start:d.stop], dtype=float), d, fs_hz, noise) for d in dwells]
+    level = float(np.median(np.concatenate([p.ratios for p in parts]))) / math.log(2.0)
+    top = max(p.orders[-1] for p in parts) + 1
+    num = np.zeros(top, dtype=complex)
+    den = np.zeros(top)
+    for p in parts:
+        num[p.orders] += p.weight * p.coef / level
+        den[p.orders] += p.weight / level
+    tested = np.flatnonzero(den > 0)
+    power = np.abs(num[tested]) ** 2 / den[tested]
+    k = int(tested[int(np.argmax(power))])
+    amplitude = num[k] / den[k]
+    used = [(d, p) for d, p in zip(dwells, parts, strict=True) if p.orders[0] <= k <= p.orders[-1]]
+    return OrderLine(k, float(abs(amplitude)), float(np.degrees(-np.angle(amplitude)) % 360.0),
+                     float(np.max(power)), int(tested.size), len(used),
+                     tuple(sorted({round(abs(d.rate_dps), 6) for d, _ in used})),
+                     tuple(_span(d, k, fs_hz) for d, _ in used))
+
+
+@dataclass(frozen=True)
+class _DwellOrders:
+    orders: np.ndarray      # integer orders read
+    coef: np.ndarray        # complex amplitude c with bias = Re(c·e^{ikθ}) = |c|·cos(kθ + arg c)
+    weight: np.ndarray      # 1 / E|c|² under the noise model
+    ratios: np.ndarray      # the dwell's periodogram over the noise PSD (for the common level)
+
+
+def _dwell_orders(x: np.ndarray, dwell: Dwell, fs_hz: float, noise: NoiseModel) -> _DwellOrders:
+    """One dwell's complex amplitudes at its integer orders (chirp-z at k·|ω|/360 Hz)."""
+    n = x.size
+    t = np.arange(n) / fs_hz
+    x = x - np.polyval(np.polyfit(t, x, 1), t)
+    lo, hi = dwell.orders(fs_hz)
+    df = abs(dwell.rate_dps) / 360.0
+    spectrum = czt(x, m=hi - lo + 1, w=np.exp(-2j * math.pi * df / fs_hz), a=np.exp(2j * math.pi * lo * df / fs_hz))
+    orders = np.arange(lo, hi + 1)
+    if dwell.rate_dps < 0:           # θ falls: the line's e^{ikθ} part sits at −k·|ω|/360
+        spectrum = np.conj(spectrum)
+    coef = 2.0 * spectrum / n * np.exp(-1j * np.deg2rad(orders * dwell.theta0_deg))
+    psd = noise.psd_two_sided(orders * df, fs_hz)
+    weight = n / (4.0 * fs_hz * psd)
+    f = np.fft.rfftfreq(n, 1.0 / fs_hz)
+    band = (f >= MIN_CYCLES * fs_hz / n) & (f < NYQUIST_USE * 0.5 * fs_hz)
+    ratios = np.abs(np.fft.rfft(x)[band]) ** 2 / (n * fs_hz * noise.psd_two_sided(f[band], fs_hz))
+    return _DwellOrders(orders, coef, weight, ratios)
+
+
+def _span(dwell: Dwell, order: int, fs_hz: float) -> tuple[float, float]:
+    f = order * abs(dwell.rate_dps) / 360.0
+    resolution = 2.0 * fs_hz / dwell.n
+    return f - resolution, f + resolution
+
+
+def with_order_line(ctx: Context, after: Fit, result: DiscrepancyResult) -> DiscrepancyResult:
+    """The workflow's result once the order test has run on the final refit.
+
+    Fired: ``unexplained``, the line first in ``where``, the named effects it
+    replaces below their claim. Always: a note with the strongest order read.
+    """
+    line = order_scan(ctx.resid_full(after), ctx.builder.history.angle_deg, ctx.log.table_rate_dps,
+                      ctx.segments.slices, ctx.fs_hz, ctx.noise)
+    if line is None:
+        return result
+    note = (f"order tracking over {line.n_orders} orders of the table angle (2 and up) in the turning "
+            f"dwells: strongest order {line.order}, power {line.power:.1f}, score {line.score:.1f} "
+            f"against {line.threshold:.1f}")
+    notes = [*result.notes, note]
+    if not line.fires:
+        return replace(result, notes=notes)
+    where = f"{line.describe()}; {result.where}" if result.where else line.describe()
+    return replace(result, found=judged_by_order(ctx, after, result.found, line), unexplained=True,
+                   where=where, notes=notes)
+
+
+def judged_by_order(ctx: Context, after: Fit, found: list[FoundEffect], line: OrderLine) -> list[FoundEffect]:
+    """A named periodic_interference within the line's frequencies, or a deterministic effect that no
+    longer adds (its own threshold) once the order line is taken out of the data, keeps only
+    ``line.whole_account`` of its probability."""
+    judged = [f for f in found if f.name not in NOT_JUDGED]
+    if judged:
+        y_bins = ctx.bins.mean(ctx.y_full - line.shape_dph(ctx.builder.history.angle_deg))
+        with_all = gls_fit(ctx.builder, ctx.whitener, y_bins, after.model).chi2
+    out = []
+    for f in found:
+        if f.name == PERIODIC:
+            freq = f.parameters.get("freq_hz", math.nan)
+            replaced = any(lo <= freq <= hi for lo, hi in line.spans_hz)
+        elif f.name in NOT_JUDGED:
+            replaced = False
+        else:
+            without = gls_fit(ctx.builder, ctx.whitener, y_bins, after.model.without_effect(f.name)).chi2
+            replaced = score_from_delta(without - with_all, max(len(effect_columns(f.name)), 1)) <= f.threshold
+        out.append(replace(f, probability=f.probability * line.whole_account) if replaced else f)
+    return out
