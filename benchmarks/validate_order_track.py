@@ -134,8 +134,8 @@ def null_scan(name: str, draws: int) -> None:
           f"{len(ctx.log):,} samples, CPU median {np.median(cpu):.3f} s", flush=True)
 
 
-def catalogue(seeds: int) -> None:
-    for name in ("P1", "Q2", "P2"):
+def catalogue(seeds: int, profiles: str) -> None:
+    for name in profiles.split(","):
         prof = profile(name)
         for effect in CATALOGUE:
             if effect.startswith("markov_bias"):
@@ -183,6 +183,7 @@ def main() -> None:
     parser.add_argument("--profile", default="P1")
     parser.add_argument("--draws", type=int, default=100)
     parser.add_argument("--seeds", type=int, default=2)
+    parser.add_argument("--profiles", default="P1,Q2,P2", help="catalogue: the profiles")
     parser.add_argument("--whole", action="store_true", help="size the line over the whole record")
     parser.add_argument("--without", action="store_true", help="the workflow without the order test")
     args = parser.parse_args()
@@ -198,7 +199,7 @@ def main() -> None:
     elif args.mode == "null-scan":
         null_scan(args.profile, args.draws)
     else:
-        catalogue(args.seeds)
+        catalogue(args.seeds, args.profiles)
 
 
 if __name__ == "__main__":

@@ -79,6 +79,12 @@ NYQUIST_USE = 0.9
 MIN_CYCLES = 2.0
 #: Degree of the polynomial taken out of each dwell first (slow structure would leak into the lowest orders).
 DETREND_DEGREE = 3
+#: Above this many cycles in a dwell the cubic's share of a line is below 1e-3 and is not computed.
+PROJECTED_CYCLES = 40.0
+#: Most turning samples read: a longer record's dwells are each cut to their share of it (chosen
+#: from the rates alone, never from the residual, so the bound holds). A 10 M-sample overnight log
+#: would otherwise cost about 2 s; 2^21 samples cost what a 3-hour, 200 Hz procedure does.
+MAX_SAMPLES = 1 << 21
 #: Shortest turning dwell read (samples), and the smallest rate that counts as turning (deg/s).
 MIN_SAMPLES = 32
 MIN_RATE_DPS = 1e-3
@@ -170,8 +176,11 @@ def turning_dwells(rate_dps: np.ndarray, angle_deg: np.ndarray, slices, fs_hz: f
 def order_scan(resid_dph: np.ndarray, angle_deg: np.ndarray, rate_dps: np.ndarray, slices, fs_hz: float,
                noise: NoiseModel) -> OrderLine | None:
     """The pooled order spectrum of the residual's turning dwells and its strongest order (None: none read)."""
-    dwells = [d for d in turning_dwells(rate_dps, angle_deg, slices, fs_hz)
-              if d.orders(fs_hz)[0] <= d.orders(fs_hz)[1]]
+    dwells = turning_dwells(rate_dps, angle_deg, slices, fs_hz)
+    total = sum(d.n for d in dwells)
+    if total > MAX_SAMPLES:
+        dwells = [replace(d, stop=d.start + int(d.n * MAX_SAMPLES / total)) for d in dwells]
+    dwells = [d for d in dwells if d.n >= MIN_SAMPLES and d.orders(fs_hz)[0] <= d.orders(fs_hz)[1]]
     if not dwells:
         return None
     parts = [_dwell_orders(np.asarray(resid_dph[d.start:d.stop], dtype=float), d, fs_hz, noise) for d in dwells]
@@ -218,7 +227,10 @@ def _dwell_orders(x: np.ndarray, dwell: Dwell, fs_hz: float, noise: NoiseModel) 
     df = abs(dwell.rate_dps) / 360.0
     w, a = np.exp(-2j * math.pi * df / fs_hz), np.exp(2j * math.pi * lo * df / fs_hz)
     spectrum = czt(x, m=hi - lo + 1, w=w, a=a)
-    kept = n - np.sum(np.abs(czt(basis.T, m=hi - lo + 1, w=w, a=a, axis=-1)) ** 2, axis=0)   # ‖Pe_k‖²
+    kept = np.full(hi - lo + 1, float(n))    # ‖Pe_k‖²: the cubic takes a share only of the first cycles
+    few = min(hi - lo + 1, max(0, math.ceil(PROJECTED_CYCLES * 360.0 * fs_hz / (abs(dwell.rate_dps) * n)) - lo + 1))
+    if few > 0:
+        kept[:few] -= np.sum(np.abs(czt(basis.T, m=few, w=w, a=a, axis=-1)) ** 2, axis=0)
     orders = np.arange(lo, hi + 1)
     if dwell.rate_dps < 0:           # θ falls: the line's e^{ikθ} part sits at −k·|ω|/360
         spectrum = np.conj(spectrum)

@@ -83,22 +83,23 @@ def test_the_order_spectrum_reads_amplitude_and_phase_on_both_rate_signs():
     assert line.n_dwells == 4 and line.rates_dps == (3.0, 20.0)
 
 
+@pytest.mark.timeout(600)
 def test_effect_free_white_noise_fires_at_the_stated_rate():
-    """400 draws of the nominal white noise through Q2's turning dwells: the max over every order tested
-    passes the 0.5 % threshold about twice (Poisson: ≤ 6 at the 99.5 % point) and each order's pooled
-    power is Exp(1) (its mean over the draws near 1)."""
+    """200 draws of the nominal white noise through Q2's turning dwells: the max over every order tested
+    passes the 0.5 % threshold about once (Poisson: ≤ 4 at the 99.6 % point), and its median is that of
+    the max of as many independent Exp(1) (the bound is not loose by more than a little)."""
     prof = q2()
     ctx, _ = scenarios.base_refit(prof, 1)
     noise = NoiseModel.of_model(scenarios.nominal_model())
     rng = np.random.default_rng(5)
     sigma = noise.white_sigma_dph(prof.fs_hz)
     fires, powers = 0, []
-    for _ in range(400):
+    for _ in range(200):
         line = order_scan(sigma * rng.standard_normal(len(prof.t_s)), ctx.builder.history.angle_deg,
                           prof.table_rate_dps, ctx.segments.slices, prof.fs_hz, noise)
         fires += line.fires
         powers.append(line.power)
-    assert fires <= 6
+    assert fires <= 4
     # the max of K Exp(1) has median ln K − ln ln 2: the bound is not loose by more than a little
     assert np.median(powers) == pytest.approx(math.log(line.n_orders) + 0.37, abs=1.0)
     assert ORDER_ALPHA == 0.005
