@@ -19,6 +19,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, NoReturn
 
 from gyrocal import __version__
+from gyrocal.app.heap import large_arrays_on_heap
 from gyrocal.errors import (  # noqa: F401 - re-exported: the names scripts already import
     EXIT_ACCEPTANCE_FAILED,
     EXIT_BAD_INPUT,
@@ -248,7 +249,8 @@ def _add_analyze_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--measured", required=True)
     p.add_argument("--out", default="discrepancy-out")
     p.add_argument("--seed", type=int, default=0)
-    p.set_defaults(func=_lazy("gyrocal.app.discrepancy_command", "cmd_discrepancy"))
+    # 10 M-sample full-rate arrays: kept on the heap, not re-faulted per temporary (app/heap.py)
+    p.set_defaults(func=_lazy("gyrocal.app.discrepancy_command", "cmd_discrepancy", large_arrays_on_heap))
 
 
 def _add_instrument_commands(sub: argparse._SubParsersAction) -> None:
@@ -306,13 +308,18 @@ def _version() -> str:
     return __version__
 
 
-def _lazy(module: str, name: str) -> Callable[[argparse.Namespace], int]:
+def _lazy(module: str, name: str,
+          scope: Callable[[], contextlib.AbstractContextManager] = contextlib.nullcontext
+          ) -> Callable[[argparse.Namespace], int]:
     """The handler ``module.name``, imported when its command runs: each command module pulls
     in its own heavy libraries (pandas, pyarrow, matplotlib, pymodbus), which ``--help`` and
-    every other command need not pay for. A missing module or name is raised, never hidden."""
+    every other command need not pay for. A missing module or name is raised, never hidden.
+    ``scope`` is entered before the import (app/heap.py's allocator settings must precede
+    the threads pyarrow starts when it is imported)."""
     def call(args: argparse.Namespace) -> int:
-        handler = getattr(importlib.import_module(module), name)
-        return int(handler(args) or 0)
+        with scope():
+            handler = getattr(importlib.import_module(module), name)
+            return int(handler(args) or 0)
 
     call.__name__ = name
     return call
