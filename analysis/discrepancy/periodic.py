@@ -61,25 +61,33 @@ def max_exponential_score(peak: float, n: float) -> float:
 
 def periodic_scan(resid_dph: np.ndarray, fs_hz: float, noise: NoiseModel, f_lo_hz: float,
                   t_s: np.ndarray) -> PeriodicScan | None:
-    """Find the strongest line between ``f_lo_hz`` and Nyquist (None if the band is empty)."""
+    """Find the strongest line between ``f_lo_hz`` and Nyquist (None if the band is empty).
+
+    The band is a slice of the spectrum (the Fourier frequencies ascend), not a
+    boolean mask, and its power, ratio and normalisation are computed in one buffer:
+    on a 10 M-sample record each mask copy or fresh temporary was 40–80 MB.
+    """
     r = np.asarray(resid_dph, dtype=float) - float(np.mean(resid_dph))
     n = r.size
     spectrum = np.fft.rfft(r)
     f = np.fft.rfftfreq(n, 1.0 / fs_hz)
-    band = (f >= f_lo_hz) & (f < 0.5 * fs_hz * 0.999)
-    if np.count_nonzero(band) < 32:
+    lo = int(np.searchsorted(f, f_lo_hz, side="left"))                # first f ≥ f_lo
+    hi = int(np.searchsorted(f, 0.5 * fs_hz * 0.999, side="left"))    # first f ≥ the top
+    if hi - lo < 32:
         return None
-    power = np.abs(spectrum[band]) ** 2 / (n * fs_hz)
-    psd = noise.psd_two_sided(f[band], fs_hz)
-    ratio = power / psd
+    f_band = f[lo:hi]
+    ratio = np.abs(spectrum[lo:hi])
+    del spectrum
+    np.square(ratio, out=ratio)
+    ratio /= n * fs_hz                                  # the periodogram, (deg/h)²/Hz
+    ratio /= noise.psd_two_sided(f_band, fs_hz)
     level = float(np.median(ratio)) / math.log(2.0)
-    ratio = ratio / level
+    ratio /= level
     k = int(np.argmax(ratio))
-    f_band = f[band]
     freq, amplitude = _refine_sine(r, np.asarray(t_s, dtype=float), float(f_band[k]), fs_hz, n)
     step = max(1, ratio.size // 4000)
     return PeriodicScan(freq, amplitude, float(ratio[k]), int(REFINEMENT_FACTOR * ratio.size),
-                        float(f_lo_hz), f_band[::step], _block_max(ratio, step))
+                        float(f_lo_hz), f_band[::step].copy(), _block_max(ratio, step))
 
 
 def _block_max(x: np.ndarray, step: int) -> np.ndarray:
@@ -105,12 +113,7 @@ def _refine_sine(r: np.ndarray, t: np.ndarray, f0: float, fs_hz: float, n: int) 
     record by the caller (``workflow._final_periodic``).
     """
     resolution = fs_hz / n
-    tt = t - t[0]
-    z = r * np.exp(-2j * math.pi * f0 * tt)
-    blocks = min(_REFINE_BLOCKS, n)
-    starts = np.linspace(0, n, blocks + 1).astype(np.int64)[:-1]
-    z_blocks = np.add.reduceat(z, starts)
-    t_blocks = np.add.reduceat(tt, starts) / np.diff(np.append(starts, n))
+    z_blocks, t_blocks = _demodulated_blocks(r, t, f0, min(_REFINE_BLOCKS, n))
     best = (f0, 0.0, -1.0)
     grid = np.linspace(f0 - resolution, f0 + resolution, 41)
     for _ in range(2):
@@ -129,6 +132,29 @@ def _refine_sine(r: np.ndarray, t: np.ndarray, f0: float, fs_hz: float, n: int) 
 
 #: Block sums used by the frequency refinement (see _refine_sine).
 _REFINE_BLOCKS = 65536
+#: Blocks demodulated at a time: the complex temporaries stay a few MB instead of 160 MB each
+#: on a 10 M-sample record (the sums are the same: each block is still summed whole).
+_BLOCKS_PER_PASS = 4096
+
+
+def _demodulated_blocks(r: np.ndarray, t: np.ndarray, f0: float, blocks: int
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """Block sums of r·e^{−i2πf0(t−t0)} and block means of t − t0, over ``blocks`` equal blocks."""
+    n = r.size
+    starts = np.linspace(0, n, blocks + 1).astype(np.int64)[:-1]
+    ends = np.append(starts[1:], n)
+    z_blocks = np.empty(blocks, dtype=complex)
+    t_sums = np.empty(blocks)
+    for b0 in range(0, blocks, _BLOCKS_PER_PASS):
+        b1 = min(b0 + _BLOCKS_PER_PASS, blocks)
+        # a block of one repeated start (possible when n is barely above ``blocks``) is
+        # that one sample, as np.add.reduceat makes it
+        first, stop = int(starts[b0]), max(int(ends[b1 - 1]), int(starts[b1 - 1]) + 1)
+        local = starts[b0:b1] - first
+        tt = t[first:stop] - t[0]
+        z_blocks[b0:b1] = np.add.reduceat(r[first:stop] * np.exp(-2j * math.pi * f0 * tt), local)
+        t_sums[b0:b1] = np.add.reduceat(tt, local)
+    return z_blocks, t_sums / (ends - starts)
 
 
 def _sum_sin_squared(freq: float, t: np.ndarray, fs_hz: float) -> float:

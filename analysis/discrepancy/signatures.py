@@ -154,8 +154,10 @@ class DesignBuilder:
         self._binned: dict[str, np.ndarray] = {}
 
     def rate_dph(self, model: GyroModel) -> np.ndarray:
-        """Full-rate noise-free indicated rate, deg/h."""
-        return indicated_rate(model, self.inputs, history=self.history).rate_dps * 3600.0
+        """Full-rate noise-free indicated rate, deg/h (a new array: scaled in place, not copied)."""
+        rate = indicated_rate(model, self.inputs, history=self.history).rate_dps
+        rate *= 3600.0
+        return rate
 
     def binned_rate_dph(self, model: GyroModel) -> np.ndarray:
         """Bin means of ``rate_dph(model)``, remembered by the model's value.
