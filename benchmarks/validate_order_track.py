@@ -1,4 +1,4 @@
-"""The order and narrow-band tests (order_track.py, narrow_band.py): false alarms, detection, the catalogue.
+"""The order test (analysis/discrepancy/order_track.py): false alarms, detection, the catalogue, cost.
 
 Cases of our own (not the held-out set's): a bias A·cos(k·θ − φ) locked to the
 table angle, at orders and phases of our choosing per profile, sized by its
@@ -13,7 +13,6 @@ identity, the workflow as it was before the test).
     .venv/bin/python benchmarks/validate_order_track.py cases --seeds 3
     .venv/bin/python benchmarks/validate_order_track.py controls --profile P1 --draws 100
     .venv/bin/python benchmarks/validate_order_track.py null-scan --profile Q2 --draws 400
-    .venv/bin/python benchmarks/validate_order_track.py narrow --seeds 3
     .venv/bin/python benchmarks/validate_order_track.py catalogue [--without]
 """
 
@@ -30,7 +29,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import discrepancy_scenarios as scenarios  # noqa: E402
 import numpy as np  # noqa: E402
 import validate_line_drift as drift_bench  # noqa: E402
-from scipy.signal import lfilter  # noqa: E402
 
 from gyrocal.analysis.discrepancy import order_track, workflow  # noqa: E402
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel  # noqa: E402
@@ -45,10 +43,7 @@ CASES = [
     ("P2", 48, 120.0, (10.0,)),
 ]
 CATALOGUE = ["periodic_interference", "table_angle_harmonic", "sf_nonlinearity_quadratic", "temp_rate_bias",
-             "markov_bias", "markov_bias_300"]
-#: (profile, centre Hz, Q, sizes) of our own narrow-band random biases (second-order Gauss–Markov)
-NARROW = [("P1", 0.0037, 4.0, (10.0,)), ("Q1", 0.0051, 3.0, (10.0,)), ("Q2", 0.006, 2.5, (10.0,)),
-          ("Q3", 0.0029, 5.0, (10.0,))]
+             "markov_bias"]
 
 
 def profile(name: str) -> scenarios.Profile:
@@ -74,11 +69,7 @@ def run(prof: scenarios.Profile, seed: int, hidden=(), extra: np.ndarray | None 
 
 
 def _fired(result) -> bool:
-    return "a line locked to the table angle" in result.where
-
-
-def _narrow(result) -> bool:
-    return "a random bias in a narrow band" in result.where
+    return result.where.startswith("a line locked to the table angle")
 
 
 def _claims(result) -> list[tuple[str, float]]:
@@ -103,17 +94,16 @@ def cases(seeds: int, whole: bool) -> None:
 
 def controls(name: str, draws: int) -> None:
     prof = profile(name)
-    fired = narrow = claims = unexplained = 0
+    fired = claims = unexplained = 0
     for seed in range(draws):
         result, _ = run(prof, 8600 + seed)
         fired += _fired(result)
-        narrow += _narrow(result)
         claims += bool(result.found)
         unexplained += result.unexplained
-        if _fired(result) or _narrow(result):
+        if _fired(result):
             print(f"seed {seed}: {result.where[:200]}", flush=True)
-    print(f"== {name} controls: order line reported {fired}/{draws}; narrow band {narrow}/{draws}; any claim "
-          f"{claims}/{draws}; unexplained {unexplained}/{draws}", flush=True)
+    print(f"== {name} controls: order line reported {fired}/{draws}; any claim {claims}/{draws}; "
+          f"unexplained {unexplained}/{draws}", flush=True)
 
 
 def null_scan(name: str, draws: int) -> None:
@@ -138,48 +128,20 @@ def catalogue(seeds: int, profiles: str) -> None:
     for name in profiles.split(","):
         prof = profile(name)
         for effect in CATALOGUE:
-            if effect.startswith("markov_bias"):
-                spec = scenarios.sized_markov(10.0, 300.0 if effect.endswith("300") else 30.0, prof)
+            if effect == "markov_bias":
+                spec = scenarios.sized_markov(10.0, 30.0, prof)
             else:
                 spec = scenarios.sized_effect(effect, 10.0, prof, max_bins=1000)
             for seed in range(seeds):
                 result, cpu = run(prof, 6300 + seed, hidden=[spec])
                 first = result.found[0].name if result.found else "-"
                 print(f"{name} {effect} seed {seed}: first {first} claims {_claims(result)} unexplained "
-                      f"{result.unexplained} order {_fired(result)} narrow {_narrow(result)} cpu {cpu:.1f} s",
-                      flush=True)
-
-
-def narrow_band(prof: scenarios.Profile, f0_hz: float, q: float, size: float, seed: int) -> np.ndarray:
-    """A second-order Gauss–Markov realization (AR(2) poles r·e^(±iω0/fs), r = e^(−ω0/(2Q·fs))), started
-    20 Q-periods early, scaled to known-shape SNR ``size`` of its binned shape (``sized_extra``)."""
-    fs = prof.fs_hz
-    w0 = 2.0 * np.pi * f0_hz
-    r = np.exp(-w0 / (2.0 * q * fs))
-    warm = int(20.0 * q / f0_hz * fs)
-    x = lfilter([1.0], [1.0, -2.0 * r * np.cos(w0 / fs), r * r],
-                np.random.default_rng(seed).standard_normal(len(prof.t_s) + warm))[warm:]
-    return scenarios.sized_extra(x, size, prof, max_bins=1000)
-
-
-def narrow_cases(seeds: int) -> None:
-    for name, f0, q, sizes in NARROW:
-        prof = profile(name)
-        for size in sizes:
-            hits = []
-            for seed in range(seeds):
-                result, cpu = run(prof, 6400 + seed, extra=narrow_band(prof, f0, q, size, 6500 + seed))
-                claims = _claims(result)
-                hits.append(_narrow(result) and result.unexplained and not any(p >= 0.8 for _, p in claims))
-                print(f"{name} narrow {f0} Hz Q {q} {size}σ seed {seed}: unexplained {result.unexplained} claims "
-                      f"{claims} cpu {cpu:.1f} s | {result.where[:160]}", flush=True)
-            print(f"== {name} narrow band {size}σ: {sum(hits)}/{len(hits)} unexplained with the band described, "
-                  "no claim ≥ 0.8", flush=True)
+                      f"{result.unexplained} order {_fired(result)} cpu {cpu:.1f} s", flush=True)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("mode", choices=["cases", "narrow", "controls", "null-scan", "catalogue"])
+    parser.add_argument("mode", choices=["cases", "controls", "null-scan", "catalogue"])
     parser.add_argument("--profile", default="P1")
     parser.add_argument("--draws", type=int, default=100)
     parser.add_argument("--seeds", type=int, default=2)
@@ -187,13 +149,10 @@ def main() -> None:
     parser.add_argument("--whole", action="store_true", help="size the line over the whole record")
     parser.add_argument("--without", action="store_true", help="the workflow without the order test")
     args = parser.parse_args()
-    if args.without:   # the workflow as it was before both tests
+    if args.without:
         workflow.with_order_line = lambda ctx, after, result: result
-        workflow.with_narrow_band = lambda ctx, after, result: result
     if args.mode == "cases":
         cases(args.seeds, args.whole)
-    elif args.mode == "narrow":
-        narrow_cases(args.seeds)
     elif args.mode == "controls":
         controls(args.profile, args.draws)
     elif args.mode == "null-scan":

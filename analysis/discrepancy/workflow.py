@@ -97,7 +97,6 @@ from gyrocal.analysis.discrepancy.gap import (
 )
 from gyrocal.analysis.discrepancy.line_drift import drifting_line
 from gyrocal.analysis.discrepancy.markov_covariates import unless_tied_to_covariates
-from gyrocal.analysis.discrepancy.narrow_band import with_narrow_band
 from gyrocal.analysis.discrepancy.noise_level import judged_by_level, noise_level_test
 from gyrocal.analysis.discrepancy.noise_model import NoiseEstimate, NoiseModel, estimate_noise
 from gyrocal.analysis.discrepancy.order_track import with_order_line
@@ -397,11 +396,11 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
         where = f"{drift.describe()}; {where}" if where else drift.describe()
     if split.fires:
         where = f"{split.describe()}; {where}" if where else split.describe()
-    return with_narrow_band(ctx, after, with_order_line(ctx, after, with_spikes(ctx, after, DiscrepancyResult(
+    return with_order_line(ctx, after, with_spikes(ctx, after, DiscrepancyResult(  # angle lines, spikes
         found, unexplained, where, metrics, primary, model, after.model, noise.estimate,
         list(search.iterations), ctx.bins, ctx.segments, np.unique(seg_of_bin), geometry,
         before.resid_bins, after.resid_bins, signals, scan_before, scan_after, noise.before,
-        float(ctx.log.t_s[0]), notes, {gap.effect: gap.headline for gap in gaps}))))  # peaks, angle lines, spikes
+        float(ctx.log.t_s[0]), notes, {gap.effect: gap.headline for gap in gaps})))
 
 
 def _adequacy_pass(ctx: Context, after: Fit, found: list[FoundEffect]
