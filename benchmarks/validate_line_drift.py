@@ -90,18 +90,21 @@ def cases(seeds: int) -> None:
                   flush=True)
 
 
-def controls(name: str, draws: int) -> None:
+def controls(name: str, draws: int, first_seed: int = 8300, fired_by=None, what: str = "drifting line") -> None:
+    """Effect-free draws of profile ``name``: how often ``fired_by`` (the test's own report) fired,
+    how often anything was claimed or called unexplained. Shared with the order test's benchmark."""
+    fired_by = fired_by or _line
     prof = profile(name)
     fired = claims = unexplained = 0
     for seed in range(draws):
-        result, _ = run(prof, 8300 + seed)
-        fired += _line(result)
+        result, _ = run(prof, first_seed + seed)
+        fired += fired_by(result)
         claims += bool(result.found)
         unexplained += result.unexplained
-        if _line(result):
+        if fired_by(result):
             print(f"seed {seed}: {result.where[:200]}", flush=True)
-    print(f"== {name} controls: drifting line reported {fired}/{draws}; any claim {claims}/{draws}; "
-          f"unexplained {unexplained}/{draws}")
+    print(f"== {name} controls: {what} reported {fired}/{draws}; any claim {claims}/{draws}; "
+          f"unexplained {unexplained}/{draws}", flush=True)
 
 
 def null_scan(draws: int) -> None:

@@ -89,17 +89,7 @@ def cases(seeds: int, whole: bool) -> None:
 
 
 def controls(name: str, draws: int) -> None:
-    prof = profile(name)
-    fired = claims = unexplained = 0
-    for seed in range(draws):
-        result, _ = run(prof, 8600 + seed)
-        fired += _fired(result)
-        claims += bool(result.found)
-        unexplained += result.unexplained
-        if _fired(result):
-            print(f"seed {seed}: {result.where[:200]}", flush=True)
-    print(f"== {name} controls: order line reported {fired}/{draws}; any claim {claims}/{draws}; "
-          f"unexplained {unexplained}/{draws}", flush=True)
+    drift_bench.controls(name, draws, first_seed=8600, fired_by=_fired, what="order line")
 
 
 def null_scan(name: str, draws: int) -> None:

@@ -289,6 +289,14 @@ class TestRlgPulseCounter(_IdenticalTwice, _KilledAndResumed):
 
 
 #: tilt-linearity.yaml's holds, shortened for its kill-and-resume check (steps unchanged)
+def _cut(text: str, replacements: tuple[tuple[str, str], ...]) -> str:
+    """``text`` with each (old, new) replaced; each old must occur once (else the shipped file changed: update the cut)."""
+    for old, new in replacements:
+        assert text.count(old) == 1, old
+        text = text.replace(old, new)
+    return text
+
+
 TILT_SHORTER = (("station: ../stations/", f"station: {REPO}/stations/"),
                 ("hold: 10 min", "hold: 1 min"),
                 ("zero_stability: 1 h", "zero_stability: 3 min"),
@@ -309,9 +317,7 @@ class TestTiltLinearity(_KilledAndResumed):
         point, each step's state restored, the same samples and results) does not need
         them long. Every step of the shipped plan stays, in order."""
         text = super().procedure(folder).read_text()
-        for old, new in TILT_SHORTER:
-            assert text.count(old) == 1, old      # the shipped file changed: update the cut
-            text = text.replace(old, new)
+        text = _cut(text, TILT_SHORTER)
         path = folder / f"{cls.name}-short-holds.yaml"
         path.write_text(text)
         return path
@@ -451,9 +457,7 @@ class TestImuMountings(_KilledAndResumed):
         text = text.replace("station: ../stations/", f"station: {REPO}/stations/")
         for line in IMU_LATER_TEMPERATURES:
             text = text.replace(line, "")
-        for old, new in IMU_SHORTER:
-            assert text.count(old) == 1, old      # the shipped file changed: update the cut
-            text = text.replace(old, new)
+        text = _cut(text, IMU_SHORTER)
         path = folder / f"{cls.name}-3-temps.yaml"
         path.write_text(text)
         return path
