@@ -12,6 +12,8 @@ profiles T1–T3, 16 out-of-catalogue cases; run and read once) and ``--set U``
 (``tests/support/discrepancy_fresh_u.py``: profiles U1–U3, 16 out-of-catalogue
 cases; read by the people changing the workflow) and ``--set V``
 (``tests/support/discrepancy_fresh_v.py``: profiles V1–V3, 15 out-of-catalogue
+cases; read by the people changing the workflow) and ``--set W``
+(``tests/support/discrepancy_fresh_w.py``: profiles W1–W3, 15 out-of-catalogue
 cases, unseen: kept for the end of the work).
 Each set writes its own marked section.
 Measures, with Wilson 95 % intervals:
@@ -31,12 +33,14 @@ R2 and R3 (43 k samples); the defaults (430 runs) take about 14 CPU-min, about
 cores (the smoke's figures are at ``SETS``). Set T: 318 runs, estimated at about 8.5 CPU-min.
 Set U: 322 runs, estimated at about 7.5 CPU-min (never run before its first real run; see ``SETS``).
 Set V: 310 runs, estimated at about 6.5 CPU-min (never run before its first real run; see ``SETS``).
+Set W: 327 runs, estimated at about 6.5 CPU-min (never run before its first real run; see ``SETS``).
 
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --workers 2
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --set S --workers 2
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --set T --workers 2
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --set U --workers 2
     .venv/bin/python benchmarks/validate_discrepancy_fresh.py --set V --workers 2
+    .venv/bin/python benchmarks/validate_discrepancy_fresh.py --set W --workers 2
 """
 
 from __future__ import annotations
@@ -57,6 +61,7 @@ import discrepancy_fresh_s as fresh_s  # noqa: E402
 import discrepancy_fresh_t as fresh_t  # noqa: E402
 import discrepancy_fresh_u as fresh_u  # noqa: E402
 import discrepancy_fresh_v as fresh_v  # noqa: E402
+import discrepancy_fresh_w as fresh_w  # noqa: E402
 import discrepancy_validation_tables as tables  # noqa: E402
 import numpy as np
 from discrepancy_cases import Case  # noqa: E402
@@ -140,6 +145,18 @@ SETS = {
                 "detector logic and ran no analysis on these cases (only the generators, for sizes and "
                 "digests); nobody changing the workflow read its generator, and no run of it was read before "
                 "the run below. Unlike R–U, its runs draw a noise stream that depends on the profile too."),
+    # 327 runs, never smoked (its builder ran no analysis on it). Estimated from V's run (median CPU s per
+    # run V1 1.4 at 115 k samples, V2 1.0 at 154 k, V3 0.9 at 46 k) and T's (T1 2.3 at 375 k): W1 ≈ 1.3
+    # (158 k) × 73 runs, W2 ≈ 0.9 (51 k) × 142, W3 ≈ 1.3 (108 k) × 112 ≈ 6.2 CPU-min + ≈ 15 CPU-s sizing
+    # the cases: ≈ 3.5 min wall on 2 idle cores, ≈ 5 loaded
+    "W": SetRun(fresh_w.SET, "<!-- fresh-held-out-w:begin -->", "<!-- fresh-held-out-w:end -->",
+                "Sixth held-out set: profiles W1–W3, new families outside the catalogue (issue 29)",
+                "P1–P3, Q1–Q3, R1–R3, S1–S3, T1–T3, U1–U3 and V1–V3", "W1:2,W2:3,W3:2", "2",
+                "W1:15,W2:50,W3:40", "1", "W2,W3",
+                "this set was built by a helper who read neither the workflow's internals nor its tests' "
+                "detector logic and ran no analysis on these cases (only the generators, for sizes and "
+                "digests); nobody changing the workflow read its generator, and no run of it was read before "
+                "the run below. As in V, its runs draw a noise stream that depends on the profile too."),
 }
 
 
