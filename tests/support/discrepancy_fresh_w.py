@@ -269,6 +269,8 @@ PROFILES: dict[str, FreshProfile] = {
     # 35 °C with two dips to 27 °C: the dark current's exponential is a tempco plus a quadratic there (0.5σ
     # of 10 left beside bias_temp_quadratic); the same ladder every 2 min turns the angle at a steady
     # average pace, so the angle turned is a ramp (0.9σ beside bias_ramp): both left out, run on W2
+    # thermal_lag is sized at the sizing's floor τ 1 s here, a 16σ signature (the SF tempco at 300 deg/s
+    # through the door's 15 °C/min fall; 10σ would need τ ≈ 0.6 s)
     "W1": FreshProfile("W1 (22 min, 120 Hz, 35 °C held, the door opened twice for 45 s: the air falls "
                        "towards 22 °C with τ 50 s and recovers with τ 120 s; every 2 min ±10, ±30, ±100, "
                        "±300 deg/s dwells of 6 s, 500 deg/s²)",
@@ -285,6 +287,7 @@ PROFILES: dict[str, FreshProfile] = {
                        0.7, (100.0, 1200.0), 2.5),
     # 9–39 °C: the dark current is nearly a quadratic (1.9σ of 10 left), the angle turned (a block every
     # 5 min) nearly a ramp (1.0σ): both left out, run on W2
+    # thermal_lag: τ 1.26 s at 10σ; the 5σ row stops at the sizing's floor τ 1 s, an 8σ signature
     "W3": FreshProfile("W3 (75 min, 24 Hz, a ±12 °C sine of period 25 min around a mean drifting "
                        "18 → 30 °C; every 5 min ±3, ±45, ±180 deg/s dwells of 8 s and a 7.5 deg/s full "
                        "turn, 150 deg/s²)",
