@@ -23,10 +23,11 @@ workflow should not read this file.
   blower), a scale-factor dip in a band of rates (a fixture resonance), a bias
   relaxing after cooling only, a bias in the total angle turned (brush wear),
   scale-factor hops, a white-noise variance growing through the record, the
-  table's servo ringing after every rate change, a scale factor ageing in time,
-  a sensor lagging the air faster when heating than when cooling, a ripple line
-  whose amplitude follows temperature, a square wave in the table angle (cable
-  tilt); and three combinations of a catalogue effect with one of them.
+  table's servo lagging and ringing through every rate change, a scale factor
+  ageing in time, a sensor lagging the air faster when heating than when
+  cooling, a ripple line whose amplitude follows temperature, a square wave in
+  the table angle (cable tilt); and three combinations of a catalogue effect
+  with one of them.
 
 Noise: as in V, a run's seed depends on its profile (``profile_seed_stride``
 1000: profile i's runs are seeded 59000 + 1000·i + …).
@@ -189,12 +190,15 @@ RING_HZ, RING_DAMPING = 1.3, 0.06
 
 
 def _servo_ringing(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
-    """Every rate change Δω followed by a damped 1.3 Hz oscillation (ζ 0.06) ∝ Δω: the table's servo
-    overshooting and ringing; the gyro sees the real motion, the log the commanded rate."""
+    """ω_table − ω_logged for a table whose servo follows the logged (commanded) rate as a second-order
+    system (1.3 Hz, ζ 0.06, unit gain at DC): it lags through each slew and rings after it; the gyro
+    senses the real motion, the log holds the command."""
     w = 2.0 * math.pi * RING_HZ / p.fs_hz
     r = math.exp(-RING_DAMPING * w)
-    change = np.diff(p.table_rate_dps, prepend=p.table_rate_dps[0])
-    return lfilter([0.0, r * math.sin(w)], [1.0, -2.0 * r * math.cos(w), r * r], change)
+    a = [1.0, -2.0 * r * math.cos(w), r * r]
+    start = p.table_rate_dps[0]
+    actual = lfilter([sum(a)], a, p.table_rate_dps - start) + start
+    return actual - p.table_rate_dps
 
 
 def _sf_ageing(p: scenarios.Profile, rng: np.random.Generator) -> np.ndarray:
@@ -255,7 +259,7 @@ UNKNOWN: dict[str, Unknown] = {
     TURNED: Unknown(_angle_turned),
     "scale-factor hops: three steps of random sign at random moments": Unknown(_sf_hops),
     GROWTH: Unknown(_noise_growth, "noise"),
-    "table servo ringing after every rate change (1.3 Hz, ζ 0.06, ∝ Δω)": Unknown(_servo_ringing, "white"),
+    "table servo ringing after every rate change (second order, 1.3 Hz, ζ 0.06)": Unknown(_servo_ringing, "white"),
     SF_AGE: Unknown(_sf_ageing),
     ASYM_LAG: Unknown(_asymmetric_lag),
     "ripple line at 0.137·fs whose amplitude follows temperature": Unknown(_warm_ripple, "white"),
