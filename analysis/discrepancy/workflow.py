@@ -97,6 +97,7 @@ from gyrocal.analysis.discrepancy.gap import (
 )
 from gyrocal.analysis.discrepancy.line_drift import drifting_line
 from gyrocal.analysis.discrepancy.markov_covariates import unless_tied_to_covariates
+from gyrocal.analysis.discrepancy.markov_shapes import unless_deterministic_shape
 from gyrocal.analysis.discrepancy.noise_level import judged_by_level, noise_level_test
 from gyrocal.analysis.discrepancy.noise_model import NoiseEstimate, NoiseModel, estimate_noise
 from gyrocal.analysis.discrepancy.order_track import with_order_line
@@ -289,7 +290,7 @@ def _choose(ctx: Context, state: SearchState, fit: Fit, by_name: dict[str, Candi
     A Markov bias must be stationary over the record, leave no probe the sharper
     reading (arbitration.py), be Gauss–Markov in its levels and its spectrum, not a
     switching bias or a flicker excess (process_shape.py), and follow nothing the rig
-    logged (markov_covariates.py); any other best candidate
+    logged (markov_covariates.py) nor a deterministic slow shape (markov_shapes.py); any other best candidate
     yields to a probe that explains the data better.
     """
     ranked = {name: c.score for name, c in by_name.items()}
@@ -311,6 +312,8 @@ def _choose(ctx: Context, state: SearchState, fit: Fit, by_name: dict[str, Candi
         best, nonstationary = unless_not_gauss_markov(ctx, fit, test, ranked, scores)
     if best == MARKOV:   # nor is slow structure that follows what the rig logged (markov_covariates.py)
         best, nonstationary = unless_tied_to_covariates(ctx, fit, test, ranked, scores)
+    if best == MARKOV:   # nor is a deterministic slow shape a Markov would imitate (markov_shapes.py)
+        best, nonstationary = unless_deterministic_shape(ctx, fit, test, ranked, scores)
     if best is None or best == MARKOV or ranked[best] <= threshold:
         return Choice(best, None, nonstationary)
     return Choice(best, preempting_probe(ctx, fit, probes, by_name[best].probes_compete, best, scores,
