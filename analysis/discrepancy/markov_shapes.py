@@ -188,11 +188,14 @@ def shape_test(ctx: Context, fit: Fit, markov: StochasticCandidate) -> ShapeVerd
     p_markov = float(1.0 / (1.0 + np.exp(np.clip(log_shape - log_markov, -700.0, 700.0))))
     words = scans.words[int(data.best[0])]
     why = None
-    if p_markov < MARKOV_PROBABILITY:
+    # and, so that a true Markov bias is refused in at most 1/(SHAPE_DRAWS + 1) of records, the
+    # record's S must be beyond every draw of the Markov reading
+    if p_markov < MARKOV_PROBABILITY and data.s[0] > data.s[1:].max():
         why = (f"{words}, which a Markov bias (σ {markov.params['sigma_dph']:.3g} deg/h, τ "
                f"{markov.params['tau_s']:.0f} s) would imitate: on {SHAPE_DRAWS} draws of each reading the "
                f"record looks like the shape's (P(Markov) {p_markov:.2f}, below {MARKOV_PROBABILITY:g}; "
-               f"log-likelihood of the shape − the Markov {data.s[0]:.1f})")
+               f"log-likelihood of the shape − the Markov {data.s[0]:.1f}, beyond all the Markov draws' "
+               f"{data.s[1:].max():.1f})")
     return ShapeVerdict(p_markov, words, why)
 
 
