@@ -23,7 +23,7 @@ window means (at most ``MAX_WINDOWS``, as markov_covariates.py) are weighed:
 
 The statistic is S = log-likelihood of the best shape reading − that of the
 Markov reading. A parametric bootstrap of BOTH readings gives its law under each
-(``SHAPE_DRAWS`` draws of the fitted Markov; as many of the best shape at its
+(``MARKOV_DRAWS`` draws of the fitted Markov; ``SHAPE_DRAWS`` of the best shape at its
 fitted size in the noise alone), and P(Markov) = f_M(S) / (f_M(S) + f_D(S)) with
 kernel densities, equal prior odds. Below ``MARKOV_PROBABILITY`` the Markov
 reading is not named: the result is ``unexplained``, ``where`` names the shape
@@ -60,7 +60,9 @@ from gyrocal.analysis.discrepancy.stochastic import MARKOV, StochasticCandidate,
 
 #: Below this P(Markov) against the best one-shape reading a Markov bias is not named.
 MARKOV_PROBABILITY = 0.8
-#: Parametric-bootstrap draws of each reading, and their generator's seed.
+#: Parametric-bootstrap draws of the Markov reading (the record's S must pass all of them: a true
+#: Markov bias is refused in about 1/(MARKOV_DRAWS + 1) of records) and of the shape reading; seed.
+MARKOV_DRAWS = 600
 SHAPE_DRAWS = 300
 SHAPE_SEED = 2977
 #: Places (interior, evenly spread over time or T's quantiles) of the scanned shapes; bump widths.
@@ -148,6 +150,7 @@ def _readings(y: np.ndarray, nuisance: np.ndarray, columns: np.ndarray, grid: Gr
     size = np.zeros(y.shape[1])
     for k, spectrum in enumerate(grid.spectra):
         chol, half_logdet, white, base, rss0 = _whiten(_window_covariance(spectrum, n, width, m), y, nuisance)
+        rss0 = np.maximum(rss0, 1e-300)
         markov = np.maximum(markov, -0.5 * m * np.log(rss0 / m) - half_logdet)
         if k:
             continue
@@ -161,6 +164,16 @@ def _readings(y: np.ndarray, nuisance: np.ndarray, columns: np.ndarray, grid: Gr
         every = np.arange(y.shape[1])
         shape, size = ll[best, every], proj[best, every] / norms[best, 0]
     return Readings(shape - markov, best, size)
+
+
+def _p_markov(s: float, s_markov: np.ndarray, s_shape: np.ndarray) -> float:
+    """f_M(s) / (f_M(s) + f_D(s)), kernel densities of the two readings' draws (1 if either is degenerate)."""
+    s_markov, s_shape = s_markov[np.isfinite(s_markov)], s_shape[np.isfinite(s_shape)]
+    if not np.isfinite(s) or min(s_markov.size, s_shape.size) < 10 or min(np.ptp(s_markov), np.ptp(s_shape)) <= 0:
+        return 1.0
+    log_markov = float(stats.gaussian_kde(s_markov).logpdf(s)[0])
+    log_shape = float(stats.gaussian_kde(s_shape).logpdf(s)[0])
+    return float(1.0 / (1.0 + np.exp(np.clip(log_shape - log_markov, -700.0, 700.0))))
 
 
 def shape_test(ctx: Context, fit: Fit, markov: StochasticCandidate) -> ShapeVerdict:
@@ -178,22 +191,20 @@ def shape_test(ctx: Context, fit: Fit, markov: StochasticCandidate) -> ShapeVerd
     rng = np.random.default_rng(SHAPE_SEED)
     fitted = np.linalg.cholesky(_window_covariance(grid.fitted, n, width, m))
     y = np.column_stack([_windows(bins.mean(ctx.resid_full(fit)), width),
-                         fitted @ rng.standard_normal((m, SHAPE_DRAWS))])
+                         fitted @ rng.standard_normal((m, MARKOV_DRAWS))])
     data = _readings(y, nuisance, columns, grid, n, width)
     noise_only = np.linalg.cholesky(_window_covariance(grid.spectra[0], n, width, m))
     shaped = data.size[0] * columns[:, [data.best[0]]] + noise_only @ rng.standard_normal((m, SHAPE_DRAWS))
     s_shape = _readings(shaped, nuisance, columns, grid, n, width).s
-    log_markov = float(stats.gaussian_kde(data.s[1:]).logpdf(data.s[0])[0])
-    log_shape = float(stats.gaussian_kde(s_shape).logpdf(data.s[0])[0])
-    p_markov = float(1.0 / (1.0 + np.exp(np.clip(log_shape - log_markov, -700.0, 700.0))))
+    p_markov = _p_markov(data.s[0], data.s[1:], s_shape)
     words = scans.words[int(data.best[0])]
     why = None
-    # and, so that a true Markov bias is refused in at most 1/(SHAPE_DRAWS + 1) of records, the
-    # record's S must be beyond every draw of the Markov reading
-    if p_markov < MARKOV_PROBABILITY and data.s[0] > data.s[1:].max():
+    # and, so that a true Markov bias is refused in about 1/(MARKOV_DRAWS + 1) of records, the
+    # record's S must be beyond every draw of the Markov reading (1/(MARKOV_DRAWS + 1))
+    if p_markov < MARKOV_PROBABILITY and data.s[0] > np.nanmax(data.s[1:]):
         why = (f"{words}, which a Markov bias (σ {markov.params['sigma_dph']:.3g} deg/h, τ "
-               f"{markov.params['tau_s']:.0f} s) would imitate: on {SHAPE_DRAWS} draws of each reading the "
-               f"record looks like the shape's (P(Markov) {p_markov:.2f}, below {MARKOV_PROBABILITY:g}; "
+               f"{markov.params['tau_s']:.0f} s) would imitate: on {MARKOV_DRAWS} and {SHAPE_DRAWS} draws of the "
+               f"two readings the record looks like the shape's (P(Markov) {p_markov:.2f}, below {MARKOV_PROBABILITY:g}; "
                f"log-likelihood of the shape − the Markov {data.s[0]:.1f}, beyond all the Markov draws' "
                f"{data.s[1:].max():.1f})")
     return ShapeVerdict(p_markov, words, why)
