@@ -12,6 +12,10 @@ the shape test (the workflow before markov_shapes.py), with the same seeds.
     .venv/bin/python benchmarks/validate_markov_shapes.py --part unknowns --seeds 3 --profiles loop,shock
     .venv/bin/python benchmarks/validate_markov_shapes.py --part markov --seeds 2 --profiles loop,shock,P1,Q1,Q2
     .venv/bin/python benchmarks/validate_markov_shapes.py --part controls --seeds 100 --profiles loop
+    .venv/bin/python benchmarks/validate_markov_shapes.py --part level --seeds 80 --profiles loop:400,Q2:300
+
+``--part level`` runs the test alone (the nominal model refitted to a simulated log with a
+10σ Markov bias of the given τ, the Markov test fitted as the workflow does) and counts refusals.
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ MARKOV_TAUS_S = {"loop": (8.0, 60.0, 400.0), "ladder": (6.0, 45.0, 300.0), **cov
 UNKNOWN_SEED0 = 71000
 MARKOV_SEED0 = 72000
 CONTROL_SEED0 = 73000
+LEVEL_SEED0 = 75000
 
 
 def profile(name: str) -> scenarios.Profile:
@@ -73,6 +78,26 @@ def run(job: tuple[str, str, str, int, bool]) -> str:
             f"cpu {cpu:.1f}|{refusal[:200]}")
 
 
+def level(pname: str, tau_s: float, records: int) -> str:
+    """How often the shape test alone refuses a true 10σ Markov bias of ``tau_s`` on ``pname``."""
+    from gyrocal.analysis.discrepancy.context import markov_test  # lazy: only for --part level
+    from gyrocal.analysis.discrepancy.markov_shapes import shape_test
+
+    prof = profile(pname)
+    hidden = [scenarios.sized_markov(10.0, tau_s, prof)]
+    refused, cpu = [], []
+    for k in range(records):
+        ctx, fit = scenarios.base_refit(prof, LEVEL_SEED0 + k, hidden)
+        markov = markov_test(ctx, fit)
+        start = time.process_time()
+        verdict = shape_test(ctx, fit, markov)
+        cpu.append(time.process_time() - start)
+        if verdict.why is not None:
+            refused.append(LEVEL_SEED0 + k)
+    return (f"level|{pname}|τ {tau_s:g} s|refused {len(refused)}/{records} {refused}|"
+            f"CPU per call median {sorted(cpu)[len(cpu) // 2]:.2f} s")
+
+
 def jobs(args) -> list[tuple[str, str, str, int, bool]]:
     out = []
     for pname in args.profiles.split(","):
@@ -88,13 +113,18 @@ def jobs(args) -> list[tuple[str, str, str, int, bool]]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=("unknowns", "markov", "controls"), required=True)
+    parser.add_argument("--part", choices=("unknowns", "markov", "controls", "level"), required=True)
     parser.add_argument("--seeds", type=int, default=2)
     parser.add_argument("--profiles", default="loop")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--before", action="store_true", help="without the shape test")
     args = parser.parse_args()
     start = time.time()
+    if args.part == "level":
+        for item in args.profiles.split(","):
+            pname, tau = item.split(":")
+            print(level(pname, float(tau), args.seeds), flush=True)
+        return
     with ProcessPoolExecutor(args.workers) as pool:
         for line in pool.map(run, jobs(args)):
             print(line, flush=True)
