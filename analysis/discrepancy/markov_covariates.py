@@ -157,12 +157,12 @@ def library(ctx: Context, bins: Bins) -> tuple[np.ndarray, list[Family]]:
     return nuisance, families
 
 
-def _windows(x: np.ndarray, width: int) -> np.ndarray:
+def windows(x: np.ndarray, width: int) -> np.ndarray:
     m = x.shape[0] // width
     return x[: m * width].reshape(m, width, *x.shape[1:]).mean(axis=1)
 
 
-def _window_covariance(spectrum: np.ndarray, n: int, width: int, m: int) -> np.ndarray:
+def window_covariance(spectrum: np.ndarray, n: int, width: int, m: int) -> np.ndarray:
     """Toeplitz covariance of ``m`` window means (``width`` bins each) of the circulant process."""
     acov = np.fft.irfft(np.where(np.arange(spectrum.size) == 0, 0.0, spectrum), 2 * n)[:n]
     d = np.arange(-(width - 1), width)
@@ -179,7 +179,7 @@ class Grid:
     spectra: list[np.ndarray]
 
 
-def _grid(noise: NoiseModel, bins: Bins, fs_hz: float, markov: StochasticCandidate) -> Grid:
+def profile_grid(noise: NoiseModel, bins: Bins, fs_hz: float, markov: StochasticCandidate) -> Grid:
     n = bins.n_bins
     omega = np.pi * np.arange(n + 1) / n
     white_var, flicker, rest = noise_bin_spectra(noise, bins, fs_hz, omega)
@@ -209,7 +209,7 @@ class Profiled:
     innovations: np.ndarray
 
 
-def _whiten(cov: np.ndarray, y: np.ndarray, nuisance: np.ndarray
+def whiten(cov: np.ndarray, y: np.ndarray, nuisance: np.ndarray
             ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, np.ndarray]:
     """Cholesky factor, ½ log det, whitened data, the whitened base's basis, and the residual sum of squares."""
     chol = np.linalg.cholesky(cov)
@@ -227,7 +227,7 @@ def _profile(y: np.ndarray, nuisance: np.ndarray, families: list[Family], grid: 
     dof: dict[str, int] = {}
     innovations = np.zeros_like(y)
     for spectrum in grid.spectra:
-        chol, half_logdet, white, base, rss0 = _whiten(_window_covariance(spectrum, n, width, m), y, nuisance)
+        chol, half_logdet, white, base, rss0 = whiten(window_covariance(spectrum, n, width, m), y, nuisance)
         ll0 = -0.5 * m * np.log(rss0 / m) - half_logdet
         better = ll0 > best[""]
         rest = white - base @ (base.T @ white)
@@ -303,17 +303,17 @@ def covariate_test(ctx: Context, fit: Fit, markov: StochasticCandidate) -> Covar
     if n // width < 24:
         return CovariateVerdict(1.0, 0.0, "", None)
     nuisance, families = library(ctx, bins)
-    grid = _grid(ctx.noise, bins, ctx.fs_hz, markov)
+    grid = profile_grid(ctx.noise, bins, ctx.fs_hz, markov)
     # the draws are the fitted reading's window means, drawn from their covariance directly (the
     # same Gaussian law as window means of a simulated one-second series, a tenth of the cost)
     m = n // width
-    fitted = np.linalg.cholesky(_window_covariance(grid.fitted, n, width, m))
+    fitted = np.linalg.cholesky(window_covariance(grid.fitted, n, width, m))
     draws = fitted @ np.random.default_rng(COVARIATE_SEED).standard_normal((m, COVARIATE_DRAWS))
-    y = np.column_stack([_windows(bins.mean(ctx.resid_full(fit)), width), draws])
-    windows = {f.key: _windows(f.columns, width) for f in families}
-    windowed = [Family(f.key, f.words, windows[f.key], f.kind) for f in families]
-    profiled = _profile(y, _windows(nuisance, width), windowed, grid, n, width)
-    p = _p_values(profiled, windowed, windows, nuisance.shape[1])
+    y = np.column_stack([windows(bins.mean(ctx.resid_full(fit)), width), draws])
+    by_key = {f.key: windows(f.columns, width) for f in families}
+    windowed = [Family(f.key, f.words, by_key[f.key], f.kind) for f in families]
+    profiled = _profile(y, windows(nuisance, width), windowed, grid, n, width)
+    p = _p_values(profiled, windowed, by_key, nuisance.shape[1])
     keys = list(p)
     matrix = np.vstack([p[k] for k in keys])
     min_p = matrix.min(axis=0)
@@ -324,7 +324,7 @@ def covariate_test(ctx: Context, fit: Fit, markov: StochasticCandidate) -> Covar
     if min_p[0] < limit:
         if key in ("sectors", "bands"):
             family = next(f for f in windowed if f.key == key)
-            words += _largest(family, y[:, 0], _windows(nuisance, width), fitted @ fitted.T)
+            words += _largest(family, y[:, 0], windows(nuisance, width), fitted @ fitted.T)
         why = (f"{words}, which a Markov bias (σ {markov.params['sigma_dph']:.3g} deg/h, τ "
                f"{markov.params['tau_s']:.0f} s) would absorb: tied to what the rig logged (p "
                f"{min_p[0]:.2g}, limit {limit:.2g} at α = {COVARIATE_ALPHA:g} on {COVARIATE_DRAWS} draws "

@@ -51,11 +51,11 @@ from gyrocal.analysis.discrepancy.context import Context
 from gyrocal.analysis.discrepancy.markov_covariates import (
     MAX_WINDOWS,
     Grid,
-    _grid,
-    _whiten,
-    _window_covariance,
-    _windows,
     library,
+    profile_grid,
+    whiten,
+    window_covariance,
+    windows,
 )
 from gyrocal.analysis.discrepancy.scoring import EffectScores, Fit
 from gyrocal.analysis.discrepancy.segments import Bins
@@ -152,7 +152,7 @@ def _readings(y: np.ndarray, nuisance: np.ndarray, columns: np.ndarray, grid: Gr
     best = np.zeros(y.shape[1], dtype=np.int64)
     size = np.zeros(y.shape[1])
     for k, spectrum in enumerate(grid.spectra):
-        chol, half_logdet, white, base, rss0 = _whiten(_window_covariance(spectrum, n, width, m), y, nuisance)
+        chol, half_logdet, white, base, rss0 = whiten(window_covariance(spectrum, n, width, m), y, nuisance)
         rss0 = np.maximum(rss0, 1e-300)
         markov = np.maximum(markov, -0.5 * m * np.log(rss0 / m) - half_logdet)
         if k:
@@ -187,16 +187,16 @@ def shape_test(ctx: Context, fit: Fit, markov: StochasticCandidate) -> ShapeVerd
     m = n // width
     if m < 24:
         return ShapeVerdict(1.0, "", None)
-    nuisance = _windows(library(ctx, bins)[0], width)
+    nuisance = windows(library(ctx, bins)[0], width)
     scans = scan_shapes(ctx, bins)
-    columns = _windows(scans.columns, width)
-    grid = _grid(ctx.noise, bins, ctx.fs_hz, markov)
+    columns = windows(scans.columns, width)
+    grid = profile_grid(ctx.noise, bins, ctx.fs_hz, markov)
     rng = np.random.default_rng(SHAPE_SEED)
-    fitted = np.linalg.cholesky(_window_covariance(grid.fitted, n, width, m))
-    y = np.column_stack([_windows(bins.mean(ctx.resid_full(fit)), width),
+    fitted = np.linalg.cholesky(window_covariance(grid.fitted, n, width, m))
+    y = np.column_stack([windows(bins.mean(ctx.resid_full(fit)), width),
                          fitted @ rng.standard_normal((m, MARKOV_DRAWS))])
     data = _readings(y, nuisance, columns, grid, n, width)
-    noise_only = np.linalg.cholesky(_window_covariance(grid.spectra[0], n, width, m))
+    noise_only = np.linalg.cholesky(window_covariance(grid.spectra[0], n, width, m))
     shaped = data.size[0] * columns[:, [data.best[0]]] + noise_only @ rng.standard_normal((m, SHAPE_DRAWS))
     s_shape = _readings(shaped, nuisance, columns, grid, n, width).s
     p_markov = _p_markov(data.s[0], data.s[1:], s_shape)

@@ -19,9 +19,9 @@ from gyrocal.analysis.discrepancy.context import markov_test
 from gyrocal.analysis.discrepancy.markov_covariates import (
     COVARIATE_ALPHA,
     _derivatives,
-    _window_covariance,
-    _windows,
     covariate_test,
+    window_covariance,
+    windows,
 )
 from gyrocal.analysis.discrepancy.process_shape import simulated
 from gyrocal.analysis.discrepancy.stochastic import gm_bin_spectrum
@@ -82,8 +82,8 @@ def test_the_window_covariance_is_the_simulated_process_s():
     n, width = 600, 4
     omega = np.pi * np.arange(n + 1) / n
     spectrum = 1.0 + gm_bin_spectrum(2.0, 30.0, 1.0, omega)
-    draws = _windows(simulated(spectrum, n, np.random.default_rng(5), 4000), width)
-    model = _window_covariance(spectrum, n, width, n // width)
+    draws = windows(simulated(spectrum, n, np.random.default_rng(5), 4000), width)
+    model = window_covariance(spectrum, n, width, n // width)
     empirical = np.cov(draws)
     for lag in (0, 1, 3, 10):
         want = float(np.mean(np.diag(model, lag)))
