@@ -51,6 +51,7 @@ from scipy import optimize
 from gyrocal.analysis.discrepancy.noise_model import NoiseModel
 from gyrocal.analysis.discrepancy.scoring import order_statistic_quantile, score_from_delta
 from gyrocal.analysis.discrepancy.segments import Bins, make_bins
+from gyrocal.analysis.discrepancy.whittle_null import Spectra, refined_logliks
 from gyrocal.models.noise import flicker_bank
 
 #: Width of the fine bins the test is run on (s), and at most this many of them.
@@ -250,21 +251,47 @@ class WhittleTest:
                                                        (self.counts.size, n_null)) / self.counts[:, None]
 
     def test(self, resid_bins: np.ndarray, rng: np.random.Generator, n_null: int) -> StochasticCandidate:
-        """The Markov alternative on the data (refined) and on ``n_null`` simulated nulls (grid)."""
+        """The Markov alternative on the data and on ``n_null`` simulated nulls, each refined alike."""
         data = self.band_means(resid_bins)
-        grid = -self._log_sum[:, None] - self._weighted_inverse @ np.column_stack(
-            [data, self.null_bands(rng, n_null)])
+        values = np.column_stack([data, self.null_bands(rng, n_null)])
+        grid = -self._log_sum[:, None] - self._weighted_inverse @ values
         best_null = grid[~self._alternative].max(axis=0)
         rows = np.flatnonzero(self._alternative)
         best_row = rows[np.argmax(grid[rows, 0])]
-        null_lr = 2.0 * (grid[rows, 1:].max(axis=0) - best_null[1:])
+        # every column refined alike, the data's and each effect-free draw's (whittle_null.py)
+        ll0s, ll1s = self.refined_logliks(grid, values)
+        null_lr = np.maximum(2.0 * (ll1s[1:] - ll0s[1:]), 0.0)
         _, a0, b0, sigma0, tau0 = self.labels[best_row]
         null_row = np.flatnonzero(~self._alternative)[np.argmax(grid[~self._alternative, 0])]
-        ll0 = self._refine(data, self.labels[null_row][1:3], None, float(best_null[0]))[-1]
+        ll0 = max(self._refine(data, self.labels[null_row][1:3], None, float(best_null[0]))[-1], ll0s[0])
         a, b, sigma, tau, ll1 = self._refine(data, (a0, b0), (sigma0, tau0), float(grid[best_row, 0]))
         return StochasticCandidate(MARKOV, {"sigma_dph": sigma, "tau_s": tau},
-                                   max(2.0 * (ll1 - ll0), 0.0), 2, np.maximum(null_lr, 0.0), a,
+                                   max(2.0 * (max(ll1, ll1s[0]) - ll0), 0.0), 2, null_lr, a,
                                    tau >= 0.99 * self.tau_bounds_s[1], b)
+
+    def refined_logliks(self, grid: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each column's null and alternative log-likelihoods, refined from their best grid rows.
+
+        The same refinement for the data and every effect-free draw, so the threshold is
+        the data statistic's own (the draws' were taken at the grid: whittle_null.py).
+        """
+        labels = np.array([label[1:] for label in self.labels])          # a, b, σ, τ per row
+        free_b = self.flicker_scales.size > 1
+        null_rows = np.flatnonzero(~self._alternative)
+        alt_rows = np.flatnonzero(self._alternative)
+        n_pick = null_rows[np.argmax(grid[null_rows], axis=0)]
+        a_pick = alt_rows[np.argmax(grid[alt_rows], axis=0)]
+        scales = [0, 1] if free_b else [0]
+        null_start = np.log(labels[n_pick][:, scales]).T
+        alt_start = np.vstack([np.log(labels[a_pick][:, scales]).T, 2.0 * np.log(labels[a_pick][:, 2]),
+                               np.log(labels[a_pick][:, 3])])
+        spectra = Spectra(self.white_var * np.ones_like(self.omega), self.flicker, self.rest, self.counts,
+                          self.omega, self.width_s, (math.log(WHITE_SCALES[0]), math.log(WHITE_SCALES[-1])),
+                          (math.log(self.flicker_scales[0]), math.log(self.flicker_scales[-1])) if free_b else None,
+                          (math.log(self.tau_bounds_s[0]), math.log(self.tau_bounds_s[1])))
+        columns = np.arange(grid.shape[1])
+        return refined_logliks(spectra, values, null_start, alt_start, grid[n_pick, columns],
+                               grid[a_pick, columns])
 
     def _refine(self, data: np.ndarray, scales: tuple[float, float], markov: tuple[float, float] | None,
                 grid_best: float) -> tuple[float, ...]:
