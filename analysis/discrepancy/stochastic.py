@@ -26,7 +26,8 @@ spectrum is evaluated on the real residual *and* on several hundred
 simulated effect-free residuals with one matrix product, so the threshold is
 calibrated by simulation like the deterministic library's and the
 statistic is the same on both (the nulls are drawn in the periodogram's own
-distribution, see ``WhittleTest``). Whittle's likelihood is the exact one's
+distribution, see ``WhittleTest``, and each draw's likelihoods are refined
+off the grid as the data's are: whittle_null.py). Whittle's likelihood is the exact one's
 large-sample form; ``tests/reports/discrepancy/test_stochastic.py`` checks
 that its likelihood ratio agrees with the exact Gaussian likelihood ratio of
 the time-domain bin covariance (``NoiseModel.bin_covariance``, scipy's dense
@@ -212,10 +213,14 @@ class WhittleTest:
                         sigma2 = ratio * reference / unit[0]
                         rows.append(base + sigma2 * unit)
                         self.labels.append((True, float(a), float(b), math.sqrt(sigma2), float(tau)))
-        spectra = np.vstack(rows)
+        # the null rows first: each hypothesis's rows of the likelihood grid are then a view, not a copy
+        order = np.argsort([label[0] for label in self.labels], kind="stable")
+        self.labels = [self.labels[k] for k in order]
+        spectra = np.vstack(rows)[order]
         self._weighted_inverse = self.counts / spectra
         self._log_sum = np.log(spectra) @ self.counts
         self._alternative = np.array([label[0] for label in self.labels])
+        self._n_base = int(np.sum(~self._alternative))
 
     def best_alternative(self, band_values: np.ndarray) -> np.ndarray:
         """The grid maximum of the Markov alternative's log-likelihood for each column of band means."""
@@ -255,32 +260,29 @@ class WhittleTest:
         data = self.band_means(resid_bins)
         values = np.column_stack([data, self.null_bands(rng, n_null)])
         grid = -self._log_sum[:, None] - self._weighted_inverse @ values
-        best_null = grid[~self._alternative].max(axis=0)
-        rows = np.flatnonzero(self._alternative)
-        best_row = rows[np.argmax(grid[rows, 0])]
+        n0 = self._n_base
+        picks = (np.argmax(grid[:n0], axis=0), n0 + np.argmax(grid[n0:], axis=0))   # best null, alternative rows
         # every column refined alike, the data's and each effect-free draw's (whittle_null.py)
-        ll0s, ll1s = self.refined_logliks(grid, values)
+        ll0s, ll1s = self.refined_logliks(grid, values, picks)
         null_lr = np.maximum(2.0 * (ll1s[1:] - ll0s[1:]), 0.0)
+        null_row, best_row = int(picks[0][0]), int(picks[1][0])
         _, a0, b0, sigma0, tau0 = self.labels[best_row]
-        null_row = np.flatnonzero(~self._alternative)[np.argmax(grid[~self._alternative, 0])]
-        ll0 = max(self._refine(data, self.labels[null_row][1:3], None, float(best_null[0]))[-1], ll0s[0])
+        ll0 = max(self._refine(data, self.labels[null_row][1:3], None, float(grid[null_row, 0]))[-1], ll0s[0])
         a, b, sigma, tau, ll1 = self._refine(data, (a0, b0), (sigma0, tau0), float(grid[best_row, 0]))
         return StochasticCandidate(MARKOV, {"sigma_dph": sigma, "tau_s": tau},
                                    max(2.0 * (max(ll1, ll1s[0]) - ll0), 0.0), 2, null_lr, a,
                                    tau >= 0.99 * self.tau_bounds_s[1], b)
 
-    def refined_logliks(self, grid: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Each column's null and alternative log-likelihoods, refined from their best grid rows.
+    def refined_logliks(self, grid: np.ndarray, values: np.ndarray, picks: tuple[np.ndarray, np.ndarray]
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """Each column's null and alternative log-likelihoods, refined from its best grid rows (``picks``).
 
         The same refinement for the data and every effect-free draw, so the threshold is
         the data statistic's own (the draws' were taken at the grid: whittle_null.py).
         """
         labels = np.array([label[1:] for label in self.labels])          # a, b, σ, τ per row
         free_b = self.flicker_scales.size > 1
-        null_rows = np.flatnonzero(~self._alternative)
-        alt_rows = np.flatnonzero(self._alternative)
-        n_pick = null_rows[np.argmax(grid[null_rows], axis=0)]
-        a_pick = alt_rows[np.argmax(grid[alt_rows], axis=0)]
+        n_pick, a_pick = picks
         scales = [0, 1] if free_b else [0]
         null_start = np.log(labels[n_pick][:, scales]).T
         alt_start = np.vstack([np.log(labels[a_pick][:, scales]).T, 2.0 * np.log(labels[a_pick][:, 2]),

@@ -32,6 +32,8 @@ import numpy as np
 #: Fisher-scoring iterations, and the step fractions tried in each (the first that gains is kept).
 ITERATIONS = 12
 STEP_FRACTIONS = (1.0, 0.5, 0.2, 0.05)
+#: An iteration that gains less than this in every draw's log-likelihood ends the refinement.
+CONVERGED = 1e-4
 #: Half-width in log τ of the central difference for ∂S/∂log τ.
 LOG_TAU_STEP = 1e-4
 #: Range of log σ² about the grid's start (the data's refinement allows ±6 in log σ).
@@ -87,8 +89,8 @@ class _Model:
             self.upper = np.vstack([np.broadcast_to(self.upper, (len(upper), power_bounds.shape[1])),
                                     power_bounds[1:], np.full((1, power_bounds.shape[1]), spectra.tau_bounds[1])])
 
-    def parts(self, x: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
-        """The spectrum (bands × draws) and its derivatives in each log parameter."""
+    def parts(self, x: np.ndarray, derivatives: bool = True) -> tuple[np.ndarray, list[np.ndarray]]:
+        """The spectrum (bands × draws) and (``derivatives``) its derivatives in each log parameter."""
         sp = self.sp
         a = np.exp(x[0])
         s = a * sp.white[:, None] + sp.rest[:, None]
@@ -104,14 +106,15 @@ class _Model:
         if self.markov:
             power, tau = np.exp(x[k]), np.exp(x[k + 1])
             unit = unit_markov(tau, sp.width_s, sp.omega)
-            up = unit_markov(tau * math.exp(LOG_TAU_STEP), sp.width_s, sp.omega)
-            down = unit_markov(tau * math.exp(-LOG_TAU_STEP), sp.width_s, sp.omega)
             s = s + power * unit
-            derivs += [power * unit, power * (up - down) / (2.0 * LOG_TAU_STEP)]
+            if derivatives:
+                up = unit_markov(tau * math.exp(LOG_TAU_STEP), sp.width_s, sp.omega)
+                down = unit_markov(tau * math.exp(-LOG_TAU_STEP), sp.width_s, sp.omega)
+                derivs += [power * unit, power * (up - down) / (2.0 * LOG_TAU_STEP)]
         return s, derivs
 
     def loglik(self, x: np.ndarray, values: np.ndarray) -> np.ndarray:
-        s = self.parts(x)[0]
+        s = self.parts(x, derivatives=False)[0]
         return -(self.sp.counts @ (np.log(s) + values / s))
 
     def refine(self, x: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -137,14 +140,22 @@ class _Model:
             info = info + np.eye(len(derivs))[None] * (1e-12 + damping[:, None] * diag + held.T)[:, :, None]
             step = np.linalg.solve(info, grad.T[:, :, None])[:, :, 0].T
             moved = np.zeros(best.shape, dtype=bool)
-            for fraction in STEP_FRACTIONS:
-                trial = np.clip(x + fraction * step, self.lower, self.upper)
-                ll = self.loglik(trial, values)
-                take = (ll > best + 1e-9) & ~moved
-                x[:, take] = trial[:, take]
-                best = np.where(take, ll, best)
-                moved |= take
+            start = best.copy()
+            for fraction in STEP_FRACTIONS:      # each shorter step only where the longer one lost
+                todo = np.flatnonzero(~moved)
+                if todo.size == 0:
+                    break
+                trial = np.clip(x[:, todo] + fraction * step[:, todo], self.lower[:, todo]
+                                if self.lower.shape[1] > 1 else self.lower,
+                                self.upper[:, todo] if self.upper.shape[1] > 1 else self.upper)
+                ll = self.loglik(trial, values[:, todo])
+                take = ll > best[todo] + 1e-9
+                x[:, todo[take]] = trial[:, take]
+                best[todo[take]] = ll[take]
+                moved[todo[take]] = True
             damping = np.where(moved, np.maximum(damping / 10.0, 1e-6), damping * 100.0)
+            if float(np.max(best - start)) < CONVERGED:
+                break
         return best
 
 
