@@ -147,6 +147,9 @@ class StochasticCandidate:
     #: τ at the top of the range: slower than the record can show, a rate random walk to the data
     at_rrw_limit: bool = False
     flicker_scale: float = 1.0
+    #: each null draw's ratio taken at the grid, as before whittle_null.py: the catalogue's threshold
+    #: still reads it (markov_threshold.py)
+    grid_null_lr: np.ndarray | None = None
 
     @property
     def rrw_deg_per_h_rth(self) -> float:
@@ -159,6 +162,12 @@ class StochasticCandidate:
 
     def null_scores(self) -> np.ndarray:
         return np.array([score_from_delta(float(v), self.dof) for v in self.null_lr])
+
+    def grid_null_scores(self) -> np.ndarray:
+        """The null scores with each draw's ratio at the grid (``null_scores`` when there are none)."""
+        if self.grid_null_lr is None:
+            return self.null_scores()
+        return np.array([score_from_delta(float(v), self.dof) for v in self.grid_null_lr])
 
 
 def frequency_bands(k_max: int, single: int = 32, ratio: float = 1.05) -> np.ndarray:
@@ -269,9 +278,10 @@ class WhittleTest:
         _, a0, b0, sigma0, tau0 = self.labels[best_row]
         ll0 = max(self._refine(data, self.labels[null_row][1:3], None, float(grid[null_row, 0]))[-1], ll0s[0])
         a, b, sigma, tau, ll1 = self._refine(data, (a0, b0), (sigma0, tau0), float(grid[best_row, 0]))
+        on_grid = np.maximum(2.0 * (grid[n0:, 1:].max(axis=0) - grid[:n0, 1:].max(axis=0)), 0.0)
         return StochasticCandidate(MARKOV, {"sigma_dph": sigma, "tau_s": tau},
                                    max(2.0 * (max(ll1, ll1s[0]) - ll0), 0.0), 2, null_lr, a,
-                                   tau >= 0.99 * self.tau_bounds_s[1], b)
+                                   tau >= 0.99 * self.tau_bounds_s[1], b, on_grid)
 
     def refined_logliks(self, grid: np.ndarray, values: np.ndarray, picks: tuple[np.ndarray, np.ndarray]
                         ) -> tuple[np.ndarray, np.ndarray]:
