@@ -11,6 +11,7 @@ still fails.
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -28,11 +29,22 @@ def keys(tmp_path_factory):
     return generate_key_pair(tmp_path_factory.mktemp("station-keys"))
 
 
-@pytest.fixture
-def signed_run(tmp_path: Path, keys) -> Path:
-    out = tmp_path / "run"
+@pytest.fixture(scope="module")
+def signed_original(tmp_path_factory, keys) -> Path:
+    """One signed smoke run for the module; each test takes a copy (signed_run)."""
+    out = tmp_path_factory.mktemp("signed") / "run"
     assert main(["run", str(ROOT / "procedures/smoke.yaml"), "--sim", "--seed", "3",
                  "--out", str(out), "--signing-key", str(keys.private)]) == 0
+    return out
+
+
+@pytest.fixture
+def signed_run(signed_original: Path, tmp_path: Path) -> Path:
+    """A copy of the module's signed run, for this test to rebuild and verify. The run is
+    the same for every test (one seed, one key); a copy, not a run of its own per test,
+    saves two smoke runs (~3 s of CPU each), and a test's rebuild never reaches another's."""
+    out = tmp_path / "run"
+    shutil.copytree(signed_original, out)
     return out
 
 
