@@ -59,17 +59,30 @@ def session_lock_dir(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def smoke_run(tmp_path_factory):
-    """One dry run of procedures/smoke.yaml for the whole session (tests copy it to tamper)."""
+def smoke_run(tmp_path_factory, worker_id):
+    """One dry run of procedures/smoke.yaml for the whole session (tests copy it to tamper).
+
+    Read-only to every test (a test that changes a run copies it first). Under pytest-xdist
+    the workers share one: the first to ask makes it in the session's common temporary
+    folder, under a file lock, and the others wait for it and read it (the modules that
+    use it land on three workers of four under ``make test``: two smoke runs fewer).
+    """
+    import fcntl
     from pathlib import Path
 
     from gyrocal.cli import main
 
     root = Path(__file__).resolve().parents[1]
-    run_dir = tmp_path_factory.getbasetemp() / "smoke-run"
-    code = main(["run", str(root / "procedures" / "smoke.yaml"), "--sim", "--seed", "3",
-                 "--out", str(run_dir), "--operator", "qa-test"])
-    assert code == 0
+    base = tmp_path_factory.getbasetemp()
+    shared = base if worker_id == "master" else base.parent     # xdist: <session temp>/popen-gwN
+    run_dir = shared / "smoke-run"
+    with open(shared / "smoke-run.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not (shared / "smoke-run.made").is_file():
+            code = main(["run", str(root / "procedures" / "smoke.yaml"), "--sim", "--seed", "3",
+                         "--out", str(run_dir), "--operator", "qa-test"])
+            assert code == 0
+            (shared / "smoke-run.made").write_text(worker_id)
     return run_dir
 
 
