@@ -95,7 +95,9 @@ from gyrocal.analysis.discrepancy.gap import (
     max_exponential_quantile,
     segment_rms,
 )
+from gyrocal.analysis.discrepancy.harmonic_comb import with_comb
 from gyrocal.analysis.discrepancy.line_drift import drifting_line
+from gyrocal.analysis.discrepancy.localized import with_localized
 from gyrocal.analysis.discrepancy.markov_covariates import unless_tied_to_covariates
 from gyrocal.analysis.discrepancy.markov_shapes import unless_deterministic_shape
 from gyrocal.analysis.discrepancy.markov_threshold import library_thresholds
@@ -404,11 +406,11 @@ def _gap_pass(ctx: Context, model: GyroModel, noise: NoiseOutcome, search: Searc
         where = f"{drift.describe()}; {where}" if where else drift.describe()
     if split.fires:
         where = f"{split.describe()}; {where}" if where else split.describe()
-    return with_order_line(ctx, after, with_spikes(ctx, after, DiscrepancyResult(  # angle lines, spikes
+    return with_comb(ctx, after, with_localized(ctx, after, with_order_line(ctx, after, with_spikes(ctx, after, DiscrepancyResult(
         found, unexplained, where, metrics, primary, model, after.model, noise.estimate,
         list(search.iterations), ctx.bins, ctx.segments, np.unique(seg_of_bin), geometry,
         before.resid_bins, after.resid_bins, signals, scan_before, scan_after, noise.before,
-        float(ctx.log.t_s[0]), notes, {gap.effect: gap.headline for gap in gaps})))
+        float(ctx.log.t_s[0]), notes, {gap.effect: gap.headline for gap in gaps})))))  # lines, spikes, windows, combs
 
 
 def _adequacy_pass(ctx: Context, after: Fit, found: list[FoundEffect]
