@@ -55,6 +55,7 @@ from gyrocal.analysis.discrepancy.result import DiscrepancyResult, FoundEffect
 from gyrocal.analysis.discrepancy.scoring import Fit, Whitener, score_from_delta
 from gyrocal.analysis.discrepancy.segments import Bins
 from gyrocal.analysis.discrepancy.signatures import effect_columns
+from gyrocal.analysis.discrepancy.stochastic import MARKOV
 
 #: Family-wise false-alarm rate this test may add (half of the 0.5 % budget; harmonic_comb.py has the other).
 ALPHA_LOCALIZED = 0.0025
@@ -82,7 +83,8 @@ class Localized:
 
     statistic: float          # −log10 χ²₁ tail p of the largest window z²
     threshold: float          # −log10 of its family-wise ALPHA_LOCALIZED point
-    spans_s: tuple[tuple[float, float, float, float], ...] = ()   # (from s, to s, mean deg/h, z)
+    #: (from s, to s, mean deg/h, z, whether in the innovations) of each window listed
+    spans_s: tuple[tuple[float, float, float, float, bool], ...] = ()
     columns: np.ndarray | None = None   # the listed windows' indicators on the bins
 
     @property
@@ -94,8 +96,9 @@ class Localized:
         return 1.0 - real_probability(self.statistic, self.threshold) if self.fires else 1.0
 
     def describe(self) -> str:
-        parts = [f"a mean shift of {m:+.3g} deg/h over t = {a:.0f}–{b:.0f} s ({z:.1f}σ by the noise model "
-                 "at that scale)" for a, b, m, z in self.spans_s]
+        parts = [f"{'innovations (a jump the fitted noise process does not make)' if innov else 'a mean shift'}"
+                 f" of {m:+.3g} deg/h over t = {a:.0f}–{b:.0f} s ({z:.1f}σ by the noise model at that scale)"
+                 for a, b, m, z, innov in self.spans_s]
         return ("localized bias structure the named effects leave (window scan of the final residual): "
                 + "; ".join(parts))
 
@@ -106,24 +109,27 @@ class Localized:
                 f"10^-{self.threshold:.1f} (localized.py)")
 
 
-def windows(n_bins: int, cov: np.ndarray, fitted: np.ndarray) -> Windows:
+def windows(n_bins: int, cov: np.ndarray | None, fitted: np.ndarray) -> Windows:
     """Dyadic windows and the variance of each one's residual sum under the noise model and refit.
 
     ``fitted`` is L·Q (the whitened fitted basis coloured back): the refit removes
-    its span from the noise, so Var S = aᵀCa − ‖(LQ)ᵀa‖².
+    its span from the noise, so Var S = aᵀCa − ‖(LQ)ᵀa‖². ``cov`` None: the
+    whitened residual's windows (C = I, ``fitted`` = Q).
     """
     starts, stops = [], []
     width = 1
     while width <= max(1, int(MAX_SHARE * n_bins)):
-        step = max(1, width // 4)
-        s = np.arange(0, n_bins - width + 1, step)
+        s = np.arange(0, n_bins - width + 1, max(1, width // 4))
         starts.append(s)
         stops.append(s + width)
         width *= 2
     start, stop = np.concatenate(starts), np.concatenate(stops)
-    prefix = np.zeros((n_bins + 1, n_bins + 1))
-    prefix[1:, 1:] = np.cumsum(np.cumsum(cov, axis=0), axis=1)
-    box = prefix[stop, stop] - prefix[start, stop] - prefix[stop, start] + prefix[start, start]
+    if cov is None:
+        box = (stop - start).astype(float)
+    else:
+        prefix = np.zeros((n_bins + 1, n_bins + 1))
+        prefix[1:, 1:] = np.cumsum(np.cumsum(cov, axis=0), axis=1)
+        box = prefix[stop, stop] - prefix[start, stop] - prefix[stop, start] + prefix[start, start]
     cum = np.zeros((n_bins + 1, fitted.shape[1]))
     cum[1:] = np.cumsum(fitted, axis=0)
     removed = np.sum((cum[stop] - cum[start]) ** 2, axis=1)
@@ -170,26 +176,30 @@ def family_threshold(null_max: np.ndarray, tail: Callable[[float], float], n_tes
     return float(optimize.brentq(excess, lo, hi))
 
 
-def scan(resid_bins: np.ndarray, whitener: Whitener, basis: np.ndarray, bins: Bins) -> Localized:
-    """The scan of a binned residual under the whitener's noise model and the refit's ``basis``."""
+def scan(resid_bins: np.ndarray, white_resid: np.ndarray, whitener: Whitener, basis: np.ndarray,
+         bins: Bins) -> Localized:
+    """The scan of a refit's binned residual and its innovations (whitened residual), one family."""
     n, chol = resid_bins.size, whitener.chol
-    w = windows(n, whitener.covariance, chol @ basis)
-    z2 = window_z2(resid_bins, w)
-    null_max = window_z2(chol @ projected_draws(n, basis), w).max(axis=0)
+    rate = windows(n, whitener.covariance, chol @ basis)
+    innov = windows(n, None, basis)
+    z2 = np.concatenate([window_z2(resid_bins, rate), window_z2(white_resid, innov)])
+    null = projected_draws(n, basis)
+    null_max = np.maximum(window_z2(chol @ null, rate).max(axis=0), window_z2(null, innov).max(axis=0))
     x_alpha = family_threshold(null_max, _chi2_1_tail, z2.size, ALPHA_LOCALIZED)
-    statistic = score_from_delta(float(z2.max()), 1)
-    threshold = score_from_delta(x_alpha, 1)
+    statistic, threshold = score_from_delta(float(z2.max()), 1), score_from_delta(x_alpha, 1)
     if statistic <= threshold:
         return Localized(statistic, threshold)
-    chosen = _strongest_apart(z2, w, x_alpha)
-    cols = np.zeros((n, len(chosen)))
-    spans = []
-    half = 0.5 * bins.width_s
-    for j, i in enumerate(sorted(chosen, key=lambda k: w.start[k])):
-        a, b = int(w.start[i]), int(w.stop[i])
+    both = Windows(np.concatenate([rate.start, innov.start]), np.concatenate([rate.stop, innov.stop]),
+                   np.concatenate([rate.variance, innov.variance]))
+    chosen = sorted(_strongest_apart(z2, both, x_alpha), key=lambda k: both.start[k])
+    cols, spans, half = np.zeros((n, len(chosen))), [], 0.5 * bins.width_s
+    for j, i in enumerate(chosen):
+        a, b = int(both.start[i]), int(both.stop[i])
         cols[a:b, j] = 1.0
+        if i >= rate.start.size:   # a box of the innovations is the coloured box in the bins
+            cols[:, j] = chol @ cols[:, j]
         spans.append((float(bins.centre_s[a] - half), float(bins.centre_s[b - 1] + half),
-                      float(resid_bins[a:b].mean()), float(math.sqrt(z2[i]))))
+                      float(resid_bins[a:b].mean()), float(math.sqrt(z2[i])), i >= rate.start.size))
     return Localized(statistic, threshold, tuple(spans), cols)
 
 
@@ -210,18 +220,24 @@ def _strongest_apart(z2: np.ndarray, w: Windows, level: float) -> list[int]:
 
 def localized_test(ctx: Context, after: Fit) -> Localized:
     """The scan of the final refit's binned residual (see the module docstring)."""
-    return scan(after.resid_bins, ctx.whitener, after.basis, ctx.bins)
+    return scan(after.resid_bins, after.white_resid, ctx.whitener, after.basis, ctx.bins)
 
 
 def with_localized(ctx: Context, after: Fit, result: DiscrepancyResult) -> DiscrepancyResult:
-    """The workflow's result once the window scan has run: fired, ``unexplained`` with the windows in ``where``."""
+    """The workflow's result once the window scan has run: fired, ``unexplained`` with the windows in ``where``.
+
+    A named markov_bias is in the noise model the scan judges by, so what the scan finds is
+    what that process does not make: its claim takes the scan's odds too (three random bias
+    steps on the 1-h P1 profile were named markov_bias at 1.00 with the steps left over).
+    """
     found = localized_test(ctx, after)
     notes = [*result.notes, found.note]
     if not found.fires:
         return replace(result, notes=notes)
     where = f"{found.describe()}; {result.where}" if result.where else found.describe()
-    return replace(result, found=judged_beside(ctx, after, result.found, found.columns, found.whole_account),
-                   unexplained=True, where=where, notes=notes)
+    named = [replace(f, probability=f.probability * found.whole_account) if f.name == MARKOV else f
+             for f in judged_beside(ctx, after, result.found, found.columns, found.whole_account)]
+    return replace(result, found=named, unexplained=True, where=where, notes=notes)
 
 
 def judged_beside(ctx: Context, after: Fit, found: list[FoundEffect], columns: np.ndarray | None,
