@@ -29,7 +29,9 @@ period its peak occupies, so a pulse train is told from a smoother periodic
 shape. A named periodic_interference at a multiple of the fundamental (or its
 alias in the bins) has its probability multiplied by the probability that the
 comb is noise; other named deterministic effects that add nothing beside the
-comb's harmonics likewise (localized.judged_beside).
+comb's harmonics likewise (localized.judged_beside), and so does a named markov_bias: it is in the
+noise model the comb judges by, so the comb is what that process does not make (20-s pulses
+every 400 s on the 1-h P1 profile were named markov_bias at 0.99 beside a firing comb).
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ from gyrocal.analysis.discrepancy.lookalikes import real_probability
 from gyrocal.analysis.discrepancy.result import DiscrepancyResult, FoundEffect
 from gyrocal.analysis.discrepancy.scoring import Fit
 from gyrocal.analysis.discrepancy.segments import Bins
+from gyrocal.analysis.discrepancy.stochastic import MARKOV
 
 #: Family-wise false-alarm rate this test may add (the other half of the 0.5 % budget: localized.py).
 ALPHA_COMB = 0.0025
@@ -185,6 +188,8 @@ def with_comb(ctx: Context, after: Fit, result: DiscrepancyResult) -> Discrepanc
         return replace(result, notes=notes)
     named = judged_beside(ctx, after, [_line_judged(f, found, ctx.bins.width_s) for f in result.found],
                           found.columns, found.whole_account)
+    # a named Markov bias is in the noise model the comb judges by: the comb is what it does not make
+    named = [replace(f, probability=f.probability * found.whole_account) if f.name == MARKOV else f for f in named]
     where = f"{found.describe()}; {result.where}" if result.where else found.describe()
     return replace(result, found=named, unexplained=True, where=where, notes=notes)
 
