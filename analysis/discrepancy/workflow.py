@@ -39,7 +39,10 @@
    the same result). Nor whether a named effect keeps one size over the record
    (split_check.py): a catalogue law fitted to foreign structure needs
    another amplitude in another part (time, temperature, rate sign, |rate|); then
-   the result is unexplained and that effect's probability falls below 0.5.
+   the result is unexplained and that effect's probability falls below 0.5. Nor
+   structure local in time (localized.py: window means at every dyadic scale against
+   the noise model's variance there) or a periodic waveform that is not a sinusoid
+   (harmonic_comb.py: harmonics of one fundamental), with the same result.
 
 The code reads as that pipeline: ``_noise_pass`` → ``_search_pass`` (rounds of
 ``_search_round``) → ``_gap_pass`` (with ``_adequacy_pass`` and ``drifting_line``), each returning what the next needs. The
