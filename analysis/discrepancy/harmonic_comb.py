@@ -138,9 +138,9 @@ def trimmed_score(x: np.ndarray, k: int) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     above = table.size - np.searchsorted(table, x, side="right")
     edge = table[table.size - TAIL_KEEP]
-    sf = np.where(x <= edge, np.maximum(above, 1) / table.size,
-                  TAIL_KEEP / table.size * np.exp(-(k / (k - 1.0)) * (x - edge)))
-    return -np.log10(sf)
+    inside = -np.log10(np.maximum(above, 1) / table.size)
+    beyond = -math.log10(TAIL_KEEP / table.size) + (k / (k - 1.0)) * np.maximum(x - edge, 0.0) / math.log(10.0)
+    return np.where(x <= edge, inside, beyond)
 
 
 def _scores(power: np.ndarray, n: int) -> tuple[np.ndarray, tuple[int, int]]:
@@ -216,7 +216,8 @@ def with_comb(ctx: Context, after: Fit, result: DiscrepancyResult) -> Discrepanc
                           found.columns, found.whole_account)
     # a named Markov bias is in the noise model the comb judges by: the comb is what it does not make
     named = [replace(f, probability=f.probability * found.whole_account) if f.name == MARKOV else f for f in named]
-    where = f"{found.describe()}; {result.where}" if result.where else found.describe()
+    # after what the sharper tests said (an angle-locked line, spikes): the comb may be their echo
+    where = f"{result.where}; {found.describe()}" if result.where else found.describe()
     return replace(result, found=named, unexplained=True, where=where, notes=notes)
 
 

@@ -234,7 +234,8 @@ def with_localized(ctx: Context, after: Fit, result: DiscrepancyResult) -> Discr
     notes = [*result.notes, found.note]
     if not found.fires:
         return replace(result, notes=notes)
-    where = f"{found.describe()}; {result.where}" if result.where else found.describe()
+    # after what the sharper tests said (an angle-locked line, spikes): the windows may be their echo
+    where = f"{result.where}; {found.describe()}" if result.where else found.describe()
     named = [replace(f, probability=f.probability * found.whole_account) if f.name == MARKOV else f
              for f in judged_beside(ctx, after, result.found, found.columns, found.whole_account)]
     return replace(result, found=named, unexplained=True, where=where, notes=notes)
