@@ -3,10 +3,10 @@
 On the fifth held-out set 1-s pulses every 90 s were not seen on two profiles and named
 periodic_interference at ≥ 0.8 on a third, and a few random bias steps were named
 bias_temp_quadratic at ≥ 0.8. The cases here are this test's own (shapes, sizes, profile,
-seeds), sized by known-shape SNR (``scenarios.sized_extra``); before the two tests, on this
-profile, the pulse train below went unseen (no claim, not ``unexplained``) and the random
-steps drew a catalogue name (docs/discrepancy-validation.md, "Localized and impulsive
-structure").
+seeds), sized by known-shape SNR (``scenarios.sized_extra``). Before the two tests the pulse
+train below went unseen (no claim, not ``unexplained``), the random steps were ``unexplained``
+as a two-level switching bias, and the P1 bump was named markov_bias at 1.00
+(docs/discrepancy-validation.md, "Localized and impulsive structure").
 """
 
 from __future__ import annotations
