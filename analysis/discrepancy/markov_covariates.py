@@ -209,39 +209,72 @@ class Profiled:
     innovations: np.ndarray
 
 
-def whiten(cov: np.ndarray, y: np.ndarray, nuisance: np.ndarray
-            ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray, np.ndarray]:
-    """Cholesky factor, ½ log det, whitened data, the whitened base's basis, and the residual sum of squares."""
+@dataclass(frozen=True)
+class Whitened:
+    """One grid point's whitening: ½ log det, the whitened data, the whitened base's basis, the
+    residual sum of squares beside the base and the sum of squares the base explains, and the
+    whitened extra columns (solved in the same triangular solve as the data)."""
+
+    half_logdet: float
+    white: np.ndarray
+    base: np.ndarray
+    rss0: np.ndarray
+    explained0: np.ndarray
+    extra: np.ndarray
+
+
+def stack(y: np.ndarray, nuisance: np.ndarray, extra: np.ndarray | None = None) -> np.ndarray:
+    """The right-hand sides of ``whiten``: data, base and extra columns side by side, built once."""
+    return np.hstack([y, nuisance] if extra is None else [y, nuisance, extra])
+
+
+def whiten(cov: np.ndarray, rhs: np.ndarray, n_data: int, n_nuisance: int) -> Whitened:
+    """Cholesky of one grid point's covariance and ONE triangular solve of all of ``rhs`` (``stack``).
+
+    The grid has 91 points and the data hundreds of draws: one solve of the stacked columns
+    a point, not one per family, is what keeps the test cheap (each column is solved alone,
+    so the figures are those of separate solves).
+    """
     chol = np.linalg.cholesky(cov)
-    white = linalg.solve_triangular(chol, y, lower=True)
-    base = _orthonormal(linalg.solve_triangular(chol, nuisance, lower=True))
-    rss0 = np.sum(white * white, axis=0) - np.sum((base.T @ white) ** 2, axis=0)
-    return chol, float(np.sum(np.log(np.diag(chol)))), white, base, rss0
+    solved = linalg.solve_triangular(chol, rhs, lower=True)
+    white = solved[:, :n_data]
+    base = _orthonormal(solved[:, n_data:n_data + n_nuisance])
+    explained0 = np.sum((base.T @ white) ** 2, axis=0)
+    rss0 = np.sum(white * white, axis=0) - explained0
+    return Whitened(float(np.sum(np.log(np.diag(chol)))), white, base, rss0, explained0,
+                    solved[:, n_data + n_nuisance:])
 
 
 def _profile(y: np.ndarray, nuisance: np.ndarray, families: list[Family], grid: Grid, n: int,
              width: int) -> Profiled:
     """Each mean family's and H0's concentrated log-likelihood, maximised over the grid."""
     m = y.shape[0]
+    means = [f for f in families if f.kind == "mean"]
+    edges = np.cumsum([0] + [f.columns.shape[1] for f in means])
+    rhs = stack(y, nuisance, np.hstack([f.columns for f in means]))
     best: dict[str, np.ndarray] = {"": np.full(y.shape[1], -np.inf)}
     dof: dict[str, int] = {}
     innovations = np.zeros_like(y)
     for spectrum in grid.spectra:
-        chol, half_logdet, white, base, rss0 = whiten(window_covariance(spectrum, n, width, m), y, nuisance)
-        ll0 = -0.5 * m * np.log(rss0 / m) - half_logdet
+        w = whiten(window_covariance(spectrum, n, width, m), rhs, y.shape[1], nuisance.shape[1])
+        ll0 = -0.5 * m * np.log(w.rss0 / m) - w.half_logdet
         better = ll0 > best[""]
-        rest = white - base @ (base.T @ white)
-        innovations[:, better] = rest[:, better] / np.sqrt(rss0[better] / m)
+        if better.any():
+            rest = w.white - w.base @ (w.base.T @ w.white)
+            innovations[:, better] = rest[:, better] / np.sqrt(w.rss0[better] / m)
         best[""] = np.maximum(best[""], ll0)
-        for f in families:
-            if f.kind != "mean":
-                continue
-            q = _orthonormal(np.hstack([base, linalg.solve_triangular(chol, f.columns, lower=True)]))
-            dof[f.key] = q.shape[1] - base.shape[1]
+        bases = [_orthonormal(np.hstack([w.base, w.extra[:, a:b]])) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+        # every family's basis against the data in one product; the row sums below are per family
+        squares = (np.hstack(bases).T @ w.white) ** 2
+        total = w.rss0 + w.explained0
+        row = 0
+        for f, q in zip(means, bases, strict=True):
+            dof[f.key] = q.shape[1] - w.base.shape[1]
+            row += q.shape[1]
             if dof[f.key] == 0:
                 continue
-            rss = rss0 + np.sum((base.T @ white) ** 2, axis=0) - np.sum((q.T @ white) ** 2, axis=0)
-            ll = -0.5 * m * np.log(rss / m) - half_logdet
+            rss = total - np.sum(squares[row - q.shape[1]:row], axis=0)
+            ll = -0.5 * m * np.log(rss / m) - w.half_logdet
             best[f.key] = np.maximum(best.get(f.key, ll), ll)
     return Profiled(best, dof, innovations)
 

@@ -44,7 +44,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg, stats
+from scipy import stats
 
 from gyrocal.analysis.discrepancy.arbitration import next_best_or_none
 from gyrocal.analysis.discrepancy.context import Context
@@ -53,6 +53,7 @@ from gyrocal.analysis.discrepancy.markov_covariates import (
     Grid,
     library,
     profile_grid,
+    stack,
     whiten,
     window_covariance,
     windows,
@@ -151,18 +152,19 @@ def _readings(y: np.ndarray, nuisance: np.ndarray, columns: np.ndarray, grid: Gr
     shape = np.zeros(y.shape[1])
     best = np.zeros(y.shape[1], dtype=np.int64)
     size = np.zeros(y.shape[1])
+    # the shapes are needed at the first grid point only: solved there beside the data, in one solve
+    first, rest_rhs = stack(y, nuisance, columns), stack(y, nuisance)
     for k, spectrum in enumerate(grid.spectra):
-        chol, half_logdet, white, base, rss0 = whiten(window_covariance(spectrum, n, width, m), y, nuisance)
-        rss0 = np.maximum(rss0, 1e-300)
-        markov = np.maximum(markov, -0.5 * m * np.log(rss0 / m) - half_logdet)
+        w = whiten(window_covariance(spectrum, n, width, m), rest_rhs if k else first, y.shape[1], nuisance.shape[1])
+        rss0 = np.maximum(w.rss0, 1e-300)
+        markov = np.maximum(markov, -0.5 * m * np.log(rss0 / m) - w.half_logdet)
         if k:
             continue
-        rest = white - base @ (base.T @ white)
-        x = linalg.solve_triangular(chol, columns, lower=True)
-        x = x - base @ (base.T @ x)
+        rest = w.white - w.base @ (w.base.T @ w.white)
+        x = w.extra - w.base @ (w.base.T @ w.extra)
         norms = np.maximum(np.sum(x * x, axis=0), 1e-300)[:, None]
         proj = x.T @ rest
-        ll = -0.5 * m * np.log(np.maximum(rss0[None, :] - proj ** 2 / norms, 1e-300) / m) - half_logdet
+        ll = -0.5 * m * np.log(np.maximum(rss0[None, :] - proj ** 2 / norms, 1e-300) / m) - w.half_logdet
         best = np.argmax(ll, axis=0)
         every = np.arange(y.shape[1])
         shape, size = ll[best, every], proj[best, every] / norms[best, 0]
