@@ -18,7 +18,10 @@ import pytest
 from gyrocal.analysis.discrepancy.context import markov_test
 from gyrocal.analysis.discrepancy.markov_covariates import (
     COVARIATE_ALPHA,
+    Family,
+    Grid,
     _derivatives,
+    _profile,
     covariate_test,
     window_covariance,
     windows,
@@ -98,3 +101,37 @@ def test_the_temperature_derivatives_of_a_known_path():
     inside = slice(40, -40)
     assert np.allclose(first[inside], t_s[inside] / 60.0, atol=1e-6)
     assert np.allclose(second[inside], 1.0, atol=1e-6)
+
+
+def test_the_stacked_profile_is_each_family_s_own_gls_fit():
+    """_profile solves all families' columns in one stacked solve; each must equal its own GLS fit.
+
+    The reference is the direct reading: per grid point and family, the residual sum of squares
+    of the whitened data on the whitened [base, family] columns (least squares), maximised over
+    the grid; a family whose column lies in the base adds no degree of freedom.
+    """
+    rng = np.random.default_rng(3)
+    n, width = 240, 2
+    m = n // width
+    omega = np.pi * np.arange(n + 1) / n
+    grid = Grid(1.0 + gm_bin_spectrum(1.0, 20.0, 1.0, omega),
+                [1.0 + r * gm_bin_spectrum(1.0, tau, 1.0, omega) for tau in (5.0, 60.0) for r in (0.1, 2.0)])
+    nuisance = np.column_stack([np.ones(m), np.linspace(-1.0, 1.0, m)])
+    families = [Family("one", "", rng.standard_normal((m, 1))), Family("six", "", rng.standard_normal((m, 6))),
+                Family("in_base", "", 3.0 * nuisance[:, [1]]), Family("var", "", rng.standard_normal(m), "variance"),
+                Family("two", "", rng.standard_normal((m, 2)))]
+    y = rng.standard_normal((m, 7)) + 0.3 * families[1].columns[:, [0]]
+    got = _profile(y, nuisance, families, grid, n, width)
+    assert got.dof == {"one": 1, "six": 6, "in_base": 0, "two": 2}
+    want = {key: np.full(y.shape[1], -np.inf) for key in ("", "one", "six", "two")}
+    for spectrum in grid.spectra:
+        chol = np.linalg.cholesky(window_covariance(spectrum, n, width, m))
+        half_logdet = float(np.sum(np.log(np.diag(chol))))
+        white = np.linalg.solve(chol, y)
+        for key, extra in [("", np.zeros((m, 0)))] + [(f.key, f.columns) for f in families if f.key in want]:
+            x = np.linalg.solve(chol, np.hstack([nuisance, extra]))
+            rss = np.sum((white - x @ np.linalg.lstsq(x, white, rcond=None)[0]) ** 2, axis=0)
+            want[key] = np.maximum(want[key], -0.5 * m * np.log(rss / m) - half_logdet)
+    for key, ll in want.items():
+        np.testing.assert_allclose(got.loglik[key], ll, rtol=1e-12, atol=1e-9, err_msg=key)
+    assert "in_base" not in got.loglik and "var" not in got.loglik
