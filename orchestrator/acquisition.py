@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,7 +24,7 @@ from gyrocal.orchestrator.plan import PlanStep
 from gyrocal.orchestrator.progress import Progress
 from gyrocal.orchestrator.table_synthesis import Sinusoid
 from gyrocal.record.journal import Journal, JournalEvent
-from gyrocal.record.run_folder import SAMPLE_FLAG_GYRO_FLAGGED, ChunkRecord, RunFolder
+from gyrocal.record.run_folder import SAMPLE_FLAG_GYRO_FLAGGED, RunFolder
 
 
 @dataclass
@@ -99,23 +98,6 @@ class _Pending:
         self.n += len(block)
 
 
-class _ChunkWriter:
-    """At most one chunk being written on a worker thread, waited for before the next."""
-
-    def __init__(self, pool: ThreadPoolExecutor) -> None:
-        self.pool = pool
-        self.future: Future[ChunkRecord] | None = None
-
-    def start(self, write: Callable[..., ChunkRecord], *args: object) -> None:
-        assert self.future is None, "the previous chunk was not journaled"
-        self.future = self.pool.submit(write, *args)
-
-    def wait(self) -> ChunkRecord | None:
-        """The chunk being written, once it is on disk (its error raised); None when idle."""
-        future, self.future = self.future, None
-        return None if future is None else future.result()
-
-
 class Acquisition:
     """Records logged steps for the engine (``record``)."""
 
@@ -160,10 +142,14 @@ class Acquisition:
         ``Rehearsal``: an attempt cut by a kill does not count); default ``attempt``.
         """
         fs = self.inst.sample_rate_hz
+        n_total = int(round(step.duration_s * fs))
+        chunk_n = max(1, int(self.policy.chunk_s * fs))
+        block_n = max(1, min(chunk_n, int(self.policy.block_s * fs)))
         result = StepResult(step.step_id, attempt)
+        gyro = self.inst.gyro
         if self.on_attempt is not None:
             self.on_attempt(step.step_id, attempt if draw_attempt is None else draw_attempt)
-        self.inst.gyro.flush()
+        gyro.flush()
         plausible = self._plausibility(step, fs, at_rate_since_wall_s)
         t0 = self.clock.now_s()
         angle_start = (t0, 0.0, self._safe_position())
@@ -173,61 +159,33 @@ class Acquisition:
 
         self._check_table_rate(result, demand_now(), self.inst.table.read_rate_dps())
         angle_start = (t0, demand_now(), angle_start[2])
-        with ThreadPoolExecutor(1, thread_name_prefix="chunk-writer") as writer:
-            self._log_blocks(step, attempt, rate_dps, reference, result, plausible, demand_now,
-                             (t0, context_t, context_chamber, angle_start), _ChunkWriter(writer))
-        return result
-
-    def _log_blocks(self, step: PlanStep, attempt: int, rate_dps: float,
-                    reference: Sinusoid | None, result: StepResult,
-                    plausible: StreamPlausibility | None, demand_now: Callable[[], float],
-                    start: tuple[float, list[float], list[float], tuple[float, float, float]],
-                    chunks: _ChunkWriter) -> None:
-        """Read the step's blocks and write its chunks (the loop of :meth:`record`).
-
-        A chunk is encoded and written on ``chunks``' thread while the next blocks are read
-        (Parquet's zstd releases the GIL: ~3 s of an IMU dry run's controller thread, py-spy);
-        it is journaled before the next chunk's chamber poll, or when this returns or raises,
-        so the journal's lines and the run folder's atomic writes keep their order.
-        """
-        fs = self.inst.sample_rate_hz
-        n_total = int(round(step.duration_s * fs))
-        chunk_n = max(1, int(self.policy.chunk_s * fs))
-        block_n = max(1, min(chunk_n, int(self.policy.block_s * fs)))
-        t0, context_t, context_chamber, angle_start = start
         pending, chunk_index, last_index = _Pending(), 0, -1
         timeout_s = self.read_timeout_s(block_n / fs)
         want = self._elapse_next(min(block_n, n_total), fs)
         ahead = self.clock.simulated     # see _block_context
-        try:
-            while want > 0:
-                chunk_due = pending.n + want >= chunk_n or result.samples + want >= n_total
-                if chunk_due:
-                    self._journal_chunk(step, attempt, chunks.wait(), result)
-                chamber_c = self._block_context(result, demand_now, chunk_due) if ahead else None
-                following = self._elapse_next(min(block_n, n_total - result.samples - want), fs)
-                block = self.inst.gyro.read_samples(want, timeout_s=timeout_s)
-                result.count(block)
-                index = np.asarray(block.index, dtype=np.int64)
-                if plausible is not None and len(index):      # a real clock: checked per block
-                    self._journal_chunk(step, attempt, chunks.wait(), result)
-                    if self._implausible(plausible, step, attempt, result, len(block), index):
-                        return       # nothing of this attempt is calibration data
-                index, last_index = _continuing(index, last_index)
-                if not ahead:
-                    chamber_c = self._block_context(result, demand_now, chunk_due)
-                pending.add(block, index)
-                want = following
-                if chunk_due:
-                    context_t.append(t0 + (last_index + 1) / fs)
-                    context_chamber.append(float(chamber_c))    # type: ignore[arg-type]
-                    columns = self._assemble(pending.columns, t0, fs, context_t, context_chamber,
-                                             rate_dps, angle_start, reference)
-                    angle_start = self._write_chunk(step, attempt, chunk_index, pending, columns,
-                                                    chunks)
-                    chunk_index, pending = chunk_index + 1, _Pending()
-        finally:
-            self._journal_chunk(step, attempt, chunks.wait(), result)
+        while want > 0:
+            chunk_due = pending.n + want >= chunk_n or result.samples + want >= n_total
+            chamber_c = self._block_context(result, demand_now, chunk_due) if ahead else None
+            following = self._elapse_next(min(block_n, n_total - result.samples - want), fs)
+            block = gyro.read_samples(want, timeout_s=timeout_s)
+            result.count(block)
+            index = np.asarray(block.index, dtype=np.int64)
+            if plausible is not None and len(index) and self._implausible(
+                    plausible, step, attempt, result, len(block), index):
+                return result        # nothing of this attempt is calibration data
+            index, last_index = _continuing(index, last_index)
+            if not ahead:
+                chamber_c = self._block_context(result, demand_now, chunk_due)
+            pending.add(block, index)
+            want = following
+            if chunk_due:
+                context_t.append(t0 + (last_index + 1) / fs)
+                context_chamber.append(float(chamber_c))    # type: ignore[arg-type]
+                angle_start = self._write_chunk(step, attempt, chunk_index, pending, self._assemble(
+                    pending.columns, t0, fs, context_t, context_chamber, rate_dps, angle_start,
+                    reference), result)
+                chunk_index, pending = chunk_index + 1, _Pending()
+        return result
 
     def _elapse_next(self, frames: int, fs: float) -> int:
         """Let the next block's ``frames`` pass (returned), before this block is read.
@@ -289,25 +247,18 @@ class Acquisition:
         return True
 
     def _write_chunk(self, step: PlanStep, attempt: int, chunk_index: int, pending: _Pending,
-                     columns: dict[str, np.ndarray], chunks: _ChunkWriter
+                     columns: dict[str, np.ndarray], result: StepResult
                      ) -> tuple[float, float, float]:
-        """Start writing one chunk (with the sensor channels when every row has them) on
-        ``chunks``' thread; returns where the table angle continues: (t_s, rate_dps,
-        angle_deg) of its last row."""
+        """Write one chunk (with the sensor channels when every row has them) and journal it;
+        returns where the table angle continues: (t_s, rate_dps, angle_deg) of its last row."""
         if pending.channels and sum(c.rows for c in pending.channels) == pending.n:
             columns.update(concat_channels(pending.channels).columns())
-        chunks.start(self.folder.write_chunk, step.step_id, attempt, chunk_index, columns)
-        return (float(columns["t_s"][-1]), float(columns["table_rate_dps"][-1]),
-                float(columns["table_angle_deg"][-1]))
-
-    def _journal_chunk(self, step: PlanStep, attempt: int, record: ChunkRecord | None,
-                       result: StepResult) -> None:
-        """Journal a written chunk (none: nothing was being written)."""
-        if record is None:
-            return
+        record = self.folder.write_chunk(step.step_id, attempt, chunk_index, columns)
         self.journal.append(JournalEvent.CHUNK_WRITTEN, step_id=step.step_id, attempt=attempt,
                             path=record.path, sha256=record.sha256, rows=record.rows)
         result.chunks.append(record.path)
+        return (float(columns["t_s"][-1]), float(columns["table_rate_dps"][-1]),
+                float(columns["table_angle_deg"][-1]))
 
     def _frames_since(self, step: PlanStep, flushed_wall_s: float,
                       at_rate_since_wall_s: float | None, slack_s: float) -> float | None:
