@@ -101,6 +101,20 @@ def serials_begun_with(events: list[dict[str, Any]]) -> dict[str, str]:
     return found
 
 
+def _arrow_column(values: np.ndarray, kind: type[np.generic]) -> pa.Array:
+    """A NumPy column as an Arrow array over the same buffer (no nulls: NaN stays a value).
+
+    ``pa.array`` on a NumPy array asks pyarrow's pandas shim whether it is a pandas
+    categorical, and that imports pandas (and pyarrow.compute, dedenting every compute
+    function's docstring) at a run's first chunk: ~0.25 s of a dry run's controller
+    thread (``python -X importtime``), for columns that are plain arrays. The Parquet
+    bytes are the same either way (benchmarks/check_dry_run_determinism.py's comparison).
+    """
+    array = np.ascontiguousarray(values, dtype=kind)
+    return pa.Array.from_buffers(pa.from_numpy_dtype(array.dtype), len(array),
+                                 [None, pa.py_buffer(array)], null_count=0)
+
+
 class RunFolderError(BadInput):
     """The folder is not a usable run folder (names the file)."""
 
@@ -227,11 +241,11 @@ class RunFolder:
         if missing:
             raise ValueError(f"sample chunk lacks columns {missing}")
         rows = len(columns["t_s"])
-        data = {name: pa.array(np.asarray(columns[name], dtype=np.float64)) for name in SAMPLE_COLUMNS}
+        data = {name: _arrow_column(columns[name], np.float64) for name in SAMPLE_COLUMNS}
         for name in OPTIONAL_SAMPLE_COLUMNS + SENSOR_COLUMNS:
             if name in columns:
                 kind = np.uint8 if name in _UINT8_COLUMNS else np.float64
-                data[name] = pa.array(np.asarray(columns[name], dtype=kind))
+                data[name] = _arrow_column(columns[name], kind)
         table = pa.table(data)
         rel = Path(SAMPLES) / step_id / f"attempt{attempt}-chunk{chunk_index:05d}.parquet"
         # Encoded in memory, hashed there and written: hashing the file meant reading it back

@@ -13,14 +13,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 
 from gyrocal.analysis.measured_log import read_run_folder_log
 from gyrocal.errors import BadInput
 from gyrocal.record.journal import JournalEvent
 from gyrocal.record.logged_steps import attempts_started, completed_attempts, counted_attempts
-from gyrocal.record.run_folder import RunFolder
-from gyrocal.record.samples import ChunkReadError, RunSamples, samples
+from gyrocal.record.run_folder import _DICTIONARY_COLUMNS, RunFolder
+from gyrocal.record.samples import ChunkReadError, RunSamples, column_array, samples
 
 REPO = Path(__file__).resolve().parents[2]
 N = 50
@@ -104,3 +106,39 @@ def test_a_damaged_chunk_is_bad_input_naming_the_file(run: Path) -> None:
     with pytest.raises(ChunkReadError) as caught:
         samples(run, "T01.static")
     assert str(chunk) in str(caught.value) and isinstance(caught.value, BadInput)
+
+
+@pytest.mark.parametrize("column", [
+    pa.chunked_array([pa.array([1.0, np.nan, 3.0]), pa.array([], pa.float64()),
+                      pa.array([4.0, 5.0, 6.0]).slice(1)]),          # NaN, an empty chunk, an offset
+    pa.chunked_array([pa.array([7, 8, 9], pa.uint8()).slice(2), pa.array([255], pa.uint8())]),
+    pa.chunked_array([], pa.float64()),
+    pa.chunked_array([pa.array([1, None, 3])]),                      # nulls: left to to_numpy
+    pa.chunked_array([pa.array([True, False])]),                     # bit-packed: likewise
+])
+def test_a_column_reads_as_to_numpy_gives_it(column: pa.ChunkedArray) -> None:
+    """The reader copies number columns from their buffers (no pandas import): the same
+    dtype and values as pyarrow's ``to_numpy``, and a writable array of its own."""
+    got, expected = column_array(column), column.to_numpy()
+    assert got.dtype == expected.dtype
+    np.testing.assert_array_equal(got, expected)
+    got[...] = 0            # a copy: writing it leaves the Arrow buffers alone
+    np.testing.assert_array_equal(column.to_numpy(), expected)
+
+
+def test_a_chunk_is_the_parquet_that_pa_array_columns_make(tmp_path: Path) -> None:
+    """RunFolder.write_chunk wraps the NumPy buffers (no pandas import); the file is the
+    one ``pa.array`` columns make, byte for byte (NaN a value, not a null)."""
+    folder = RunFolder.create(tmp_path / "run", REPO / "procedures" / "smoke.yaml", None,
+                              manifest_fields={"mode": "sim"})
+    columns = _columns(np.array([0.5, np.nan, -np.inf, 2.0]), 10.0, np.array([0, 1, 0, 0]))
+    columns["gyro"] = columns["gyro"][::1]
+    columns["sensor_temp_c"] = np.arange(8.0)[::2]                  # not contiguous
+    record = folder.write_chunk("T01", 1, 0, columns)
+    table = pa.table({name: pa.array(np.asarray(values, dtype=np.uint8 if name == "status"
+                                                else np.float64))
+                      for name, values in columns.items()})
+    expected = pa.BufferOutputStream()
+    pq.write_table(table.select([n for n in pq.read_schema(folder.path / record.path).names]),
+                   expected, compression="zstd", use_dictionary=_DICTIONARY_COLUMNS)
+    assert (folder.path / record.path).read_bytes() == expected.getvalue().to_pybytes()
