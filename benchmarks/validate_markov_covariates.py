@@ -59,20 +59,25 @@ def run(job: tuple[str, str, str, int, bool]) -> str:
     part, pname, what, seed, before = job
     if before:
         _without_covariate_test()
-    prof = profile(pname)
-    hidden: list[EffectSpec] = []
-    extra = None
-    if part == "unknowns":
-        extra = cases.sized_unknown(what, prof, 10.0, seed)
-    elif part == "markov":
-        hidden = [scenarios.sized_markov(10.0, float(what), prof)]
-    start = time.process_time()
-    result = scenarios.analyse_scenario(prof, hidden, seed, extra_dph=extra)
-    cpu = time.process_time() - start
+    result, cpu = analyse_case(part, profile(pname), what, seed, cases.sized_unknown)
     named = ", ".join(f"{f.name} {f.probability:.2f}" for f in result.found) or "-"
     covariate = next((n for n in result.notes if "markov_bias not named" in n), "")
     return (f"{part}|{pname}|{what}|{seed}|named: {named}|unexplained {result.unexplained}|"
             f"cpu {cpu:.1f}|{covariate[:220]}|where: {result.where[:160]}")
+
+
+def analyse_case(part: str, prof: scenarios.Profile, what: str, seed: int, sized_unknown):
+    """One case of a Markov-safeguard benchmark: an unknown shape (``sized_unknown`` at 10σ), a true
+    10σ Markov bias of τ ``what`` s, or a control; the workflow's result and its CPU seconds."""
+    hidden: list[EffectSpec] = []
+    extra = None
+    if part == "unknowns":
+        extra = sized_unknown(what, prof, 10.0, seed)
+    elif part == "markov":
+        hidden = [scenarios.sized_markov(10.0, float(what), prof)]
+    start = time.process_time()
+    result = scenarios.analyse_scenario(prof, hidden, seed, extra_dph=extra)
+    return result, time.process_time() - start
 
 
 def jobs(args) -> list[tuple[str, str, str, int, bool]]:

@@ -34,8 +34,6 @@ import discrepancy_scenarios as scenarios  # noqa: E402
 import markov_shape_cases as cases  # noqa: E402
 import validate_markov_covariates as covariates  # noqa: E402
 
-from gyrocal.models.gyro_model import EffectSpec
-
 #: τ (s) of the true Markov biases per profile: short and long against the record
 MARKOV_TAUS_S = {"loop": (8.0, 60.0, 400.0), "ladder": (6.0, 45.0, 300.0), **covariates.MARKOV_TAUS_S}
 UNKNOWN_SEED0 = 71000
@@ -62,16 +60,7 @@ def run(job: tuple[str, str, str, int, bool]) -> str:
     part, pname, what, seed, before = job
     if before:
         _without_shape_test()
-    prof = profile(pname)
-    hidden: list[EffectSpec] = []
-    extra = None
-    if part == "unknowns":
-        extra = cases.sized_unknown(what, prof, 10.0, seed)
-    elif part == "markov":
-        hidden = [scenarios.sized_markov(10.0, float(what), prof)]
-    start = time.process_time()
-    result = scenarios.analyse_scenario(prof, hidden, seed, extra_dph=extra)
-    cpu = time.process_time() - start
+    result, cpu = covariates.analyse_case(part, profile(pname), what, seed, cases.sized_unknown)
     named = ", ".join(f"{f.name} {f.probability:.2f}" for f in result.found) or "-"
     refusal = next((n for n in result.notes if "markov_bias not named" in n), "")
     return (f"{part}|{pname}|{what}|{seed}|named: {named}|unexplained {result.unexplained}|"
