@@ -45,7 +45,7 @@ import numpy as np
 
 from gyrocal.analysis.discrepancy.context import Context
 from gyrocal.analysis.discrepancy.localized import family_threshold, judged_beside, projected_draws
-from gyrocal.analysis.discrepancy.lookalikes import real_probability
+from gyrocal.analysis.discrepancy.lookalikes import TailVerdict
 from gyrocal.analysis.discrepancy.result import DiscrepancyResult, FoundEffect
 from gyrocal.analysis.discrepancy.scoring import Fit
 from gyrocal.analysis.discrepancy.segments import Bins
@@ -70,7 +70,7 @@ MAX_PHASES = 32
 
 
 @dataclass(frozen=True)
-class Comb:
+class Comb(TailVerdict):
     """The comb test's outcome."""
 
     statistic: float        # −log10 of the smallest trial p
@@ -79,14 +79,6 @@ class Comb:
     harmonics: int = 0
     shape: str = ""
     columns: np.ndarray | None = None   # the comb's harmonics (cos, sin) on the bins
-
-    @property
-    def fires(self) -> bool:
-        return self.statistic > self.threshold
-
-    @property
-    def whole_account(self) -> float:
-        return 1.0 - real_probability(self.statistic, self.threshold) if self.fires else 1.0
 
     def describe(self) -> str:
         return (f"a periodic waveform that is not a sinusoid, period {self.period_s:.4g} s ({self.harmonics} "

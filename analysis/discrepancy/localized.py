@@ -50,7 +50,7 @@ from scipy import optimize, stats
 
 from gyrocal.analysis.discrepancy.adequacy import NOT_JUDGED
 from gyrocal.analysis.discrepancy.context import Context
-from gyrocal.analysis.discrepancy.lookalikes import real_probability
+from gyrocal.analysis.discrepancy.lookalikes import TailVerdict
 from gyrocal.analysis.discrepancy.result import DiscrepancyResult, FoundEffect
 from gyrocal.analysis.discrepancy.scoring import Fit, Whitener, score_from_delta
 from gyrocal.analysis.discrepancy.segments import Bins
@@ -78,7 +78,7 @@ class Windows:
 
 
 @dataclass(frozen=True)
-class Localized:
+class Localized(TailVerdict):
     """The scan's outcome on one record."""
 
     statistic: float          # −log10 χ²₁ tail p of the largest window z²
@@ -86,14 +86,6 @@ class Localized:
     #: (from s, to s, mean deg/h, z, whether in the innovations) of each window listed
     spans_s: tuple[tuple[float, float, float, float, bool], ...] = ()
     columns: np.ndarray | None = None   # the listed windows' indicators on the bins
-
-    @property
-    def fires(self) -> bool:
-        return self.statistic > self.threshold
-
-    @property
-    def whole_account(self) -> float:
-        return 1.0 - real_probability(self.statistic, self.threshold) if self.fires else 1.0
 
     def describe(self) -> str:
         parts = [f"{'innovations (a jump the fitted noise process does not make)' if innov else 'a mean shift'}"

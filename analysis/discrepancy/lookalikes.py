@@ -57,6 +57,27 @@ def real_probability(score: float, threshold: float) -> float:
     return 1.0 / (1.0 + 10.0 ** (-(score - threshold)))
 
 
+@dataclass(frozen=True)
+class TailVerdict:
+    """A residual test's outcome as −log10 tail probabilities: its statistic and its family-wise point.
+
+    One owner for what the window scan and the harmonic comb both say about a finding: it
+    fires above the point, and the share of the data the named effects still account for is
+    one minus the finding's odds (``real_probability``), 1 when it does not fire.
+    """
+
+    statistic: float        # −log10 of the smallest tail probability the test saw
+    threshold: float        # −log10 of its family-wise point
+
+    @property
+    def fires(self) -> bool:
+        return self.statistic > self.threshold
+
+    @property
+    def whole_account(self) -> float:
+        return 1.0 - real_probability(self.statistic, self.threshold) if self.fires else 1.0
+
+
 def _correlation(a: np.ndarray | None, b: np.ndarray | None) -> float:
     if a is None or b is None:
         return 0.0
