@@ -22,23 +22,38 @@ refined nulls differ little there).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from gyrocal.analysis.discrepancy.candidates import Candidate, MarkovCandidate
 from gyrocal.analysis.discrepancy.scoring import Fit, order_statistic_quantile
+from gyrocal.analysis.discrepancy.stochastic import MARKOV
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """A search round's acceptance thresholds: the catalogue's, and the Markov candidate's."""
+
+    catalogue: float
+    markov: float
+
+    def of(self, name: str | None) -> float:
+        """The threshold a candidate of this name must clear."""
+        return self.markov if name == MARKOV else self.catalogue
 
 
 def library_thresholds(candidates: list[Candidate], fit: Fit, z: np.ndarray, rng: np.random.Generator,
-                       alpha: float) -> tuple[float, float]:
-    """(the catalogue's threshold, the Markov candidate's): ``candidates.library_threshold`` twice.
+                       alpha: float) -> Thresholds:
+    """The catalogue's threshold and the Markov candidate's: ``candidates.library_threshold`` twice.
 
     The null columns are drawn once, in ``library_threshold``'s order (the same random draws).
     """
     columns = [c.null_scores(fit, z, rng) for c in candidates]
     if not columns:
         zero = order_statistic_quantile(np.zeros(z.shape[1]), 1.0 - alpha)
-        return zero, zero
+        return Thresholds(zero, zero)
     honest = order_statistic_quantile(np.max(np.vstack(columns), axis=0), 1.0 - alpha)
     former = [c.test.grid_null_scores() if isinstance(c, MarkovCandidate) else col
               for c, col in zip(candidates, columns, strict=True)]
-    return order_statistic_quantile(np.max(np.vstack(former), axis=0), 1.0 - alpha), honest
+    return Thresholds(order_statistic_quantile(np.max(np.vstack(former), axis=0), 1.0 - alpha), honest)

@@ -103,7 +103,7 @@ from gyrocal.analysis.discrepancy.line_drift import drifting_line
 from gyrocal.analysis.discrepancy.localized import with_localized
 from gyrocal.analysis.discrepancy.markov_covariates import unless_tied_to_covariates
 from gyrocal.analysis.discrepancy.markov_shapes import unless_deterministic_shape
-from gyrocal.analysis.discrepancy.markov_threshold import library_thresholds
+from gyrocal.analysis.discrepancy.markov_threshold import Thresholds, library_thresholds
 from gyrocal.analysis.discrepancy.noise_level import judged_by_level, noise_level_test
 from gyrocal.analysis.discrepancy.noise_model import NoiseEstimate, NoiseModel, estimate_noise
 from gyrocal.analysis.discrepancy.order_track import with_order_line
@@ -265,18 +265,19 @@ def _search_round(ctx: Context, state: SearchState, iteration: int) -> RoundOutc
     z = ctx.rng.standard_normal((ctx.bins.n_bins, ctx.n_null))
     candidates = [c for kind in KINDS for c in kind.propose(ctx, state, fit)]
     # the catalogue's threshold and the Markov candidate's (markov_threshold.py)
-    threshold, markov_threshold = library_thresholds(candidates, fit, z, ctx.rng, ALPHA / iteration)
+    thresholds = library_thresholds(candidates, fit, z, ctx.rng, ALPHA / iteration)
+    threshold = thresholds.catalogue
     probes = all_probes(fit, ctx.whitener, ctx.bins, ctx.probe_bins, z, ALPHA)
     if not candidates:
         return RoundOutcome(state, None, False)
     ranked = {c.name: c.score for c in candidates}
     record = Iteration(ranked, {c.name: c.delta_chi2 for c in candidates}, threshold, None, probes)
     by_name = {c.name: c for c in candidates}
-    choice = _choose(ctx, state, fit, by_name, threshold, probes, markov_threshold)
+    choice = _choose(ctx, state, fit, by_name, thresholds, probes)
     if choice.nonstationary is not None:
         state = state.noted(f"markov_bias not named: {choice.nonstationary}")
     best = choice.best
-    threshold = markov_threshold if best == MARKOV else threshold
+    threshold = thresholds.of(best)
     if best is None or ranked[best] <= threshold or choice.preempting is not None:
         return RoundOutcome(state, record, False, choice.preempting if best is not None else None,
                             choice.nonstationary)
@@ -291,8 +292,8 @@ def _search_round(ctx: Context, state: SearchState, iteration: int) -> RoundOutc
     return RoundOutcome(state, replace(record, accepted=best), True, None, choice.nonstationary)
 
 
-def _choose(ctx: Context, state: SearchState, fit: Fit, by_name: dict[str, Candidate], threshold: float,
-            probes: list[Probe], markov_threshold: float | None = None) -> Choice:
+def _choose(ctx: Context, state: SearchState, fit: Fit, by_name: dict[str, Candidate], thresholds: Thresholds,
+            probes: list[Probe]) -> Choice:
     """The best candidate once a Markov bias and deterministic structure have been weighed.
 
     A Markov bias must be stationary over the record, leave no probe the sharper
@@ -305,9 +306,9 @@ def _choose(ctx: Context, state: SearchState, fit: Fit, by_name: dict[str, Candi
     scores = {name: c.scores for name, c in by_name.items() if isinstance(c, CatalogueCandidate)}
     markov = by_name.get(MARKOV)
     test = markov.test if isinstance(markov, MarkovCandidate) else None
-    markov_threshold = threshold if markov_threshold is None else markov_threshold
-    best = _markov_or_structure(ctx, state, fit, by_name, test, threshold, markov_threshold)
-    if ranked[best] <= (markov_threshold if best == MARKOV else threshold):
+    threshold = thresholds.catalogue
+    best = _markov_or_structure(ctx, state, fit, by_name, test, thresholds)
+    if ranked[best] <= thresholds.of(best):
         return Choice(best)
     if best != MARKOV:
         return Choice(best, preempting_probe(ctx, fit, probes, by_name[best].probes_compete, best, scores,
@@ -330,8 +331,7 @@ def _choose(ctx: Context, state: SearchState, fit: Fit, by_name: dict[str, Candi
 
 
 def _markov_or_structure(ctx: Context, state: SearchState, fit: Fit, by_name: dict[str, Candidate],
-                         markov: StochasticCandidate | None, threshold: float,
-                         markov_threshold: float) -> str:
+                         markov: StochasticCandidate | None, thresholds: Thresholds) -> str:
     """The top-scoring candidate, unless a Markov bias and a deterministic shape explain each other.
 
     A slow shape that outscored the Markov bias but is only its wander gives way to it
@@ -344,13 +344,13 @@ def _markov_or_structure(ctx: Context, state: SearchState, fit: Fit, by_name: di
     scores = {name: c.scores for name, c in by_name.items() if isinstance(c, CatalogueCandidate)}
     rival = by_name[best]
     if isinstance(rival, CatalogueCandidate):
-        if (markov.score > markov_threshold and explained_by_markov(ctx, state.current, markov, rival.scores, threshold)
+        if (markov.score > thresholds.markov and explained_by_markov(ctx, state.current, markov, rival.scores, thresholds.catalogue)
                 and ((markov.lr >= rival.delta_chi2 and not markov.at_rrw_limit)
                      or markov_survives(ctx, fit, rival.scores.best.spec(fit.model)))):
             return MARKOV
         return best
     if best == MARKOV:
-        return structure_behind_markov(ctx, state.current, fit, markov, scores, threshold) or best
+        return structure_behind_markov(ctx, state.current, fit, markov, scores, thresholds.catalogue) or best
     return best
 
 
